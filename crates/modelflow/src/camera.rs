@@ -1,0 +1,285 @@
+//! The camera model shared by the renderer, the tracker, the baseline and the report.
+//!
+//! Convention (the contract of `docs/conventions.md`): OpenCV pinhole. A world point `X` maps to
+//! camera coordinates `x = R·X + t`; the camera looks down +z, image `u` grows to the right and `v`
+//! grows downwards; the pixel is `(u, v) = (K·x)[0..2] / x_z`. Pixel centres sit at integer
+//! coordinates: the top-left pixel's centre is `(0, 0)` and it covers `[-0.5, 0.5)²`.
+//!
+//! Internally every camera pose is a 3×4 projection matrix `P` (the thesis' P), normalised so that
+//! its left 3×3 block has a positive determinant and a unit third row: then `(P·[X;1])_z` is the
+//! point's depth along the optical axis, in world units.
+
+use nalgebra::{Matrix3, Matrix3x4, Point2, Point3, Vector3, Vector4};
+
+/// One camera pose at one frame: a normalised 3×4 projection matrix.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Projection {
+    p: Matrix3x4<f64>,
+    center: Point3<f64>,
+}
+
+/// Why a matrix is not a usable projection.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum ProjectionError {
+    /// Some entry is NaN or infinite.
+    NonFinite,
+    /// The left 3×3 block of P (K·R) is singular.
+    Singular,
+}
+
+impl std::fmt::Display for ProjectionError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            ProjectionError::NonFinite => write!(f, "has a non-finite entry"),
+            ProjectionError::Singular => {
+                write!(f, "is singular (its left 3x3 block K*R has no inverse)")
+            }
+        }
+    }
+}
+
+impl Projection {
+    /// `P = K·[R | t]`. The caller validates K and R (see `scene`); this only checks that the
+    /// product is finite and non-singular.
+    pub fn from_krt(
+        k: &Matrix3<f64>,
+        r: &Matrix3<f64>,
+        t: &Vector3<f64>,
+    ) -> Result<Self, ProjectionError> {
+        let mut rt = Matrix3x4::zeros();
+        rt.fixed_view_mut::<3, 3>(0, 0).copy_from(r);
+        rt.set_column(3, t);
+        Self::from_matrix(&(k * rt))
+    }
+
+    /// From a 3×4 projection matrix given up to scale (and sign).
+    pub fn from_matrix(p: &Matrix3x4<f64>) -> Result<Self, ProjectionError> {
+        if p.iter().any(|v| !v.is_finite()) {
+            return Err(ProjectionError::NonFinite);
+        }
+        let m: Matrix3<f64> = p.fixed_view::<3, 3>(0, 0).into_owned();
+        let det = m.determinant();
+        let row3 = m.row(2).norm();
+        if !det.is_finite() || row3 == 0.0 || det.abs() <= 1e-12 * m.norm().powi(3) {
+            return Err(ProjectionError::Singular);
+        }
+        let scale = det.signum() / row3;
+        let p = p * scale;
+        let m = m * scale;
+        let minv = m.try_inverse().ok_or(ProjectionError::Singular)?;
+        let center = Point3::from(-(minv * p.column(3)));
+        Ok(Projection { p, center })
+    }
+
+    /// The normalised 3×4 matrix.
+    pub fn matrix(&self) -> &Matrix3x4<f64> {
+        &self.p
+    }
+
+    /// The camera centre in world coordinates.
+    pub fn center(&self) -> Point3<f64> {
+        self.center
+    }
+
+    /// Homogeneous image point `P·[X;1]`; its third entry is the depth.
+    #[inline]
+    pub fn project_h(&self, x: &Point3<f64>) -> Vector3<f64> {
+        self.p * Vector4::new(x.x, x.y, x.z, 1.0)
+    }
+
+    /// Depth of a world point along the optical axis (negative behind the camera).
+    #[inline]
+    pub fn depth(&self, x: &Point3<f64>) -> f64 {
+        self.project_h(x).z
+    }
+
+    /// Pixel coordinates of a world point, or `None` if it is not in front of the camera.
+    #[inline]
+    pub fn project(&self, x: &Point3<f64>) -> Option<Point2<f64>> {
+        let h = self.project_h(x);
+        (h.z > 0.0).then(|| Point2::new(h.x / h.z, h.y / h.z))
+    }
+
+    /// The same camera for an image downsampled by an integer `factor` (pixel `i` of the small
+    /// image averages pixels `factor·i .. factor·i + factor - 1`). With centres at integer
+    /// coordinates, `u_small = (u + 0.5) / factor - 0.5`.
+    pub fn downscaled(&self, factor: u32) -> Projection {
+        let s = 1.0 / factor as f64;
+        let off = 0.5 * s - 0.5;
+        let a = Matrix3::new(s, 0.0, off, 0.0, s, off, 0.0, 0.0, 1.0);
+        Projection {
+            p: a * self.p,
+            center: self.center,
+        }
+    }
+}
+
+/// A calibrated camera over a sequence: its image size, its name and one pose per frame (or one
+/// for all frames when it is static).
+#[derive(Clone, Debug)]
+pub struct Camera {
+    pub name: String,
+    pub width: u32,
+    pub height: u32,
+    first_frame: u32,
+    poses: Vec<Projection>,
+}
+
+impl Camera {
+    /// A camera that does not move.
+    pub fn fixed(name: impl Into<String>, width: u32, height: u32, pose: Projection) -> Self {
+        Camera {
+            name: name.into(),
+            width,
+            height,
+            first_frame: 0,
+            poses: vec![pose],
+        }
+    }
+
+    /// A moving camera with one pose per frame, starting at `first_frame`.
+    pub fn moving(
+        name: impl Into<String>,
+        width: u32,
+        height: u32,
+        first_frame: u32,
+        poses: Vec<Projection>,
+    ) -> Self {
+        assert!(!poses.is_empty(), "a camera needs at least one pose");
+        Camera {
+            name: name.into(),
+            width,
+            height,
+            first_frame,
+            poses,
+        }
+    }
+
+    /// Whether the camera has a pose per frame.
+    pub fn is_moving(&self) -> bool {
+        self.poses.len() > 1
+    }
+
+    /// The pose at `frame` (the last known pose past the end, the first before the start).
+    pub fn at(&self, frame: u32) -> &Projection {
+        if self.poses.len() == 1 {
+            return &self.poses[0];
+        }
+        let i = frame.saturating_sub(self.first_frame) as usize;
+        &self.poses[i.min(self.poses.len() - 1)]
+    }
+
+    /// All poses (one for a fixed camera).
+    pub fn poses(&self) -> &[Projection] {
+        &self.poses
+    }
+
+    /// The first frame of the pose list.
+    pub fn first_frame(&self) -> u32 {
+        self.first_frame
+    }
+
+    /// Whether a pixel position lies inside the image (pixel centres at integers).
+    #[inline]
+    pub fn contains(&self, p: &Point2<f64>) -> bool {
+        p.x >= -0.5
+            && p.y >= -0.5
+            && p.x < self.width as f64 - 0.5
+            && p.y < self.height as f64 - 0.5
+    }
+}
+
+/// `true` if `r` is a rotation matrix (orthonormal, determinant +1) within `tol`.
+pub fn is_rotation(r: &Matrix3<f64>, tol: f64) -> bool {
+    r.iter().all(|v| v.is_finite())
+        && (r.transpose() * r - Matrix3::identity()).abs().max() <= tol
+        && (r.determinant() - 1.0).abs() <= tol
+}
+
+/// A camera looking from `eye` at `target` with `up` roughly up in the image, as (R, t) in the
+/// OpenCV convention (+z forward, +y down in the image).
+pub fn look_at(
+    eye: &Point3<f64>,
+    target: &Point3<f64>,
+    up: &Vector3<f64>,
+) -> (Matrix3<f64>, Vector3<f64>) {
+    let z = (target - eye).normalize();
+    let x = z.cross(up).normalize();
+    let y = z.cross(&x);
+    let r = Matrix3::from_rows(&[x.transpose(), y.transpose(), z.transpose()]);
+    let t = -(r * eye.coords);
+    (r, t)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn cam() -> Projection {
+        let k = Matrix3::new(500.0, 0.0, 319.5, 0.0, 400.0, 239.5, 0.0, 0.0, 1.0);
+        Projection::from_krt(&k, &Matrix3::identity(), &Vector3::new(0.0, 0.0, 2.0)).unwrap()
+    }
+
+    #[test]
+    fn projects_with_exact_opencv_values() {
+        let p = cam();
+        // On the optical axis: the principal point.
+        let c = p.project(&Point3::new(0.0, 0.0, 0.0)).unwrap();
+        assert_eq!((c.x, c.y), (319.5, 239.5));
+        // x = (0.2, -0.1, 2.0 + 0.5) -> u = 500*0.2/2.5 + 319.5 = 359.5, v = 400*(-0.1)/2.5 + 239.5 = 223.5
+        let q = p.project(&Point3::new(0.2, -0.1, 0.5)).unwrap();
+        assert!(
+            (q.x - 359.5).abs() < 1e-12 && (q.y - 223.5).abs() < 1e-12,
+            "{q:?}"
+        );
+        assert!((p.depth(&Point3::new(0.2, -0.1, 0.5)) - 2.5).abs() < 1e-12);
+        assert!(
+            p.project(&Point3::new(0.0, 0.0, -3.0)).is_none(),
+            "behind the camera"
+        );
+        assert!((p.center() - Point3::new(0.0, 0.0, -2.0)).norm() < 1e-12);
+    }
+
+    #[test]
+    fn matrix_up_to_scale_and_sign_gives_same_depth() {
+        let p = cam();
+        let q = Projection::from_matrix(&(p.matrix() * -3.7)).unwrap();
+        let x = Point3::new(0.3, 0.2, 1.0);
+        assert!((p.depth(&x) - q.depth(&x)).abs() < 1e-12);
+        assert!((p.project(&x).unwrap() - q.project(&x).unwrap()).norm() < 1e-9);
+    }
+
+    #[test]
+    fn singular_and_nonfinite_rejected() {
+        let mut m = *cam().matrix();
+        m[(0, 0)] = f64::NAN;
+        assert_eq!(Projection::from_matrix(&m), Err(ProjectionError::NonFinite));
+        let z = Matrix3x4::zeros();
+        assert_eq!(Projection::from_matrix(&z), Err(ProjectionError::Singular));
+    }
+
+    #[test]
+    fn downscaling_keeps_pixel_centres() {
+        let p = cam();
+        let x = Point3::new(0.13, 0.07, 0.4);
+        let a = p.project(&x).unwrap();
+        let b = p.downscaled(2).project(&x).unwrap();
+        assert!((b.x - ((a.x + 0.5) / 2.0 - 0.5)).abs() < 1e-12);
+        assert!((b.y - ((a.y + 0.5) / 2.0 - 0.5)).abs() < 1e-12);
+    }
+
+    #[test]
+    fn look_at_points_camera_at_target() {
+        let (r, t) = look_at(
+            &Point3::new(1.0, -3.0, 0.5),
+            &Point3::origin(),
+            &Vector3::z(),
+        );
+        assert!(is_rotation(&r, 1e-12));
+        let xc = r * Vector3::zeros() + t;
+        assert!(xc.x.abs() < 1e-12 && xc.y.abs() < 1e-12 && xc.z > 0.0);
+        // World up (+z) appears upwards in the image, i.e. towards -v.
+        let up = r * Vector3::new(0.0, 0.0, 1.0);
+        assert!(up.y < 0.0);
+    }
+}

@@ -1,0 +1,243 @@
+//! In-memory images: RGB, `f32` per channel, interleaved, row-major, values nominally in [0, 1]
+//! (the file's encoded values, not linearised). Sampling follows the pixel-centre convention of
+//! `camera`: pixel `(i, j)` has its centre at `(u, v) = (i, j)`.
+//!
+//! Bilinear sampling, gradients, blurring and 2× reduction are written here by hand because the
+//! tracker's inner loop needs them fused and allocation-free, which no image crate offers.
+
+/// An RGB image with `f32` channels.
+#[derive(Clone, Debug, PartialEq)]
+pub struct RgbImage {
+    width: usize,
+    height: usize,
+    data: Vec<[f32; 3]>,
+}
+
+impl RgbImage {
+    /// A black image. Panics if a side is zero (callers validate sizes first).
+    pub fn new(width: usize, height: usize) -> Self {
+        assert!(width > 0 && height > 0, "image sides must be positive");
+        RgbImage {
+            width,
+            height,
+            data: vec![[0.0; 3]; width * height],
+        }
+    }
+
+    /// From row-major interleaved pixels; `None` if the length does not match.
+    pub fn from_pixels(width: usize, height: usize, data: Vec<[f32; 3]>) -> Option<Self> {
+        (width > 0 && height > 0 && data.len() == width * height).then_some(RgbImage {
+            width,
+            height,
+            data,
+        })
+    }
+
+    /// Fills each pixel from a function of its integer coordinates.
+    pub fn from_fn(
+        width: usize,
+        height: usize,
+        mut f: impl FnMut(usize, usize) -> [f32; 3],
+    ) -> Self {
+        let mut img = RgbImage::new(width, height);
+        for y in 0..height {
+            for x in 0..width {
+                img.data[y * width + x] = f(x, y);
+            }
+        }
+        img
+    }
+
+    pub fn width(&self) -> usize {
+        self.width
+    }
+
+    pub fn height(&self) -> usize {
+        self.height
+    }
+
+    pub fn pixels(&self) -> &[[f32; 3]] {
+        &self.data
+    }
+
+    pub fn pixels_mut(&mut self) -> &mut [[f32; 3]] {
+        &mut self.data
+    }
+
+    #[inline]
+    pub fn get(&self, x: usize, y: usize) -> [f32; 3] {
+        self.data[y * self.width + x]
+    }
+
+    #[inline]
+    pub fn set(&mut self, x: usize, y: usize, v: [f32; 3]) {
+        self.data[y * self.width + x] = v;
+    }
+
+    /// Whether a bilinear sample at `(u, v)` touches only pixels inside the image.
+    #[inline]
+    pub fn inside(&self, u: f64, v: f64) -> bool {
+        u >= 0.0 && v >= 0.0 && u <= (self.width - 1) as f64 && v <= (self.height - 1) as f64
+    }
+
+    /// Bilinear sample at `(u, v)`, or `None` outside `[0, w-1] × [0, h-1]`.
+    #[inline]
+    pub fn sample(&self, u: f64, v: f64) -> Option<[f32; 3]> {
+        if !self.inside(u, v) {
+            return None;
+        }
+        Some(self.sample_unchecked(u, v))
+    }
+
+    /// Bilinear sample at a point known to be inside (see [`RgbImage::inside`]).
+    #[inline]
+    pub fn sample_unchecked(&self, u: f64, v: f64) -> [f32; 3] {
+        let x0 = (u.floor() as usize).min(self.width.saturating_sub(2));
+        let y0 = (v.floor() as usize).min(self.height.saturating_sub(2));
+        let fx = (u - x0 as f64) as f32;
+        let fy = (v - y0 as f64) as f32;
+        let x1 = (x0 + 1).min(self.width - 1);
+        let y1 = (y0 + 1).min(self.height - 1);
+        let a = self.data[y0 * self.width + x0];
+        let b = self.data[y0 * self.width + x1];
+        let c = self.data[y1 * self.width + x0];
+        let d = self.data[y1 * self.width + x1];
+        let mut out = [0.0f32; 3];
+        for ch in 0..3 {
+            let top = a[ch] + (b[ch] - a[ch]) * fx;
+            let bot = c[ch] + (d[ch] - c[ch]) * fx;
+            out[ch] = top + (bot - top) * fy;
+        }
+        out
+    }
+
+    /// Central-difference gradients `(∂I/∂u, ∂I/∂v)` per channel (one-sided at the border).
+    pub fn gradients(&self) -> (RgbImage, RgbImage) {
+        let (w, h) = (self.width, self.height);
+        let mut gx = RgbImage::new(w, h);
+        let mut gy = RgbImage::new(w, h);
+        for y in 0..h {
+            let (ym, yp) = (y.saturating_sub(1), (y + 1).min(h - 1));
+            for x in 0..w {
+                let (xm, xp) = (x.saturating_sub(1), (x + 1).min(w - 1));
+                let sx = if xp > xm { 1.0 / (xp - xm) as f32 } else { 0.0 };
+                let sy = if yp > ym { 1.0 / (yp - ym) as f32 } else { 0.0 };
+                let (l, r) = (self.get(xm, y), self.get(xp, y));
+                let (u, d) = (self.get(x, ym), self.get(x, yp));
+                gx.set(
+                    x,
+                    y,
+                    [(r[0] - l[0]) * sx, (r[1] - l[1]) * sx, (r[2] - l[2]) * sx],
+                );
+                gy.set(
+                    x,
+                    y,
+                    [(d[0] - u[0]) * sy, (d[1] - u[1]) * sy, (d[2] - u[2]) * sy],
+                );
+            }
+        }
+        (gx, gy)
+    }
+
+    /// Half-size image by averaging 2×2 blocks (odd last rows/columns are averaged with fewer
+    /// pixels). Pixel `i` of the result is centred at `2i + 0.5` of this one, matching
+    /// [`crate::camera::Projection::downscaled`].
+    pub fn downsample2(&self) -> RgbImage {
+        let w2 = self.width.div_ceil(2).max(1);
+        let h2 = self.height.div_ceil(2).max(1);
+        RgbImage::from_fn(w2, h2, |x, y| {
+            let mut acc = [0.0f32; 3];
+            let mut n = 0.0f32;
+            for yy in (2 * y)..(2 * y + 2).min(self.height) {
+                for xx in (2 * x)..(2 * x + 2).min(self.width) {
+                    let p = self.get(xx, yy);
+                    acc[0] += p[0];
+                    acc[1] += p[1];
+                    acc[2] += p[2];
+                    n += 1.0;
+                }
+            }
+            [acc[0] / n, acc[1] / n, acc[2] / n]
+        })
+    }
+
+    /// Separable Gaussian blur with standard deviation `sigma` pixels (clamped borders).
+    pub fn blurred(&self, sigma: f64) -> RgbImage {
+        if sigma <= 0.0 {
+            return self.clone();
+        }
+        let radius = (3.0 * sigma).ceil() as isize;
+        let mut kernel: Vec<f32> = (-radius..=radius)
+            .map(|i| (-(i * i) as f64 / (2.0 * sigma * sigma)).exp() as f32)
+            .collect();
+        let sum: f32 = kernel.iter().sum();
+        kernel.iter_mut().for_each(|k| *k /= sum);
+        let (w, h) = (self.width as isize, self.height as isize);
+        let pass = |src: &RgbImage, horizontal: bool| {
+            RgbImage::from_fn(src.width, src.height, |x, y| {
+                let mut acc = [0.0f32; 3];
+                for (k, &kv) in kernel.iter().enumerate() {
+                    let o = k as isize - radius;
+                    let (sx, sy) = if horizontal {
+                        ((x as isize + o).clamp(0, w - 1), y as isize)
+                    } else {
+                        (x as isize, (y as isize + o).clamp(0, h - 1))
+                    };
+                    let p = src.get(sx as usize, sy as usize);
+                    acc[0] += kv * p[0];
+                    acc[1] += kv * p[1];
+                    acc[2] += kv * p[2];
+                }
+                acc
+            })
+        };
+        pass(&pass(self, true), false)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn ramp() -> RgbImage {
+        RgbImage::from_fn(8, 6, |x, y| [x as f32, y as f32, (x + 10 * y) as f32])
+    }
+
+    #[test]
+    fn bilinear_is_exact_on_pixel_centres_and_linear_between() {
+        let img = ramp();
+        assert_eq!(img.sample(3.0, 2.0), Some([3.0, 2.0, 23.0]));
+        let s = img.sample(2.25, 4.5).unwrap();
+        assert!(
+            (s[0] - 2.25).abs() < 1e-6 && (s[1] - 4.5).abs() < 1e-6 && (s[2] - 47.25).abs() < 1e-5
+        );
+        assert_eq!(img.sample(7.0, 5.0), Some([7.0, 5.0, 57.0]));
+        assert!(img.sample(-0.01, 0.0).is_none() && img.sample(0.0, 5.01).is_none());
+    }
+
+    #[test]
+    fn gradient_of_a_ramp_is_its_slope() {
+        let (gx, gy) = ramp().gradients();
+        assert_eq!(gx.get(3, 3), [1.0, 0.0, 1.0]);
+        assert_eq!(gy.get(3, 3), [0.0, 1.0, 10.0]);
+        assert_eq!(gx.get(0, 0), [1.0, 0.0, 1.0]);
+    }
+
+    #[test]
+    fn downsample_centres_follow_the_convention() {
+        // A linear ramp in u: averaging pixels 2i and 2i+1 gives the value at 2i + 0.5.
+        let small = ramp().downsample2();
+        assert_eq!((small.width(), small.height()), (4, 3));
+        assert_eq!(small.get(1, 1)[0], 2.5);
+        assert_eq!(small.get(1, 1)[1], 2.5);
+    }
+
+    #[test]
+    fn blur_preserves_constant_and_mean() {
+        let img = RgbImage::from_fn(9, 9, |_, _| [0.25, 0.5, 0.75]);
+        let b = img.blurred(1.5);
+        for p in b.pixels() {
+            assert!((p[0] - 0.25).abs() < 1e-6 && (p[2] - 0.75).abs() < 1e-6);
+        }
+    }
+}

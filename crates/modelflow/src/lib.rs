@@ -1,0 +1,10 @@
+//! modelflow: markerless capture of deforming geometry from calibrated, synchronised multi-view
+//! footage, after "Model Flowing" (Reuterswärd, 2005). See `ARCHITECTURE.md` for the map.
+
+pub mod camera;
+pub mod error;
+pub mod image;
+pub mod mesh;
+pub mod scene;
+
+pub use error::{Error, Result};

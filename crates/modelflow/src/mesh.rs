@@ -1,0 +1,155 @@
+//! Triangle meshes: vertex positions, triangles as index triples, optional per-vertex texture
+//! coordinates, and the topology queries the tracker needs (edges, closedness, neighbours).
+//! Reading and writing files lives in `meshio`; this module does no I/O.
+
+use nalgebra::{Point3, Vector3};
+use std::collections::HashMap;
+
+/// A triangle mesh. Every tracked frame shares the topology of the input mesh; only positions change.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Mesh {
+    pub positions: Vec<Point3<f64>>,
+    pub triangles: Vec<[u32; 3]>,
+    /// Per-vertex texture coordinates, if the file had them (synthetic footage uses them).
+    pub uvs: Option<Vec<[f64; 2]>>,
+}
+
+impl Mesh {
+    pub fn new(positions: Vec<Point3<f64>>, triangles: Vec<[u32; 3]>) -> Self {
+        Mesh {
+            positions,
+            triangles,
+            uvs: None,
+        }
+    }
+
+    /// The same topology with other positions.
+    pub fn with_positions(&self, positions: Vec<Point3<f64>>) -> Self {
+        assert_eq!(positions.len(), self.positions.len());
+        Mesh {
+            positions,
+            triangles: self.triangles.clone(),
+            uvs: self.uvs.clone(),
+        }
+    }
+
+    pub fn vertex_count(&self) -> usize {
+        self.positions.len()
+    }
+
+    /// Unique undirected edges `(a, b)` with `a < b`, sorted.
+    pub fn edges(&self) -> Vec<[u32; 2]> {
+        let mut e: Vec<[u32; 2]> = self
+            .triangles
+            .iter()
+            .flat_map(|t| [[t[0], t[1]], [t[1], t[2]], [t[2], t[0]]])
+            .map(|[a, b]| if a < b { [a, b] } else { [b, a] })
+            .collect();
+        e.sort_unstable();
+        e.dedup();
+        e
+    }
+
+    /// Whether every edge is shared by exactly two triangles (a closed, manifold surface).
+    pub fn is_closed(&self) -> bool {
+        let mut count: HashMap<[u32; 2], u32> = HashMap::new();
+        for t in &self.triangles {
+            for [a, b] in [[t[0], t[1]], [t[1], t[2]], [t[2], t[0]]] {
+                *count
+                    .entry(if a < b { [a, b] } else { [b, a] })
+                    .or_default() += 1;
+            }
+        }
+        !count.is_empty() && count.values().all(|&c| c == 2)
+    }
+
+    /// Unnormalised normal of triangle `i` (right-handed: counter-clockwise seen from its front).
+    pub fn triangle_normal(&self, i: usize) -> Vector3<f64> {
+        let [a, b, c] = self.triangles[i].map(|v| self.positions[v as usize]);
+        (b - a).cross(&(c - a))
+    }
+
+    /// Length of the diagonal of the axis-aligned bounding box.
+    pub fn bbox_diagonal(&self) -> f64 {
+        bbox_diagonal(&self.positions)
+    }
+}
+
+/// Length of the diagonal of the axis-aligned bounding box of some points (0 if empty).
+pub fn bbox_diagonal(points: &[Point3<f64>]) -> f64 {
+    let Some(first) = points.first() else {
+        return 0.0;
+    };
+    let (mut lo, mut hi) = (first.coords, first.coords);
+    for p in points {
+        lo = lo.inf(&p.coords);
+        hi = hi.sup(&p.coords);
+    }
+    (hi - lo).norm()
+}
+
+/// A regular grid of `nx × ny` vertices spanning `[0,1]²` in uv, triangulated with alternating
+/// diagonals; `place(u, v)` gives each vertex's position. Used by synthetic footage and tests.
+pub fn grid(nx: usize, ny: usize, place: impl Fn(f64, f64) -> Point3<f64>) -> Mesh {
+    assert!(nx >= 2 && ny >= 2);
+    let mut positions = Vec::with_capacity(nx * ny);
+    let mut uvs = Vec::with_capacity(nx * ny);
+    for j in 0..ny {
+        for i in 0..nx {
+            let (u, v) = (i as f64 / (nx - 1) as f64, j as f64 / (ny - 1) as f64);
+            positions.push(place(u, v));
+            uvs.push([u, v]);
+        }
+    }
+    let mut triangles = Vec::with_capacity(2 * (nx - 1) * (ny - 1));
+    for j in 0..ny - 1 {
+        for i in 0..nx - 1 {
+            let a = (j * nx + i) as u32;
+            let (b, c, d) = (a + 1, a + nx as u32, a + nx as u32 + 1);
+            if (i + j) % 2 == 0 {
+                triangles.push([a, b, d]);
+                triangles.push([a, d, c]);
+            } else {
+                triangles.push([a, b, c]);
+                triangles.push([b, d, c]);
+            }
+        }
+    }
+    Mesh {
+        positions,
+        triangles,
+        uvs: Some(uvs),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn grid_topology() {
+        let m = grid(3, 3, |u, v| Point3::new(u, v, 0.0));
+        assert_eq!(m.positions.len(), 9);
+        assert_eq!(m.triangles.len(), 8);
+        // 12 outer/inner grid edges + 4 diagonals.
+        assert_eq!(m.edges().len(), 16);
+        assert!(!m.is_closed());
+        // All triangles face +z.
+        for i in 0..m.triangles.len() {
+            assert!(m.triangle_normal(i).z > 0.0);
+        }
+        assert!((m.bbox_diagonal() - 2f64.sqrt()).abs() < 1e-12);
+    }
+
+    #[test]
+    fn tetrahedron_is_closed() {
+        let p = vec![
+            Point3::new(0.0, 0.0, 0.0),
+            Point3::new(1.0, 0.0, 0.0),
+            Point3::new(0.0, 1.0, 0.0),
+            Point3::new(0.0, 0.0, 1.0),
+        ];
+        let m = Mesh::new(p, vec![[0, 2, 1], [0, 1, 3], [1, 2, 3], [0, 3, 2]]);
+        assert!(m.is_closed());
+    }
+}
