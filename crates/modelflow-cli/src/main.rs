@@ -1,1 +1,31 @@
-fn main() {}
+//! The `modelflow` command: parses arguments and dispatches to the library. Each subcommand lives
+//! in its own module (`<name>.rs`) holding its clap `Args` and a `run` function; no algorithm
+//! lives in the binary.
+
+use clap::{Parser, Subcommand};
+
+#[derive(Parser)]
+#[command(
+    name = "modelflow",
+    version,
+    about = "Markerless capture of deforming geometry from calibrated multi-view footage"
+)]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand)]
+enum Command {}
+
+fn main() -> std::process::ExitCode {
+    let cli = Cli::parse();
+    let result: anyhow::Result<()> = match cli.command {};
+    match result {
+        Ok(()) => std::process::ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("error: {e:#}");
+            std::process::ExitCode::FAILURE
+        }
+    }
+}

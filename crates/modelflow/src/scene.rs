@@ -4,7 +4,60 @@
 
 use crate::camera::Camera;
 use crate::mesh::Mesh;
+use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
+
+/// The format tag of this version of the scene format.
+pub const FORMAT: &str = "modelflow-scene/1";
+
+/// The scene file as it is on disk (serde mirror of the JSON). `Scene::load` turns it into a
+/// validated [`Scene`]; synthetic footage builds one and writes it.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SceneFile {
+    pub format: String,
+    pub frames: FrameRange,
+    pub mesh: String,
+    pub cameras: Vec<CameraEntry>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub ground_truth: Option<String>,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct FrameRange {
+    pub first: u32,
+    pub last: u32,
+}
+
+/// One camera entry: either `K` with `R`,`t` (static) or `poses` (moving), or `P` per frame.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct CameraEntry {
+    pub name: String,
+    pub width: u32,
+    pub height: u32,
+    #[serde(rename = "K", default, skip_serializing_if = "Option::is_none")]
+    pub k: Option<[[f64; 3]; 3]>,
+    #[serde(rename = "R", default, skip_serializing_if = "Option::is_none")]
+    pub r: Option<[[f64; 3]; 3]>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub t: Option<[f64; 3]>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub poses: Option<Vec<PoseEntry>>,
+    #[serde(rename = "P", default, skip_serializing_if = "Option::is_none")]
+    pub p: Option<Vec<[[f64; 4]; 3]>>,
+    pub images: String,
+}
+
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct PoseEntry {
+    pub frame: u32,
+    #[serde(rename = "R")]
+    pub r: [[f64; 3]; 3],
+    pub t: [f64; 3],
+}
 
 /// A path pattern in which `{frame}` or `{frame:0N}` stands for the frame number, resolved
 /// relative to the scene file's folder.
