@@ -6,6 +6,7 @@ pub mod error;
 pub mod fsutil;
 pub mod image;
 pub mod mesh;
+pub mod raster;
 pub mod scene;
 
 pub use error::{Error, Result};
