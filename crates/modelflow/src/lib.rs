@@ -6,7 +6,9 @@ pub mod error;
 pub mod fsutil;
 pub mod image;
 pub mod mesh;
+pub mod pyramid;
 pub mod raster;
 pub mod scene;
+pub mod warp;
 
 pub use error::{Error, Result};
