@@ -9,6 +9,8 @@ pub mod mesh;
 pub mod pyramid;
 pub mod raster;
 pub mod scene;
+pub mod sparse;
+pub mod springs;
 pub mod warp;
 
 pub use error::{Error, Result};
