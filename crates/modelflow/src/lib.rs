@@ -6,11 +6,14 @@ pub mod error;
 pub mod fsutil;
 pub mod image;
 pub mod mesh;
+pub mod patch;
 pub mod pyramid;
 pub mod raster;
 pub mod scene;
+pub mod solve;
 pub mod sparse;
 pub mod springs;
+pub mod track;
 pub mod warp;
 
 pub use error::{Error, Result};
