@@ -5,7 +5,9 @@ pub mod camera;
 pub mod error;
 pub mod fsutil;
 pub mod image;
+pub mod imageio;
 pub mod mesh;
+pub mod meshio;
 pub mod scene;
 
 pub use error::{Error, Result};
