@@ -3,6 +3,7 @@
 
 pub mod camera;
 pub mod error;
+pub mod eval;
 pub mod fsutil;
 pub mod image;
 pub mod imageio;
