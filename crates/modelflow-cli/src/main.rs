@@ -5,6 +5,8 @@
 use clap::{Parser, Subcommand};
 
 mod eval;
+mod progress;
+mod track;
 
 #[derive(Parser)]
 #[command(
@@ -21,12 +23,15 @@ struct Cli {
 enum Command {
     /// Score a run folder against the scene's ground truth.
     Eval(eval::Args),
+    /// Track the scene's mesh through every frame (Model Flow).
+    Track(track::Args),
 }
 
 fn main() -> std::process::ExitCode {
     let cli = Cli::parse();
     let result: anyhow::Result<()> = match cli.command {
         Command::Eval(a) => eval::run(a),
+        Command::Track(a) => track::run(a),
     };
     match result {
         Ok(()) => std::process::ExitCode::SUCCESS,

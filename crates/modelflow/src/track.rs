@@ -266,3 +266,107 @@ fn merge(sets: Vec<PatchSet>) -> PatchSet {
     }
     out
 }
+
+/// One line of a run's `log.jsonl`.
+#[derive(Clone, Debug, Serialize)]
+pub struct FrameLog {
+    #[serde(flatten)]
+    pub report: FrameReport,
+    /// Time spent reading this frame's images (overlapped with the previous frame's solve).
+    pub load_seconds: f64,
+    /// Wall time from the end of the previous frame to the end of this one (what a user waits).
+    pub wall_seconds: f64,
+}
+
+/// Summary of a tracked shot.
+#[derive(Clone, Debug, Serialize)]
+pub struct TrackSummary {
+    pub frames: usize,
+    pub total_seconds: f64,
+    /// Median wall time per solved frame, image loading included.
+    pub median_frame_seconds: f64,
+    pub median_iterations: f64,
+}
+
+/// Name of a frame's mesh file in a run folder.
+pub fn frame_file(frame: u32) -> String {
+    format!("{frame:04}.obj")
+}
+
+/// Tracks a whole scene: writes `out_dir/{frame:04}.obj` for every frame (the first one is the
+/// input mesh) and `out_dir/log.jsonl`, calling `on_frame` after each solved frame. Every file is
+/// written atomically; the log is rewritten after each frame so an interrupted run keeps a
+/// consistent log of what it finished. The next frame's images are read while the current frame
+/// is solved.
+pub fn track_scene(
+    scene: &crate::scene::Scene,
+    opts: &TrackOptions,
+    out_dir: &std::path::Path,
+    on_frame: &mut dyn FnMut(&FrameLog),
+) -> Result<TrackSummary> {
+    use crate::fsutil::write_atomic;
+    use crate::meshio::write_obj;
+    let t_start = Instant::now();
+    std::fs::create_dir_all(out_dir).map_err(|e| Error::io(out_dir, e))?;
+    write_obj(&out_dir.join(frame_file(scene.first)), &scene.mesh)?;
+    let first_images = scene.load_images(scene.first)?;
+    let mut tracker = Tracker::new(&scene.mesh, scene.cameras.clone(), scene.first, &first_images, *opts)?;
+    drop(first_images);
+    let log_path = out_dir.join("log.jsonl");
+    let mut log = String::new();
+    write_atomic(&log_path, log.as_bytes())?;
+    let mut walls = Vec::new();
+    let mut iters = Vec::new();
+    if scene.first == scene.last {
+        return Ok(TrackSummary { frames: 1, total_seconds: t_start.elapsed().as_secs_f64(), median_frame_seconds: 0.0, median_iterations: 0.0 });
+    }
+    let t_load = Instant::now();
+    let mut pending = scene.load_images(scene.first + 1).map(|imgs| (imgs, t_load.elapsed().as_secs_f64()));
+    let mut t_frame = Instant::now();
+    for frame in scene.first + 1..=scene.last {
+        let (images, load_seconds) = pending?;
+        let has_next = frame < scene.last;
+        let (report, next) = rayon::join(
+            || tracker.step(frame, &images),
+            || {
+                has_next.then(|| {
+                    let t = Instant::now();
+                    scene.load_images(frame + 1).map(|imgs| (imgs, t.elapsed().as_secs_f64()))
+                })
+            },
+        );
+        let report = report?;
+        let mesh = scene.mesh.with_positions(tracker.positions().to_vec());
+        write_obj(&out_dir.join(frame_file(frame)), &mesh)?;
+        let wall = t_frame.elapsed().as_secs_f64();
+        t_frame = Instant::now();
+        walls.push(wall);
+        iters.push(report.iterations as f64);
+        let entry = FrameLog { report, load_seconds, wall_seconds: wall };
+        log.push_str(&serde_json::to_string(&entry).map_err(|e| Error::Usage(format!("log: {e}")))?);
+        log.push('\n');
+        write_atomic(&log_path, log.as_bytes())?;
+        on_frame(&entry);
+        pending = match next {
+            Some(r) => r,
+            None => Err(Error::Usage(String::new())),
+        };
+    }
+    Ok(TrackSummary {
+        frames: (scene.last - scene.first + 1) as usize,
+        total_seconds: t_start.elapsed().as_secs_f64(),
+        median_frame_seconds: median(&walls),
+        median_iterations: median(&iters),
+    })
+}
+
+/// Median of a list (0 if empty).
+pub fn median(v: &[f64]) -> f64 {
+    if v.is_empty() {
+        return 0.0;
+    }
+    let mut s = v.to_vec();
+    s.sort_by(|a, b| a.total_cmp(b));
+    let n = s.len();
+    if n % 2 == 1 { s[n / 2] } else { 0.5 * (s[n / 2 - 1] + s[n / 2]) }
+}
