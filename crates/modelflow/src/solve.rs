@@ -17,7 +17,7 @@ use crate::patch::{Patch, PixelSample};
 use crate::pyramid::GradientImage;
 use crate::sparse::{solve_pcg, BlockSparse};
 use crate::springs::{edge_term, EdgeSet, SpringParams};
-use crate::warp::{pixel_derivatives, warp_h};
+use crate::warp::warp_h;
 use nalgebra::{Matrix3, Point3, Vector3};
 use rayon::prelude::*;
 use serde::Serialize;
@@ -53,9 +53,9 @@ impl Default for SolverOptions {
                 membrane: 0.1,
             },
             damping: 1e-4,
-            max_rejections: 3,
-            cg_tolerance: 1e-6,
-            cg_max_iterations: 300,
+            max_rejections: 1,
+            cg_tolerance: 1e-3,
+            cg_max_iterations: 100,
         }
     }
 }
@@ -147,18 +147,25 @@ impl Problem<'_> {
             let proj = &self.projections[cam];
             let img = self.targets[cam];
             let y = xs.map(|p| proj.project_h(&p));
-            let m: Matrix3<f64> = proj.matrix().fixed_view::<3, 3>(0, 0).into_owned();
+            let pm = proj.matrix();
+            let m = [
+                [pm[(0, 0)], pm[(0, 1)], pm[(0, 2)]],
+                [pm[(1, 0)], pm[(1, 1)], pm[(1, 2)]],
+                [pm[(2, 0)], pm[(2, 1)], pm[(2, 2)]],
+            ];
             let pw = patch.weight as f64;
-            // Per-patch sums, folded into the triangle's blocks once per patch.
-            let mut hp = [Matrix3::<f64>::zeros(); 6];
-            let mut gp = [Vector3::<f64>::zeros(); 3];
+            // Per-patch sums of the six distinct 3×3 vertex-pair blocks, each kept as its six
+            // distinct entries (every block is symmetric), folded into the triangle once.
+            let mut hp = [[0.0f64; 6]; 6];
+            let mut gp = [[0.0f64; 3]; 3];
             for px in &self.pixels[patch.start as usize..patch.end as usize] {
                 let l = [px.lambda[0] as f64, px.lambda[1] as f64, px.lambda[2] as f64];
                 let h = warp_h(&l, &y);
                 if !(h.z > 0.0) {
                     continue;
                 }
-                let (u, v) = (h.x / h.z, h.y / h.z);
+                let inv = 1.0 / h.z;
+                let (u, v) = (h.x * inv, h.y * inv);
                 let Some(s) = img.sample(u, v) else {
                     continue;
                 };
@@ -187,24 +194,46 @@ impl Problem<'_> {
                 let bb = gy[0] * gy[0] + gy[1] * gy[1] + gy[2] * gy[2];
                 let ra = gx[0] * r[0] + gx[1] * r[1] + gx[2] * r[2];
                 let rb = gy[0] * r[0] + gy[1] * r[1] + gy[2] * r[2];
-                let (da, db) = pixel_derivatives(&m, &h);
-                // Σ_c J_cᵀJ_c for one vertex pair, per unit λ_i·λ_j (Eq. 5.10 summed over RGB).
-                let g3 = (da * da.transpose()) * aa
-                    + (da * db.transpose() + db * da.transpose()) * ab
-                    + (db * db.transpose()) * bb;
-                let r3 = da * ra + db * rb;
+                // ∂û/∂X_i = λ_i·da, ∂v̂/∂X_i = λ_i·db (see `warp::pixel_derivatives`).
+                let mut da = [0.0; 3];
+                let mut db = [0.0; 3];
+                for k in 0..3 {
+                    da[k] = (m[0][k] - u * m[2][k]) * inv;
+                    db[k] = (m[1][k] - v * m[2][k]) * inv;
+                }
+                // Σ_c J_cᵀJ_c per unit λ_i·λ_j (Eq. 5.10 summed over RGB): G = p·daᵀ + q·dbᵀ.
+                let p = [aa * da[0] + ab * db[0], aa * da[1] + ab * db[1], aa * da[2] + ab * db[2]];
+                let q = [ab * da[0] + bb * db[0], ab * da[1] + bb * db[1], ab * da[2] + bb * db[2]];
+                let g = [
+                    p[0] * da[0] + q[0] * db[0],
+                    p[1] * da[1] + q[1] * db[1],
+                    p[2] * da[2] + q[2] * db[2],
+                    p[0] * da[1] + q[0] * db[1],
+                    p[0] * da[2] + q[0] * db[2],
+                    p[1] * da[2] + q[1] * db[2],
+                ];
+                let r3 = [ra * da[0] + rb * db[0], ra * da[1] + rb * db[1], ra * da[2] + rb * db[2]];
+                let wl = [w * l[0], w * l[1], w * l[2]];
                 for (k, &(i, j)) in PAIRS.iter().enumerate() {
-                    hp[k] += g3 * (w * l[i] * l[j]);
+                    let c = wl[i] * l[j];
+                    for e in 0..6 {
+                        hp[k][e] += c * g[e];
+                    }
                 }
                 for i in 0..3 {
-                    gp[i] += r3 * (w * l[i]);
+                    for k in 0..3 {
+                        gp[i][k] += wl[i] * r3[k];
+                    }
                 }
             }
-            for k in 0..6 {
-                acc.h[k] += hp[k] * pw;
-            }
-            for i in 0..3 {
-                acc.g[i] += gp[i] * pw;
+            if system {
+                for k in 0..6 {
+                    let e = hp[k];
+                    acc.h[k] += Matrix3::new(e[0], e[3], e[4], e[3], e[1], e[5], e[4], e[5], e[2]) * pw;
+                }
+                for i in 0..3 {
+                    acc.g[i] += Vector3::from(gp[i]) * pw;
+                }
             }
         }
         acc

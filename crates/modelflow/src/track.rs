@@ -74,8 +74,18 @@ pub struct FrameReport {
     pub stop: StopReason,
     /// Whether the constant-velocity prediction was used as the start.
     pub predicted: bool,
+    /// Where the time went: building pyramids, building patches, solving (seconds).
+    pub timing: StepTiming,
     /// Per-level solver summaries, coarse to fine.
     pub levels: Vec<SolveSummary>,
+}
+
+/// Time split of one frame's step, seconds.
+#[derive(Clone, Copy, Debug, Default, Serialize)]
+pub struct StepTiming {
+    pub pyramids: f64,
+    pub patches: f64,
+    pub solve: f64,
 }
 
 struct Template {
@@ -171,6 +181,10 @@ impl Tracker {
         let t0 = Instant::now();
         let levels = self.opts.levels.max(1);
         let next = build_pyramids(images, levels, self.opts.blur);
+        let mut timing = StepTiming {
+            pyramids: t0.elapsed().as_secs_f64(),
+            ..Default::default()
+        };
         let ncam = self.cameras.len();
         let mut x = self.prev.positions.clone();
         let mut summaries = Vec::with_capacity(levels);
@@ -180,6 +194,7 @@ impl Tracker {
         let mut pixels = 0;
         let mut stop = StopReason::NoData;
         for level in (0..levels).rev() {
+            let tp = Instant::now();
             let mut set = self.template_patches(&self.prev, level, 1.0);
             if let Some(anchor) = self.anchor.get(level) {
                 // Anchor patches only where the triangle is seen in the previous frame too
@@ -194,6 +209,8 @@ impl Tracker {
                 }
             }
             let by_triangle = set.by_triangle();
+            timing.patches += tp.elapsed().as_secs_f64();
+            let ts = Instant::now();
             let problem = Problem {
                 triangles: &self.triangles,
                 patches: &set.patches,
@@ -224,6 +241,7 @@ impl Tracker {
                 stop = summary.stop;
             }
             summaries.push(summary);
+            timing.solve += ts.elapsed().as_secs_f64();
         }
         let iterations = summaries.iter().map(|s| s.iterations.len()).sum();
         let old = std::mem::replace(
@@ -244,6 +262,7 @@ impl Tracker {
             seconds: t0.elapsed().as_secs_f64(),
             stop,
             predicted,
+            timing,
             levels: summaries,
         })
     }
