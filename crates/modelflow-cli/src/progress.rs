@@ -22,7 +22,12 @@ impl Progress {
             b.set_prefix(label.to_string());
             b
         });
-        Progress { bar, label: label.to_string(), total, done: 0.into() }
+        Progress {
+            bar,
+            label: label.to_string(),
+            total,
+            done: 0.into(),
+        }
     }
 
     /// One more item done, with a message.

@@ -76,7 +76,11 @@ pub fn run(args: Args) -> anyhow::Result<()> {
 }
 
 /// Tracks with a progress bar; shared by `track` and `demo`.
-pub fn run_scene(scene: &Scene, opts: &TrackOptions, out: &std::path::Path) -> anyhow::Result<modelflow::track::TrackSummary> {
+pub fn run_scene(
+    scene: &Scene,
+    opts: &TrackOptions,
+    out: &std::path::Path,
+) -> anyhow::Result<modelflow::track::TrackSummary> {
     let total = (scene.last - scene.first) as u64;
     let progress = Progress::new("track", total);
     let summary = track_scene(scene, opts, out, &mut |f| {

@@ -41,6 +41,8 @@ pub struct PatchOptions {
     pub min_cos: f64,
     /// Whether the surface is two-sided (an open sheet) or has an outside (a closed mesh).
     pub two_sided: bool,
+    /// Keep only pixels with even `x + y` (half the pixels, evenly spread).
+    pub checkerboard: bool,
 }
 
 /// All patches of a problem, ordered by triangle, with their pixels.
@@ -67,7 +69,12 @@ impl PatchSet {
         let (w, h) = (image.width(), image.height());
         let ib = rasterize(positions, triangles, proj, w, h);
         let usable = usable_triangles(positions, triangles, proj, opts.two_sided, opts.min_cos);
-        let mask = trackable_mask(&ib, triangles, &usable, opts.margin);
+        let mut mask = trackable_mask(&ib, triangles, &usable, opts.margin);
+        if opts.checkerboard {
+            for (i, m) in mask.iter_mut().enumerate() {
+                *m &= (i % w + i / w) % 2 == 0;
+            }
+        }
         // Counting sort of the kept pixels by owner triangle.
         let mut count = vec![0u32; triangles.len() + 1];
         for (i, &m) in mask.iter().enumerate() {
@@ -136,7 +143,10 @@ impl PatchSet {
 
     /// Total weighted pixel count.
     pub fn weighted_pixels(&self) -> f64 {
-        self.patches.iter().map(|p| p.weight as f64 * (p.end - p.start) as f64).sum()
+        self.patches
+            .iter()
+            .map(|p| p.weight as f64 * (p.end - p.start) as f64)
+            .sum()
     }
 
     /// `covered[triangle * cameras + camera]`: whether that pair has a patch.

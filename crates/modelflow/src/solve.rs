@@ -128,11 +128,21 @@ const PAIRS: [(usize, usize); 6] = [(0, 0), (1, 1), (2, 2), (0, 1), (0, 2), (1, 
 
 impl Problem<'_> {
     fn weighted_pixels(&self) -> f64 {
-        self.patches.iter().map(|p| p.weight as f64 * (p.end - p.start) as f64).sum()
+        self.patches
+            .iter()
+            .map(|p| p.weight as f64 * (p.end - p.start) as f64)
+            .sum()
     }
 
     /// Photometric cost and (optionally) its normal-equation contribution of one triangle.
-    fn triangle(&self, t: u32, range: &std::ops::Range<usize>, x: &[Point3<f64>], huber: f64, system: bool) -> TriAccum {
+    fn triangle(
+        &self,
+        t: u32,
+        range: &std::ops::Range<usize>,
+        x: &[Point3<f64>],
+        huber: f64,
+        system: bool,
+    ) -> TriAccum {
         let tri = self.triangles[t as usize];
         let xs = tri.map(|v| x[v as usize]);
         let mut acc = TriAccum {
@@ -159,7 +169,11 @@ impl Problem<'_> {
             let mut hp = [[0.0f64; 6]; 6];
             let mut gp = [[0.0f64; 3]; 3];
             for px in &self.pixels[patch.start as usize..patch.end as usize] {
-                let l = [px.lambda[0] as f64, px.lambda[1] as f64, px.lambda[2] as f64];
+                let l = [
+                    px.lambda[0] as f64,
+                    px.lambda[1] as f64,
+                    px.lambda[2] as f64,
+                ];
                 let h = warp_h(&l, &y);
                 if !(h.z > 0.0) {
                     continue;
@@ -202,8 +216,16 @@ impl Problem<'_> {
                     db[k] = (m[1][k] - v * m[2][k]) * inv;
                 }
                 // Σ_c J_cᵀJ_c per unit λ_i·λ_j (Eq. 5.10 summed over RGB): G = p·daᵀ + q·dbᵀ.
-                let p = [aa * da[0] + ab * db[0], aa * da[1] + ab * db[1], aa * da[2] + ab * db[2]];
-                let q = [ab * da[0] + bb * db[0], ab * da[1] + bb * db[1], ab * da[2] + bb * db[2]];
+                let p = [
+                    aa * da[0] + ab * db[0],
+                    aa * da[1] + ab * db[1],
+                    aa * da[2] + ab * db[2],
+                ];
+                let q = [
+                    ab * da[0] + bb * db[0],
+                    ab * da[1] + bb * db[1],
+                    ab * da[2] + bb * db[2],
+                ];
                 let g = [
                     p[0] * da[0] + q[0] * db[0],
                     p[1] * da[1] + q[1] * db[1],
@@ -212,7 +234,11 @@ impl Problem<'_> {
                     p[0] * da[2] + q[0] * db[2],
                     p[1] * da[2] + q[1] * db[2],
                 ];
-                let r3 = [ra * da[0] + rb * db[0], ra * da[1] + rb * db[1], ra * da[2] + rb * db[2]];
+                let r3 = [
+                    ra * da[0] + rb * db[0],
+                    ra * da[1] + rb * db[1],
+                    ra * da[2] + rb * db[2],
+                ];
                 let wl = [w * l[0], w * l[1], w * l[2]];
                 for (k, &(i, j)) in PAIRS.iter().enumerate() {
                     let c = wl[i] * l[j];
@@ -229,7 +255,8 @@ impl Problem<'_> {
             if system {
                 for k in 0..6 {
                     let e = hp[k];
-                    acc.h[k] += Matrix3::new(e[0], e[3], e[4], e[3], e[1], e[5], e[4], e[5], e[2]) * pw;
+                    acc.h[k] +=
+                        Matrix3::new(e[0], e[3], e[4], e[3], e[1], e[5], e[4], e[5], e[2]) * pw;
                 }
                 for i in 0..3 {
                     acc.g[i] += Vector3::from(gp[i]) * pw;
@@ -240,7 +267,12 @@ impl Problem<'_> {
     }
 
     /// Cost at `x`; with `system`, also fills `a` and `b` (= −Jᵀr) of the normal equations.
-    fn evaluate(&self, x: &[Point3<f64>], opts: &SolverOptions, system: Option<(&mut BlockSparse, &mut Vec<Vector3<f64>>)>) -> (f64, usize) {
+    fn evaluate(
+        &self,
+        x: &[Point3<f64>],
+        opts: &SolverOptions,
+        system: Option<(&mut BlockSparse, &mut Vec<Vector3<f64>>)>,
+    ) -> (f64, usize) {
         let want = system.is_some();
         let parts: Vec<TriAccum> = self
             .by_triangle
@@ -287,13 +319,30 @@ impl Problem<'_> {
         (cost, pixels)
     }
 
+    /// Cost at `x` and the normal equations there: `(cost, JᵀJ, −Jᵀr)`. The cost's gradient is
+    /// `2·Jᵀr`.
+    pub fn linearize(
+        &self,
+        x: &[Point3<f64>],
+        opts: &SolverOptions,
+    ) -> (f64, BlockSparse, Vec<Vector3<f64>>) {
+        let mut a = BlockSparse::new(x.len(), &self.edges.edges);
+        let mut b = vec![Vector3::zeros(); x.len()];
+        let (cost, _) = self.evaluate(x, opts, Some((&mut a, &mut b)));
+        (cost, a, b)
+    }
+
     /// Cost at `x` (no system).
     pub fn cost(&self, x: &[Point3<f64>], opts: &SolverOptions) -> f64 {
         self.evaluate(x, opts, None).0
     }
 
     /// Minimises the cost starting from `start` (the outer loop of §6.6).
-    pub fn solve(&self, start: &[Point3<f64>], opts: &SolverOptions) -> (Vec<Point3<f64>>, SolveSummary) {
+    pub fn solve(
+        &self,
+        start: &[Point3<f64>],
+        opts: &SolverOptions,
+    ) -> (Vec<Point3<f64>>, SolveSummary) {
         let nv = start.len();
         let mut a = BlockSparse::new(nv, &self.edges.edges);
         let mut b = vec![Vector3::zeros(); nv];
@@ -302,13 +351,23 @@ impl Problem<'_> {
         let initial_cost = cost;
         let mut iterations = Vec::new();
         if pixels == 0 && self.edges.edges.is_empty() {
-            return (x, SolveSummary { initial_cost, final_cost: cost, pixels, stop: StopReason::NoData, iterations });
+            return (
+                x,
+                SolveSummary {
+                    initial_cost,
+                    final_cost: cost,
+                    pixels,
+                    stop: StopReason::NoData,
+                    iterations,
+                },
+            );
         }
         let mut lm = opts.damping;
         let mut rejections = 0;
         let mut stop = StopReason::MaxIterations;
         // Tiny absolute damping keeps vertices without any data (hidden, no springs) well posed.
-        let mean_diag = (0..nv).map(|i| a.diagonal(i).trace()).sum::<f64>() / (3 * nv.max(1)) as f64;
+        let mean_diag =
+            (0..nv).map(|i| a.diagonal(i).trace()).sum::<f64>() / (3 * nv.max(1)) as f64;
         let eps = 1e-9 * mean_diag.max(1e-30);
         let mut system_fresh = true;
         let mut a_base = a.clone();
@@ -324,7 +383,8 @@ impl Problem<'_> {
             let step = delta.iter().map(|d| d.norm()).fold(0.0, f64::max);
             let mut a_new = a_base.clone();
             let mut b_new = vec![Vector3::zeros(); nv];
-            let (new_cost, new_pixels) = self.evaluate(&trial, opts, Some((&mut a_new, &mut b_new)));
+            let (new_cost, new_pixels) =
+                self.evaluate(&trial, opts, Some((&mut a_new, &mut b_new)));
             let change = new_cost - cost;
             let accepted = new_cost < cost;
             if accepted {
@@ -363,6 +423,15 @@ impl Problem<'_> {
                 break;
             }
         }
-        (x, SolveSummary { initial_cost, final_cost: cost, pixels, stop, iterations })
+        (
+            x,
+            SolveSummary {
+                initial_cost,
+                final_cost: cost,
+                pixels,
+                stop,
+                iterations,
+            },
+        )
     }
 }

@@ -117,9 +117,19 @@ fn level_projection(p: &Projection, level: usize) -> Projection {
 
 impl Tracker {
     /// A tracker whose mesh lines up with `images` (one per camera) at `frame`.
-    pub fn new(mesh: &Mesh, cameras: Vec<Camera>, frame: u32, images: &[RgbImage], opts: TrackOptions) -> Result<Self> {
+    pub fn new(
+        mesh: &Mesh,
+        cameras: Vec<Camera>,
+        frame: u32,
+        images: &[RgbImage],
+        opts: TrackOptions,
+    ) -> Result<Self> {
         if images.len() != cameras.len() {
-            return Err(Error::Usage(format!("{} images given for {} cameras", images.len(), cameras.len())));
+            return Err(Error::Usage(format!(
+                "{} images given for {} cameras",
+                images.len(),
+                cameras.len()
+            )));
         }
         let levels = opts.levels.max(1);
         let pyramids = build_pyramids(images, levels, opts.blur);
@@ -138,8 +148,12 @@ impl Tracker {
             },
             before_prev: None,
         };
+        // The anchor keeps every other pixel (checkerboard) at twice the weight: the same total
+        // pull for half the work.
         if opts.anchor_weight > 0.0 {
-            t.anchor = (0..levels).map(|l| t.template_patches(&t.prev, l, opts.anchor_weight as f32)).collect();
+            t.anchor = (0..levels)
+                .map(|l| t.template_patches(&t.prev, l, 2.0 * opts.anchor_weight as f32, true))
+                .collect();
         }
         Ok(t)
     }
@@ -154,11 +168,21 @@ impl Tracker {
             margin: self.opts.margin,
             min_cos: self.opts.min_cos,
             two_sided: self.two_sided,
+            checkerboard: false,
         }
     }
 
-    fn template_patches(&self, tpl: &Template, level: usize, weight: f32) -> PatchSet {
-        let popts = self.patch_options();
+    fn template_patches(
+        &self,
+        tpl: &Template,
+        level: usize,
+        weight: f32,
+        checkerboard: bool,
+    ) -> PatchSet {
+        let popts = PatchOptions {
+            checkerboard,
+            ..self.patch_options()
+        };
         let per_cam: Vec<PatchSet> = self
             .cameras
             .par_iter()
@@ -166,7 +190,16 @@ impl Tracker {
             .map(|(c, cam)| {
                 let mut set = PatchSet::default();
                 let proj = level_projection(cam.at(tpl.frame), level);
-                set.add_camera(&tpl.positions, &self.triangles, &proj, &tpl.pyramids[c].levels[level], c as u16, weight, &popts, None);
+                set.add_camera(
+                    &tpl.positions,
+                    &self.triangles,
+                    &proj,
+                    &tpl.pyramids[c].levels[level],
+                    c as u16,
+                    weight,
+                    &popts,
+                    None,
+                );
                 set
             })
             .collect();
@@ -176,7 +209,11 @@ impl Tracker {
     /// Solves for `frame` given its images (one per camera) and makes it the new template.
     pub fn step(&mut self, frame: u32, images: &[RgbImage]) -> Result<FrameReport> {
         if images.len() != self.cameras.len() {
-            return Err(Error::Usage(format!("{} images given for {} cameras", images.len(), self.cameras.len())));
+            return Err(Error::Usage(format!(
+                "{} images given for {} cameras",
+                images.len(),
+                self.cameras.len()
+            )));
         }
         let t0 = Instant::now();
         let levels = self.opts.levels.max(1);
@@ -195,7 +232,7 @@ impl Tracker {
         let mut stop = StopReason::NoData;
         for level in (0..levels).rev() {
             let tp = Instant::now();
-            let mut set = self.template_patches(&self.prev, level, 1.0);
+            let mut set = self.template_patches(&self.prev, level, 1.0, false);
             if let Some(anchor) = self.anchor.get(level) {
                 // Anchor patches only where the triangle is seen in the previous frame too
                 // (otherwise it has turned away or been covered since the first frame).
@@ -203,8 +240,13 @@ impl Tracker {
                 for p in &anchor.patches {
                     if cover[p.triangle as usize * ncam + p.camera as usize] {
                         let start = set.pixels.len() as u32;
-                        set.pixels.extend_from_slice(&anchor.pixels[p.start as usize..p.end as usize]);
-                        set.patches.push(crate::patch::Patch { start, end: set.pixels.len() as u32, ..*p });
+                        set.pixels
+                            .extend_from_slice(&anchor.pixels[p.start as usize..p.end as usize]);
+                        set.patches.push(crate::patch::Patch {
+                            start,
+                            end: set.pixels.len() as u32,
+                            ..*p
+                        });
                     }
                 }
             }
@@ -217,14 +259,20 @@ impl Tracker {
                 pixels: &set.pixels,
                 by_triangle: &by_triangle,
                 targets: next.iter().map(|p| &p.levels[level]).collect(),
-                projections: self.cameras.iter().map(|c| level_projection(c.at(frame), level)).collect(),
+                projections: self
+                    .cameras
+                    .iter()
+                    .map(|c| level_projection(c.at(frame), level))
+                    .collect(),
                 edges: &self.edges,
                 previous: &self.prev.positions,
             };
             if level == levels - 1 && self.opts.predict {
                 if let Some(pp) = &self.before_prev {
-                    let guess: Vec<Point3<f64>> = x.iter().zip(pp).map(|(a, b)| a + (a - b)).collect();
-                    if problem.cost(&guess, &self.opts.solver) < problem.cost(&x, &self.opts.solver) {
+                    let guess: Vec<Point3<f64>> =
+                        x.iter().zip(pp).map(|(a, b)| a + (a - b)).collect();
+                    if problem.cost(&guess, &self.opts.solver) < problem.cost(&x, &self.opts.solver)
+                    {
                         x = guess;
                         predicted = true;
                     }
@@ -269,7 +317,10 @@ impl Tracker {
 }
 
 fn build_pyramids(images: &[RgbImage], levels: usize, blur: f64) -> Vec<Pyramid> {
-    images.par_iter().map(|img| Pyramid::new(img, levels, blur)).collect()
+    images
+        .par_iter()
+        .map(|img| Pyramid::new(img, levels, blur))
+        .collect()
 }
 
 fn merge(sets: Vec<PatchSet>) -> PatchSet {
@@ -277,11 +328,12 @@ fn merge(sets: Vec<PatchSet>) -> PatchSet {
     for s in sets {
         let off = out.pixels.len() as u32;
         out.pixels.extend(s.pixels);
-        out.patches.extend(s.patches.into_iter().map(|p| crate::patch::Patch {
-            start: p.start + off,
-            end: p.end + off,
-            ..p
-        }));
+        out.patches
+            .extend(s.patches.into_iter().map(|p| crate::patch::Patch {
+                start: p.start + off,
+                end: p.end + off,
+                ..p
+            }));
     }
     out
 }
@@ -329,7 +381,13 @@ pub fn track_scene(
     std::fs::create_dir_all(out_dir).map_err(|e| Error::io(out_dir, e))?;
     write_obj(&out_dir.join(frame_file(scene.first)), &scene.mesh)?;
     let first_images = scene.load_images(scene.first)?;
-    let mut tracker = Tracker::new(&scene.mesh, scene.cameras.clone(), scene.first, &first_images, *opts)?;
+    let mut tracker = Tracker::new(
+        &scene.mesh,
+        scene.cameras.clone(),
+        scene.first,
+        &first_images,
+        *opts,
+    )?;
     drop(first_images);
     let log_path = out_dir.join("log.jsonl");
     let mut log = String::new();
@@ -337,10 +395,17 @@ pub fn track_scene(
     let mut walls = Vec::new();
     let mut iters = Vec::new();
     if scene.first == scene.last {
-        return Ok(TrackSummary { frames: 1, total_seconds: t_start.elapsed().as_secs_f64(), median_frame_seconds: 0.0, median_iterations: 0.0 });
+        return Ok(TrackSummary {
+            frames: 1,
+            total_seconds: t_start.elapsed().as_secs_f64(),
+            median_frame_seconds: 0.0,
+            median_iterations: 0.0,
+        });
     }
     let t_load = Instant::now();
-    let mut pending = scene.load_images(scene.first + 1).map(|imgs| (imgs, t_load.elapsed().as_secs_f64()));
+    let mut pending = scene
+        .load_images(scene.first + 1)
+        .map(|imgs| (imgs, t_load.elapsed().as_secs_f64()));
     let mut t_frame = Instant::now();
     for frame in scene.first + 1..=scene.last {
         let (images, load_seconds) = pending?;
@@ -350,7 +415,9 @@ pub fn track_scene(
             || {
                 has_next.then(|| {
                     let t = Instant::now();
-                    scene.load_images(frame + 1).map(|imgs| (imgs, t.elapsed().as_secs_f64()))
+                    scene
+                        .load_images(frame + 1)
+                        .map(|imgs| (imgs, t.elapsed().as_secs_f64()))
                 })
             },
         );
@@ -361,8 +428,14 @@ pub fn track_scene(
         t_frame = Instant::now();
         walls.push(wall);
         iters.push(report.iterations as f64);
-        let entry = FrameLog { report, load_seconds, wall_seconds: wall };
-        log.push_str(&serde_json::to_string(&entry).map_err(|e| Error::Usage(format!("log: {e}")))?);
+        let entry = FrameLog {
+            report,
+            load_seconds,
+            wall_seconds: wall,
+        };
+        log.push_str(
+            &serde_json::to_string(&entry).map_err(|e| Error::Usage(format!("log: {e}")))?,
+        );
         log.push('\n');
         write_atomic(&log_path, log.as_bytes())?;
         on_frame(&entry);
@@ -387,5 +460,9 @@ pub fn median(v: &[f64]) -> f64 {
     let mut s = v.to_vec();
     s.sort_by(|a, b| a.total_cmp(b));
     let n = s.len();
-    if n % 2 == 1 { s[n / 2] } else { 0.5 * (s[n / 2 - 1] + s[n / 2]) }
+    if n % 2 == 1 {
+        s[n / 2]
+    } else {
+        0.5 * (s[n / 2 - 1] + s[n / 2])
+    }
 }

@@ -30,7 +30,14 @@ impl Plane {
 }
 
 /// Ray-traces the plane with 3×3 supersampling (pixel centres at integer coordinates).
-fn render(plane: &Plane, k: &Matrix3<f64>, r: &Matrix3<f64>, t: &Vector3<f64>, w: usize, h: usize) -> RgbImage {
+fn render(
+    plane: &Plane,
+    k: &Matrix3<f64>,
+    r: &Matrix3<f64>,
+    t: &Vector3<f64>,
+    w: usize,
+    h: usize,
+) -> RgbImage {
     let kinv = k.try_inverse().unwrap();
     let c = -(r.transpose() * t);
     let n = plane.u.cross(&plane.v);
@@ -67,18 +74,31 @@ struct Rig {
 impl Rig {
     fn new(eyes: &[Point3<f64>]) -> Self {
         let k = Matrix3::new(300.0, 0.0, 79.5, 0.0, 300.0, 59.5, 0.0, 0.0, 1.0);
-        let poses = eyes.iter().map(|e| look_at(e, &Point3::new(0.0, 0.0, 0.0), &Vector3::z())).collect();
+        let poses = eyes
+            .iter()
+            .map(|e| look_at(e, &Point3::new(0.0, 0.0, 0.0), &Vector3::z()))
+            .collect();
         Rig { k, poses }
     }
     fn cameras(&self) -> Vec<Camera> {
         self.poses
             .iter()
             .enumerate()
-            .map(|(i, (r, t))| Camera::fixed(format!("cam{i}"), 160, 120, Projection::from_krt(&self.k, r, t).unwrap()))
+            .map(|(i, (r, t))| {
+                Camera::fixed(
+                    format!("cam{i}"),
+                    160,
+                    120,
+                    Projection::from_krt(&self.k, r, t).unwrap(),
+                )
+            })
             .collect()
     }
     fn images(&self, plane: &Plane) -> Vec<RgbImage> {
-        self.poses.iter().map(|(r, t)| render(plane, &self.k, r, t, 160, 120)).collect()
+        self.poses
+            .iter()
+            .map(|(r, t)| render(plane, &self.k, r, t, 160, 120))
+            .collect()
     }
 }
 
@@ -95,7 +115,12 @@ fn mesh_of(plane: &Plane) -> Mesh {
 }
 
 fn rms(a: &[Point3<f64>], b: &[Point3<f64>]) -> f64 {
-    (a.iter().zip(b).map(|(p, q)| (p - q).norm_squared()).sum::<f64>() / a.len() as f64).sqrt()
+    (a.iter()
+        .zip(b)
+        .map(|(p, q)| (p - q).norm_squared())
+        .sum::<f64>()
+        / a.len() as f64)
+        .sqrt()
 }
 
 fn rig() -> Rig {
@@ -123,7 +148,14 @@ fn rigid_motion_is_recovered() {
     let motion = Vector3::new(0.006, -0.004, 0.005);
     let plane0 = plane_at(Vector3::zeros());
     let mesh = mesh_of(&plane0);
-    let mut tr = Tracker::new(&mesh, rig.cameras(), 0, &rig.images(&plane0), TrackOptions::default()).unwrap();
+    let mut tr = Tracker::new(
+        &mesh,
+        rig.cameras(),
+        0,
+        &rig.images(&plane0),
+        TrackOptions::default(),
+    )
+    .unwrap();
     for f in 1..=4u32 {
         let plane = plane_at(motion * f as f64);
         tr.step(f, &rig.images(&plane)).unwrap();
@@ -133,4 +165,242 @@ fn rigid_motion_is_recovered() {
         // 0.6 m plane; 1 pixel at 1.5 m is 5 mm. Ask for a small fraction of a pixel.
         assert!(err < 1.0e-3, "frame {f}: rms {err}");
     }
+}
+
+use modelflow::patch::{PatchOptions, PatchSet};
+use modelflow::pyramid::Pyramid;
+use modelflow::solve::{Problem, SolverOptions};
+use modelflow::springs::EdgeSet;
+
+#[test]
+fn assembled_gradient_matches_finite_differences_of_the_cost() {
+    let rig = rig();
+    let plane0 = plane_at(Vector3::zeros());
+    let plane1 = plane_at(Vector3::new(0.004, 0.0, -0.003));
+    let mesh = grid(4, 4, |s, t| plane0.at(s, t));
+    let cams = rig.cameras();
+    let src: Vec<Pyramid> = rig
+        .images(&plane0)
+        .iter()
+        .map(|i| Pyramid::new(i, 1, 3.0))
+        .collect();
+    let dst: Vec<Pyramid> = rig
+        .images(&plane1)
+        .iter()
+        .map(|i| Pyramid::new(i, 1, 3.0))
+        .collect();
+    let popts = PatchOptions {
+        margin: 1,
+        min_cos: 0.1,
+        two_sided: true,
+        checkerboard: false,
+    };
+    let mut set = PatchSet::default();
+    for (c, cam) in cams.iter().enumerate() {
+        set.add_camera(
+            &mesh.positions,
+            &mesh.triangles,
+            cam.at(0),
+            &src[c].levels[0],
+            c as u16,
+            1.0,
+            &popts,
+            None,
+        );
+    }
+    let by_triangle = set.by_triangle();
+    let edges = EdgeSet::new(mesh.edges(), &mesh.positions);
+    let problem = Problem {
+        triangles: &mesh.triangles,
+        patches: &set.patches,
+        pixels: &set.pixels,
+        by_triangle: &by_triangle,
+        targets: dst.iter().map(|p| &p.levels[0]).collect(),
+        projections: cams.iter().map(|c| c.at(1).clone()).collect(),
+        edges: &edges,
+        previous: &mesh.positions,
+    };
+    // Huber off (huge threshold) so the cost is the plain sum of squares whose gradient is 2·Jᵀr;
+    // a stretched spring and a membrane term are included too.
+    let mut opts = SolverOptions {
+        huber: 1e3,
+        ..SolverOptions::default()
+    };
+    opts.springs.k = 5.0;
+    let mut x = mesh.positions.clone();
+    x[5].x += 0.02;
+    x[6].z -= 0.01;
+    let (_, _, b) = problem.linearize(&x, &opts);
+    let eps = 1e-6;
+    let mut checked = 0;
+    for v in [5usize, 6, 9, 10] {
+        for k in 0..3 {
+            let mut xp = x.clone();
+            xp[v][k] += eps;
+            let mut xm = x.clone();
+            xm[v][k] -= eps;
+            let fd = (problem.cost(&xp, &opts) - problem.cost(&xm, &opts)) / (2.0 * eps);
+            let analytic = -2.0 * b[v][k];
+            // Bilinear interpolation makes the cost piecewise smooth: allow a few percent.
+            assert!(
+                (fd - analytic).abs() <= 0.05 * fd.abs().max(analytic.abs()) + 1e-6,
+                "vertex {v} axis {k}: fd {fd} vs analytic {analytic}"
+            );
+            checked += 1;
+        }
+    }
+    assert_eq!(checked, 12);
+}
+
+#[test]
+fn springs_alone_relax_a_stretched_mesh() {
+    let rest = grid(6, 6, |s, t| Point3::new(s, t, 0.0));
+    let stretched: Vec<Point3<f64>> = rest
+        .positions
+        .iter()
+        .map(|p| Point3::new(p.x * 1.3, p.y * 1.25, 0.0))
+        .collect();
+    let edges = EdgeSet::new(rest.edges(), &rest.positions);
+    let problem = Problem {
+        triangles: &rest.triangles,
+        patches: &[],
+        pixels: &[],
+        by_triangle: &[],
+        targets: vec![],
+        projections: vec![],
+        edges: &edges,
+        previous: &stretched,
+    };
+    let mut opts = SolverOptions {
+        max_iterations: 60,
+        min_relative_decrease: 1e-6,
+        ..SolverOptions::default()
+    };
+    opts.springs.membrane = 0.0;
+    let strain = |x: &[Point3<f64>]| {
+        edges
+            .edges
+            .iter()
+            .zip(&edges.rest)
+            .map(|([a, b], r)| ((x[*b as usize] - x[*a as usize]).norm() / r - 1.0).abs())
+            .fold(0.0, f64::max)
+    };
+    assert!(strain(&stretched) > 0.25);
+    let (x, summary) = problem.solve(&stretched, &opts);
+    assert!(
+        summary.final_cost < 1e-3 * summary.initial_cost,
+        "{summary:?}"
+    );
+    assert!(
+        strain(&x) < 0.05,
+        "largest strain after relaxing: {}",
+        strain(&x)
+    );
+}
+
+#[test]
+fn moving_camera_is_handled() {
+    // The plane moves and so does the first camera; each frame must use that frame's pose.
+    let k = Matrix3::new(300.0, 0.0, 79.5, 0.0, 300.0, 59.5, 0.0, 0.0, 1.0);
+    let eye0 = |f: u32| Point3::new(-0.15 + 0.03 * f as f64, -1.5 + 0.02 * f as f64, 0.2);
+    let eye1 = Point3::new(0.15, -1.5, 0.25);
+    let pose = |e: &Point3<f64>| look_at(e, &Point3::origin(), &Vector3::z());
+    let frames = 4u32;
+    let cam0 = Camera::moving(
+        "cam0",
+        160,
+        120,
+        0,
+        (0..=frames)
+            .map(|f| {
+                let (r, t) = pose(&eye0(f));
+                Projection::from_krt(&k, &r, &t).unwrap()
+            })
+            .collect(),
+    );
+    let (r1, t1) = pose(&eye1);
+    let cam1 = Camera::fixed(
+        "cam1",
+        160,
+        120,
+        Projection::from_krt(&k, &r1, &t1).unwrap(),
+    );
+    let motion = Vector3::new(0.004, 0.0, 0.003);
+    let images = |f: u32| {
+        let plane = plane_at(motion * f as f64);
+        let (r0, t0) = pose(&eye0(f));
+        vec![
+            render(&plane, &k, &r0, &t0, 160, 120),
+            render(&plane, &k, &r1, &t1, 160, 120),
+        ]
+    };
+    let mesh = mesh_of(&plane_at(Vector3::zeros()));
+    let mut tr = Tracker::new(
+        &mesh,
+        vec![cam0, cam1],
+        0,
+        &images(0),
+        TrackOptions::default(),
+    )
+    .unwrap();
+    for f in 1..=frames {
+        tr.step(f, &images(f)).unwrap();
+    }
+    let truth = mesh_of(&plane_at(motion * frames as f64)).positions;
+    let err = rms(tr.positions(), &truth);
+    assert!(
+        err < 1.5e-3,
+        "rms {err} m after {frames} frames with a moving camera"
+    );
+}
+
+#[test]
+fn a_hidden_triangle_contributes_no_pixels() {
+    // Two parallel squares, the front one hiding the back one's centre from camera 0.
+    let k = Matrix3::new(300.0, 0.0, 79.5, 0.0, 300.0, 59.5, 0.0, 0.0, 1.0);
+    let cam = Projection::from_krt(&k, &Matrix3::identity(), &Vector3::zeros()).unwrap();
+    let quad = |z: f64, s: f64| {
+        vec![
+            Point3::new(-s, -s, z),
+            Point3::new(s, -s, z),
+            Point3::new(s, s, z),
+            Point3::new(-s, s, z),
+        ]
+    };
+    let mut positions = quad(2.0, 0.3); // back
+    positions.extend(quad(1.0, 0.2)); // front, covering the back one entirely in this view
+    let triangles = vec![[0, 1, 2], [0, 2, 3], [4, 5, 6], [4, 6, 7]];
+    let img = modelflow::pyramid::GradientImage::new(&RgbImage::from_fn(160, 120, |x, y| {
+        texture(x as f64 / 160.0, y as f64 / 120.0)
+    }));
+    let popts = PatchOptions {
+        margin: 1,
+        min_cos: 0.1,
+        two_sided: true,
+        checkerboard: false,
+    };
+    let mut set = PatchSet::default();
+    set.add_camera(&positions, &triangles, &cam, &img, 0, 1.0, &popts, None);
+    let tris: Vec<u32> = set.patches.iter().map(|p| p.triangle).collect();
+    assert!(
+        tris.contains(&2) && tris.contains(&3),
+        "front triangles have pixels"
+    );
+    assert!(
+        !tris.contains(&0) && !tris.contains(&1),
+        "hidden triangles have none: {tris:?}"
+    );
+    // Seen from the side where nothing hides it, the back square does contribute.
+    let mut set = PatchSet::default();
+    set.add_camera(
+        &positions[..4],
+        &triangles[..2],
+        &cam,
+        &img,
+        0,
+        1.0,
+        &popts,
+        None,
+    );
+    assert_eq!(set.patches.len(), 2);
 }
