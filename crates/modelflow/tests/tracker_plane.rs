@@ -404,3 +404,34 @@ fn a_hidden_triangle_contributes_no_pixels() {
     );
     assert_eq!(set.patches.len(), 2);
 }
+
+#[test]
+fn results_do_not_depend_on_the_thread_count() {
+    let rig = rig();
+    let motion = Vector3::new(0.005, -0.003, 0.004);
+    let plane0 = plane_at(Vector3::zeros());
+    let mesh = mesh_of(&plane0);
+    let frames: Vec<Vec<RgbImage>> = (0..3)
+        .map(|f| rig.images(&plane_at(motion * f as f64)))
+        .collect();
+    let run = |threads: usize| {
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap();
+        pool.install(|| {
+            let mut tr =
+                Tracker::new(&mesh, rig.cameras(), 0, &frames[0], TrackOptions::default()).unwrap();
+            for f in 1..3 {
+                tr.step(f as u32, &frames[f]).unwrap();
+            }
+            tr.positions().to_vec()
+        })
+    };
+    let one = run(1);
+    let three = run(3);
+    assert!(
+        one.iter().zip(&three).all(|(a, b)| a == b),
+        "bitwise identical results"
+    );
+}
