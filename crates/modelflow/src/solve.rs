@@ -50,7 +50,7 @@ impl Default for SolverOptions {
             springs: SpringParams {
                 k: 1.0,
                 t: 0.1,
-                membrane: 0.1,
+                membrane: 0.03,
             },
             damping: 1e-4,
             max_rejections: 1,

@@ -6,8 +6,8 @@
 //!   "threshold ratio" the thesis describes (T = 0.1: soft below 10 % stretch, stiff above) and
 //!   makes `k` independent of scene units. [`cubic_spring`] takes the normalising length so the
 //!   worked example is reproduced with `scale = 1`.
-//! * Membrane (our addition): each edge vector should change little from one frame to the next,
-//!   residual `√μ·(e − e_prev)/L̄`. It is quadratic, so it gives the system stiffness where the cubic
+//! * Membrane (our addition): each edge vector should stay close to a reference (the tracker uses
+//!   its constant-velocity prediction from the two previous frames), residual `√μ·(e − e_ref)/L̄`. It is quadratic, so it gives the system stiffness where the cubic
 //!   springs have none (at rest) and carries vertices that no camera sees along with their
 //!   neighbours instead of leaving them behind.
 

@@ -230,6 +230,13 @@ impl Tracker {
         let mut cost_after = 0.0;
         let mut pixels = 0;
         let mut stop = StopReason::NoData;
+        // The membrane's reference shape is the constant-velocity prediction when there is one,
+        // so that it penalises changes of the deformation's *rate* (a cloth that keeps folding is
+        // not held back), and the previous shape otherwise.
+        let reference: Vec<Point3<f64>> = match &self.before_prev {
+            Some(pp) => self.prev.positions.iter().zip(pp).map(|(a, b)| a + (a - b)).collect(),
+            None => self.prev.positions.clone(),
+        };
         for level in (0..levels).rev() {
             let tp = Instant::now();
             let mut set = self.template_patches(&self.prev, level, 1.0, false);
@@ -265,7 +272,7 @@ impl Tracker {
                     .map(|c| level_projection(c.at(frame), level))
                     .collect(),
                 edges: &self.edges,
-                previous: &self.prev.positions,
+                previous: &reference,
             };
             if level == levels - 1 && self.opts.predict {
                 if let Some(pp) = &self.before_prev {
