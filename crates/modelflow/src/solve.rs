@@ -112,6 +112,10 @@ pub struct SolveSummary {
     pub final_cost: f64,
     /// Pixels compared at the final positions.
     pub pixels: usize,
+    /// Pixel comparisons made in all (each is three RGB residuals), over every evaluation.
+    pub pixel_evaluations: u64,
+    /// Wall time of the solve, seconds.
+    pub seconds: f64,
     pub stop: StopReason,
     pub iterations: Vec<IterationSummary>,
 }
@@ -347,7 +351,9 @@ impl Problem<'_> {
         let mut a = BlockSparse::new(nv, &self.edges.edges);
         let mut b = vec![Vector3::zeros(); nv];
         let mut x = start.to_vec();
+        let t_solve = Instant::now();
         let (mut cost, mut pixels) = self.evaluate(&x, opts, Some((&mut a, &mut b)));
+        let mut pixel_evaluations = pixels as u64;
         let initial_cost = cost;
         let mut iterations = Vec::new();
         if pixels == 0 && self.edges.edges.is_empty() {
@@ -385,6 +391,7 @@ impl Problem<'_> {
             let mut b_new = vec![Vector3::zeros(); nv];
             let (new_cost, new_pixels) =
                 self.evaluate(&trial, opts, Some((&mut a_new, &mut b_new)));
+            pixel_evaluations += new_pixels as u64;
             let change = new_cost - cost;
             let accepted = new_cost < cost;
             if accepted {

@@ -234,7 +234,13 @@ impl Tracker {
         // so that it penalises changes of the deformation's *rate* (a cloth that keeps folding is
         // not held back), and the previous shape otherwise.
         let reference: Vec<Point3<f64>> = match &self.before_prev {
-            Some(pp) => self.prev.positions.iter().zip(pp).map(|(a, b)| a + (a - b)).collect(),
+            Some(pp) => self
+                .prev
+                .positions
+                .iter()
+                .zip(pp)
+                .map(|(a, b)| a + (a - b))
+                .collect(),
             None => self.prev.positions.clone(),
         };
         for level in (0..levels).rev() {

@@ -182,12 +182,12 @@ fn assembled_gradient_matches_finite_differences_of_the_cost() {
     let src: Vec<Pyramid> = rig
         .images(&plane0)
         .iter()
-        .map(|i| Pyramid::new(i, 1, 3.0))
+        .map(|i| Pyramid::new(i, 1, 5.0))
         .collect();
     let dst: Vec<Pyramid> = rig
         .images(&plane1)
         .iter()
-        .map(|i| Pyramid::new(i, 1, 3.0))
+        .map(|i| Pyramid::new(i, 1, 5.0))
         .collect();
     let popts = PatchOptions {
         margin: 1,
