@@ -200,15 +200,14 @@ impl SceneFile {
     /// structural one (`cameras[1]`, `frames`, ...).
     pub fn parse(path: &Path, text: &str) -> Result<SceneFile> {
         let value: serde_json::Value = serde_json::from_str(text).map_err(|e| {
-            Error::invalid(
-                path,
-                format!("line {} column {}", e.line(), e.column()),
-                if e.to_string().starts_with("number out of range") {
-                    format!("invalid JSON: {e} (numbers must be finite)")
-                } else {
-                    format!("invalid JSON: {e}")
-                },
-            )
+            let at = format!("line {} column {}", e.line(), e.column());
+            let what = e.to_string().replace(&format!(" at {at}"), "");
+            let hint = if what.starts_with("number out of range") {
+                " (numbers must be finite)"
+            } else {
+                ""
+            };
+            Error::invalid(path, at, format!("invalid JSON: {what}{hint}"))
         })?;
         let obj = value
             .as_object()
