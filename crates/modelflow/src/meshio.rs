@@ -2,9 +2,9 @@
 //! orders) in, OBJ out, with validation that names the file and the line (OBJ) or element (PLY)
 //! at fault.
 //!
-//! Both readers are written by hand: the crates for the job (`tobj`, `ply-rs`) either drop the
-//! line numbers we must report, need a vertex-splitting pass we do not want (we keep vertex
-//! identity, which the tracker depends on), or are no longer maintained; the formats subset we
+//! Both readers are written by hand: `tobj` reports no line numbers (which our errors must give)
+//! and, to give per-vertex texture coordinates, splits vertices, changing the vertex identity
+//! the tracker and the ground truth depend on; `ply-rs` is no longer maintained. The subset we
 //! need (positions, optional texture coordinates, polygon faces) is small.
 
 use crate::error::{Error, Result};
@@ -55,13 +55,16 @@ pub fn read_mesh_with(path: &Path, checks: Checks) -> Result<Mesh> {
 
 /// Checks a mesh read from `path`: at least one triangle, finite positions, indices in range,
 /// and with [`Checks::Full`] no degenerate triangle (repeated index or zero area). `locate(i)`
-/// names triangle `i`'s place in the file (e.g. `line 12`).
+/// names triangle `i`'s place in the file (e.g. `line 12`); vertex numbers in messages start at
+/// `index_base` (1 for OBJ, 0 for PLY), as in the file.
 pub fn validate(
     path: &Path,
     mesh: &Mesh,
     checks: Checks,
+    index_base: u32,
     locate: impl Fn(usize) -> String,
 ) -> Result<()> {
+    let base = index_base as u64;
     let n = mesh.positions.len();
     if let Some(i) = mesh
         .positions
@@ -70,7 +73,7 @@ pub fn validate(
     {
         return Err(Error::invalid(
             path,
-            format!("vertex {}", i + 1),
+            format!("vertex {}", i as u64 + base),
             format!(
                 "non-finite coordinate {:?}",
                 mesh.positions[i].coords.as_slice()
@@ -91,7 +94,7 @@ pub fn validate(
                 locate(i),
                 format!(
                     "vertex index {} out of range (the mesh has {n} vertices)",
-                    bad as u64 + 1
+                    bad as u64 + base
                 ),
             ));
         }
@@ -104,9 +107,9 @@ pub fn validate(
                 locate(i),
                 format!(
                     "degenerate triangle: repeated vertex in {} {} {}",
-                    t[0] + 1,
-                    t[1] + 1,
-                    t[2] + 1
+                    t[0] as u64 + base,
+                    t[1] as u64 + base,
+                    t[2] as u64 + base
                 ),
             ));
         }
@@ -120,9 +123,9 @@ pub fn validate(
                 locate(i),
                 format!(
                     "degenerate triangle: vertices {} {} {} have zero area",
-                    t[0] + 1,
-                    t[1] + 1,
-                    t[2] + 1
+                    t[0] as u64 + base,
+                    t[1] as u64 + base,
+                    t[2] as u64 + base
                 ),
             ));
         }
@@ -261,7 +264,7 @@ pub fn parse_obj(path: &Path, text: &str, checks: Checks) -> Result<Mesh> {
         triangles,
         uvs,
     };
-    validate(path, &mesh, checks, |i| format!("line {}", tri_lines[i]))?;
+    validate(path, &mesh, checks, 1, |i| format!("line {}", tri_lines[i]))?;
     Ok(mesh)
 }
 
@@ -697,6 +700,8 @@ fn read_ply_body(
         triangles,
         uvs: has_uv.then_some(uvs),
     };
-    validate(path, &mesh, checks, |i| format!("face[{}]", tri_faces[i]))?;
+    validate(path, &mesh, checks, 0, |i| {
+        format!("face[{}]", tri_faces[i])
+    })?;
     Ok(mesh)
 }

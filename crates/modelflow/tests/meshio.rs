@@ -227,11 +227,11 @@ fn ply_errors_name_file_and_element() {
     let cases: Vec<(String, &[&str])> = vec![
         (
             ascii.replace("7 3 1 4 2", "7 3 1 5 2"),
-            &["face[1]", "out of range"],
+            &["face[1]", "vertex index 5 out of range"],
         ),
         (
             ascii.replace("7 3 1 4 2", "7 3 1 1 2"),
-            &["face[1]", "degenerate"],
+            &["face[1]", "degenerate", "in 1 1 2"],
         ),
         (
             ascii.replace("2 200 0 0.3333333333333333", "1 200 0.5 0"),
