@@ -39,6 +39,9 @@ pub struct SolverOptions {
     pub max_rejections: usize,
     pub cg_tolerance: f64,
     pub cg_max_iterations: usize,
+    /// Compensate a brightness gain per (triangle, camera) (diffuse shading changes as the
+    /// surface turns). Off = plain brightness constancy, as in the thesis.
+    pub gain: bool,
 }
 
 impl Default for SolverOptions {
@@ -56,6 +59,7 @@ impl Default for SolverOptions {
             max_rejections: 1,
             cg_tolerance: 1e-3,
             cg_max_iterations: 100,
+            gain: true,
         }
     }
 }
@@ -128,6 +132,16 @@ struct TriAccum {
     g: [Vector3<f64>; 3],
 }
 
+/// A pixel of a patch after warping: its index in the patch, warped position, `1/h_z`, and the
+/// next image's colour and gradients there.
+struct Warped {
+    index: u32,
+    u: f64,
+    v: f64,
+    inv: f64,
+    s: [f32; 9],
+}
+
 const PAIRS: [(usize, usize); 6] = [(0, 0), (1, 1), (2, 2), (0, 1), (0, 2), (1, 2)];
 
 impl Problem<'_> {
@@ -144,9 +158,11 @@ impl Problem<'_> {
         t: u32,
         range: &std::ops::Range<usize>,
         x: &[Point3<f64>],
-        huber: f64,
+        opts: &SolverOptions,
         system: bool,
+        scratch: &mut Vec<Warped>,
     ) -> TriAccum {
+        let huber = opts.huber;
         let tri = self.triangles[t as usize];
         let xs = tri.map(|v| x[v as usize]);
         let mut acc = TriAccum {
@@ -172,7 +188,11 @@ impl Problem<'_> {
             // distinct entries (every block is symmetric), folded into the triangle once.
             let mut hp = [[0.0f64; 6]; 6];
             let mut gp = [[0.0f64; 3]; 3];
-            for px in &self.pixels[patch.start as usize..patch.end as usize] {
+            // Pass 1: warp and sample every pixel of the patch.
+            scratch.clear();
+            let (mut sc, mut cc) = (0.0f64, 0.0f64);
+            let pixels = &self.pixels[patch.start as usize..patch.end as usize];
+            for (i, px) in pixels.iter().enumerate() {
                 let l = [
                     px.lambda[0] as f64,
                     px.lambda[1] as f64,
@@ -187,10 +207,33 @@ impl Problem<'_> {
                 let Some(s) = img.sample(u, v) else {
                     continue;
                 };
+                for k in 0..3 {
+                    sc += (s[k] * px.color[k]) as f64;
+                    cc += (px.color[k] * px.color[k]) as f64;
+                }
+                scratch.push(Warped { index: i as u32, u, v, inv, s });
+            }
+            // Shading changes as the surface turns: compare up to one gain per (triangle, camera),
+            // the least-squares ratio of the warped pixels to the template's. (Because the gain is
+            // optimal for the current positions, the gradient with respect to them is unchanged.)
+            let gain = if opts.gain && cc > 0.0 {
+                (sc / cc).clamp(0.5, 2.0) as f32
+            } else {
+                1.0
+            };
+            // Pass 2: residuals, loss, normal equations.
+            for wp in scratch.iter() {
+                let px = &pixels[wp.index as usize];
+                let l = [
+                    px.lambda[0] as f64,
+                    px.lambda[1] as f64,
+                    px.lambda[2] as f64,
+                ];
+                let (u, v, inv, s) = (wp.u, wp.v, wp.inv, wp.s);
                 let r = [
-                    (s[0] - px.color[0]) as f64,
-                    (s[1] - px.color[1]) as f64,
-                    (s[2] - px.color[2]) as f64,
+                    (s[0] - gain * px.color[0]) as f64,
+                    (s[1] - gain * px.color[1]) as f64,
+                    (s[2] - gain * px.color[2]) as f64,
                 ];
                 let e2 = r[0] * r[0] + r[1] * r[1] + r[2] * r[2];
                 // Huber: ρ(e²) = e² below the threshold, 2δe − δ² above; IRLS weight ρ'.
@@ -282,7 +325,7 @@ impl Problem<'_> {
             .by_triangle
             .par_iter()
             .with_min_len(16)
-            .map(|(t, r)| self.triangle(*t, r, x, opts.huber, want))
+            .map_init(Vec::new, |scratch, (t, r)| self.triangle(*t, r, x, opts, want, scratch))
             .collect();
         let n = self.weighted_pixels().max(1.0);
         let inv_n = 1.0 / n;
