@@ -3,6 +3,8 @@
 
 use crate::progress::Progress;
 use modelflow::scene::Scene;
+use modelflow::solve::SolverOptions;
+use modelflow::springs::SpringParams;
 use modelflow::track::{track_scene, TrackOptions};
 use std::path::PathBuf;
 
@@ -26,6 +28,9 @@ pub struct TrackArgs {
     /// Gauss-Newton iterations at most per frame and level.
     #[arg(long, default_value_t = TrackOptions::default().solver.max_iterations)]
     pub max_iterations: usize,
+    /// Stop a level when a step lowers the cost by less than this fraction.
+    #[arg(long, default_value_t = TrackOptions::default().solver.min_relative_decrease)]
+    pub min_decrease: f64,
     /// Huber threshold on the RGB residual (image values 0..1).
     #[arg(long, default_value_t = TrackOptions::default().solver.huber)]
     pub huber: f64,
@@ -36,16 +41,24 @@ pub struct TrackArgs {
 
 impl TrackArgs {
     pub fn options(&self) -> TrackOptions {
-        let mut o = TrackOptions::default();
-        o.levels = self.levels;
-        o.anchor_weight = self.anchor_weight;
-        o.blur = self.blur;
-        o.solver.springs.k = self.spring_k;
-        o.solver.springs.t = self.spring_t;
-        o.solver.springs.membrane = self.membrane;
-        o.solver.max_iterations = self.max_iterations;
-        o.solver.huber = self.huber;
-        o
+        let d = TrackOptions::default();
+        TrackOptions {
+            levels: self.levels,
+            anchor_weight: self.anchor_weight,
+            blur: self.blur,
+            solver: SolverOptions {
+                springs: SpringParams {
+                    k: self.spring_k,
+                    t: self.spring_t,
+                    membrane: self.membrane,
+                },
+                max_iterations: self.max_iterations,
+                min_relative_decrease: self.min_decrease,
+                huber: self.huber,
+                ..d.solver
+            },
+            ..d
+        }
     }
 }
 

@@ -48,7 +48,7 @@ fn project_triangle(
     for k in 0..3 {
         let h = proj.project_h(&positions[tri[k] as usize]);
         // No near-plane clipping: a triangle reaching behind the camera is skipped.
-        if !(h.z > 1e-9) {
+        if h.z.is_nan() || h.z <= 1e-9 {
             return None;
         }
         p[k] = [h.x / h.z, h.y / h.z];

@@ -12,6 +12,10 @@
 //! Invariant: this module does no I/O. It reports per iteration, like Ceres' summary: cost, its
 //! change, the step, the CG work, the time, and why it stopped.
 
+// The inner kernels index small fixed arrays (RGB channels, the three vertices, the six vertex
+// pairs) by position on purpose: it reads like the equations.
+#![allow(clippy::needless_range_loop)]
+
 use crate::camera::Projection;
 use crate::patch::{Patch, PixelSample};
 use crate::pyramid::GradientImage;
@@ -39,9 +43,21 @@ pub struct SolverOptions {
     pub max_rejections: usize,
     pub cg_tolerance: f64,
     pub cg_max_iterations: usize,
-    /// Compensate a brightness gain per (triangle, camera) (diffuse shading changes as the
-    /// surface turns). Off = plain brightness constancy, as in the thesis.
-    pub gain: bool,
+    /// Brightness gain compensated per (triangle, camera) (diffuse shading changes as the
+    /// surface turns).
+    pub gain: GainModel,
+}
+
+/// How the template's brightness may change in the next frame.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum GainModel {
+    /// Plain brightness constancy, as in the thesis.
+    Off,
+    /// One gain per (triangle, camera).
+    Constant,
+    /// A gain varying linearly over the triangle (three per (triangle, camera)).
+    Linear,
 }
 
 impl Default for SolverOptions {
@@ -56,10 +72,10 @@ impl Default for SolverOptions {
                 membrane: 0.03,
             },
             damping: 1e-4,
-            max_rejections: 1,
+            max_rejections: 4,
             cg_tolerance: 1e-3,
             cg_max_iterations: 100,
-            gain: true,
+            gain: GainModel::Linear,
         }
     }
 }
@@ -190,7 +206,9 @@ impl Problem<'_> {
             let mut gp = [[0.0f64; 3]; 3];
             // Pass 1: warp and sample every pixel of the patch.
             scratch.clear();
-            let (mut sc, mut cc) = (0.0f64, 0.0f64);
+            // Normal equations of the shading fit: gain(λ) = Σ_i λ_i·g_i (linear over the triangle).
+            let mut gm = Matrix3::<f64>::zeros();
+            let mut gr = Vector3::<f64>::zeros();
             let pixels = &self.pixels[patch.start as usize..patch.end as usize];
             for (i, px) in pixels.iter().enumerate() {
                 let l = [
@@ -199,7 +217,7 @@ impl Problem<'_> {
                     px.lambda[2] as f64,
                 ];
                 let h = warp_h(&l, &y);
-                if !(h.z > 0.0) {
+                if h.z.is_nan() || h.z <= 0.0 {
                     continue;
                 }
                 let inv = 1.0 / h.z;
@@ -207,19 +225,32 @@ impl Problem<'_> {
                 let Some(s) = img.sample(u, v) else {
                     continue;
                 };
+                let mut sc = 0.0f64;
+                let mut cc = 0.0f64;
                 for k in 0..3 {
                     sc += (s[k] * px.color[k]) as f64;
                     cc += (px.color[k] * px.color[k]) as f64;
                 }
+                let lv = Vector3::from(l);
+                gm += lv * lv.transpose() * cc;
+                gr += lv * sc;
                 scratch.push(Warped { index: i as u32, u, v, inv, s });
             }
-            // Shading changes as the surface turns: compare up to one gain per (triangle, camera),
-            // the least-squares ratio of the warped pixels to the template's. (Because the gain is
-            // optimal for the current positions, the gradient with respect to them is unchanged.)
-            let gain = if opts.gain && cc > 0.0 {
-                (sc / cc).clamp(0.5, 2.0) as f32
-            } else {
-                1.0
+            // Shading changes as the surface turns: compare up to a brightness gain per
+            // (triangle, camera), fitted by least squares to the warped pixels — constant, or
+            // linear over the triangle (smooth shading). Because the gain is optimal for the
+            // current positions, the gradient with respect to them is unchanged (envelope theorem).
+            let gains: [f32; 3] = match opts.gain {
+                GainModel::Off => [1.0; 3],
+                _ if gm.trace() <= 0.0 => [1.0; 3],
+                GainModel::Linear if scratch.len() >= 12 => match gm.try_inverse() {
+                    Some(inv) if (inv * gm).iter().all(|v| v.is_finite()) => {
+                        let g = inv * gr;
+                        [g.x, g.y, g.z].map(|v| v.clamp(0.5, 2.0) as f32)
+                    }
+                    _ => [(gr.sum() / gm.sum()).clamp(0.5, 2.0) as f32; 3],
+                },
+                _ => [(gr.sum() / gm.sum()).clamp(0.5, 2.0) as f32; 3],
             };
             // Pass 2: residuals, loss, normal equations.
             for wp in scratch.iter() {
@@ -230,6 +261,7 @@ impl Problem<'_> {
                     px.lambda[2] as f64,
                 ];
                 let (u, v, inv, s) = (wp.u, wp.v, wp.inv, wp.s);
+                let gain = px.lambda[0] * gains[0] + px.lambda[1] * gains[1] + px.lambda[2] * gains[2];
                 let r = [
                     (s[0] - gain * px.color[0]) as f64,
                     (s[1] - gain * px.color[1]) as f64,
@@ -416,45 +448,57 @@ impl Problem<'_> {
         let mut lm = opts.damping;
         let mut rejections = 0;
         let mut stop = StopReason::MaxIterations;
-        // Tiny absolute damping keeps vertices without any data (hidden, no springs) well posed.
+        // Levenberg–Marquardt damping adds lm·(diag(A) + mean diagonal): the relative part
+        // respects each vertex's own scale, the absolute part tames directions the images barely
+        // see (depth along a narrow baseline, sliding along an edge of the texture) and keeps
+        // vertices without any data well posed.
         let mean_diag =
             (0..nv).map(|i| a.diagonal(i).trace()).sum::<f64>() / (3 * nv.max(1)) as f64;
-        let eps = 1e-9 * mean_diag.max(1e-30);
-        let mut system_fresh = true;
-        let mut a_base = a.clone();
+        let mean_diag = mean_diag.max(1e-30);
+        let mut ad = vec![Vector3::zeros(); nv];
         for it in 0..opts.max_iterations {
             let t0 = Instant::now();
-            if system_fresh {
-                a_base = a.clone();
-            }
-            let mut damped = a_base.clone();
-            damped.damp(eps, lm);
+            let mut damped = a.clone();
+            damped.damp(lm * mean_diag, lm);
             let (delta, cg) = solve_pcg(&damped, &b, opts.cg_tolerance, opts.cg_max_iterations);
-            let trial: Vec<Point3<f64>> = x.iter().zip(&delta).map(|(p, d)| p + d).collect();
             let step = delta.iter().map(|d| d.norm()).fold(0.0, f64::max);
-            let mut a_new = a_base.clone();
+            // Decrease predicted by the Gauss–Newton model: 2·δᵀ(−Jᵀr) − δᵀ·JᵀJ·δ.
+            a.mul(&delta, &mut ad);
+            let predicted: f64 = delta.iter().zip(&b).zip(&ad).map(|((d, b), ad)| 2.0 * d.dot(b) - d.dot(ad)).sum();
+            if predicted <= opts.min_relative_decrease * cost {
+                iterations.push(IterationSummary {
+                    iteration: it + 1,
+                    cost,
+                    cost_change: 0.0,
+                    step,
+                    accepted: false,
+                    damping: lm,
+                    cg_iterations: cg.iterations,
+                    seconds: t0.elapsed().as_secs_f64(),
+                });
+                stop = StopReason::Converged;
+                break;
+            }
+            let trial: Vec<Point3<f64>> = x.iter().zip(&delta).map(|(p, d)| p + d).collect();
+            let mut a_new = a.clone();
             let mut b_new = vec![Vector3::zeros(); nv];
             let (new_cost, new_pixels) =
                 self.evaluate(&trial, opts, Some((&mut a_new, &mut b_new)));
             pixel_evaluations += new_pixels as u64;
             let change = new_cost - cost;
             let accepted = new_cost < cost;
+            let prev_cost = cost;
             if accepted {
                 x = trial;
                 a = a_new;
                 b = b_new;
                 pixels = new_pixels;
-                system_fresh = true;
+                cost = new_cost;
                 rejections = 0;
                 lm = (lm / 3.0).max(1e-7);
             } else {
-                system_fresh = false;
                 rejections += 1;
-                lm = (lm * 10.0).max(1e-4);
-            }
-            let prev_cost = cost;
-            if accepted {
-                cost = new_cost;
+                lm = (lm * 10.0).max(1e-3);
             }
             iterations.push(IterationSummary {
                 iteration: it + 1,

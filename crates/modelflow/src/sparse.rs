@@ -164,7 +164,7 @@ pub fn solve_pcg(
     while it < max_iter {
         a.mul(&p, &mut ap);
         let pap = dot(&p, &ap);
-        if !(pap > 0.0) {
+        if pap.is_nan() || pap <= 0.0 {
             break;
         }
         let alpha = rz / pap;
