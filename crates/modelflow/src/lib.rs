@@ -6,6 +6,8 @@ pub mod error;
 pub mod fsutil;
 pub mod image;
 pub mod mesh;
+pub mod render;
 pub mod scene;
+pub mod texture;
 
 pub use error::{Error, Result};
