@@ -8,6 +8,7 @@ pub mod image;
 pub mod mesh;
 pub mod render;
 pub mod scene;
+pub mod synth;
 pub mod texture;
 
 pub use error::{Error, Result};
