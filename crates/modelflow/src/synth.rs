@@ -380,7 +380,7 @@ fn blob_positions(dirs: &[Point3<f64>], t: f64) -> Vec<Point3<f64>> {
     let lobes: Vec<(Vector3<f64>, f64)> = LOBES
         .iter()
         .map(|(d, phase, rate)| {
-            let amp = 0.32 + 0.14 * (2.0 * std::f64::consts::PI * t * rate / 2.7 + phase).sin();
+            let amp = 0.5 + 0.16 * (2.0 * std::f64::consts::PI * t * rate / 2.7 + phase).sin();
             (Vector3::from(*d).normalize(), amp)
         })
         .collect();
@@ -391,7 +391,7 @@ fn blob_positions(dirs: &[Point3<f64>], t: f64) -> Vec<Point3<f64>> {
             let r: f64 = 1.0
                 + lobes
                     .iter()
-                    .map(|(c, a)| a * (11.0 * (d.coords.dot(c) - 1.0)).exp())
+                    .map(|(c, a)| a * (16.0 * (d.coords.dot(c) - 1.0)).exp())
                     .sum::<f64>();
             Point3::from(rot * (d.coords * (BLOB_RADIUS * r)))
         })
