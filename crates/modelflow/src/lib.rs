@@ -3,9 +3,12 @@
 
 pub mod camera;
 pub mod error;
+pub mod eval;
 pub mod fsutil;
 pub mod image;
+pub mod imageio;
 pub mod mesh;
+pub mod meshio;
 pub mod render;
 pub mod scene;
 pub mod synth;
