@@ -21,12 +21,17 @@
 use crate::camera::{look_at, Camera, Projection};
 use crate::error::{Error, Result};
 use crate::image::RgbImage;
+use crate::imageio::write_png;
 use crate::mesh::{grid, Mesh};
+use crate::meshio::write_obj;
 use crate::render::{render, Light, RenderOptions, Surface};
+use crate::scene::{CameraEntry, FrameRange, SceneFile, FORMAT};
 use crate::texture::{mix64, CubeTexture, PlaneTexture, Texture};
 use nalgebra::{Matrix3, Point3, Rotation3, Unit, Vector3};
 use rayon::prelude::*;
 use std::collections::HashMap;
+use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicUsize, Ordering};
 
 /// Frames per second of the synthetic clips (the motion is defined in seconds).
 pub const FPS: f64 = 30.0;
@@ -128,8 +133,10 @@ impl SynthOptions {
     pub fn validate(&self) -> Result<()> {
         let bad = |what: String| Err(Error::Usage(format!("synth: {what}")));
         let n = self.camera_count();
-        if !(1..=16).contains(&n) {
-            return bad(format!("--cameras {n}: expected 1 to 16"));
+        if !(2..=16).contains(&n) {
+            return bad(format!(
+                "--cameras {n}: expected 2 to 16 (a scene needs two views of the mesh)"
+            ));
         }
         if !(16..=8192).contains(&self.width) || !(16..=8192).contains(&self.height) {
             return bad(format!(
@@ -141,10 +148,16 @@ impl SynthOptions {
             return bad(format!("--frames {}: expected 1 to 10000", self.frames));
         }
         if !(self.noise.is_finite() && (0.0..=1.0).contains(&self.noise)) {
-            return bad(format!("--noise {}: expected a sigma in [0, 1]", self.noise));
+            return bad(format!(
+                "--noise {}: expected a sigma in [0, 1]",
+                self.noise
+            ));
         }
         if !(1..=8).contains(&self.supersample) {
-            return bad(format!("--supersample {}: expected 1 to 8", self.supersample));
+            return bad(format!(
+                "--supersample {}: expected 1 to 8",
+                self.supersample
+            ));
         }
         Ok(())
     }
@@ -170,6 +183,8 @@ pub struct Synthetic {
     pub truth: Vec<Vec<Point3<f64>>>,
     skin: Skin,
     render_options: RenderOptions,
+    /// (K, R, t) of each camera, for the scene file.
+    krt: Vec<Krt>,
 }
 
 /// Per-frame image motion of the vertices, in pixels, over all cameras and frame pairs.
@@ -184,19 +199,31 @@ pub struct MotionStats {
 fn intrinsics(width: u32, height: u32) -> Matrix3<f64> {
     let (w, h) = (width as f64, height as f64);
     let f = 1.3 * w.min(h * 4.0 / 3.0);
-    Matrix3::new(f, 0.0, (w - 1.0) / 2.0, 0.0, f, (h - 1.0) / 2.0, 0.0, 0.0, 1.0)
+    Matrix3::new(
+        f,
+        0.0,
+        (w - 1.0) / 2.0,
+        0.0,
+        f,
+        (h - 1.0) / 2.0,
+        0.0,
+        0.0,
+        1.0,
+    )
 }
+
+type Krt = (Matrix3<f64>, Matrix3<f64>, Vector3<f64>);
 
 fn camera_looking(
     name: String,
     opts: &SynthOptions,
     eye: Point3<f64>,
     target: Point3<f64>,
-) -> Camera {
+) -> (Camera, Krt) {
     let (r, t) = look_at(&eye, &target, &Vector3::z());
-    let p = Projection::from_krt(&intrinsics(opts.width, opts.height), &r, &t)
-        .expect("look_at gives a rotation and K is regular");
-    Camera::fixed(name, opts.width, opts.height, p)
+    let k = intrinsics(opts.width, opts.height);
+    let p = Projection::from_krt(&k, &r, &t).expect("look_at gives a rotation and K is regular");
+    (Camera::fixed(name, opts.width, opts.height, p), (k, r, t))
 }
 
 fn smoothstep(a: f64, b: f64, x: f64) -> f64 {
@@ -280,13 +307,13 @@ fn cloth(opts: &SynthOptions) -> Synthetic {
     let view = Vector3::new(-az.sin() * el.cos(), -az.cos() * el.cos(), el.sin());
     let side = Vector3::z().cross(&view).normalize();
     let count = opts.camera_count();
-    let cameras = (0..count)
+    let (cameras, krt): (Vec<Camera>, Vec<Krt>) = (0..count)
         .map(|c| {
             let off = (c as f64 - (count as f64 - 1.0) / 2.0) * 0.25;
             let eye = target + view * dist + side * off;
             camera_looking(format!("cam{c}"), opts, eye, target)
         })
-        .collect();
+        .unzip();
     Synthetic {
         options: opts.clone(),
         cameras,
@@ -294,6 +321,7 @@ fn cloth(opts: &SynthOptions) -> Synthetic {
         material,
         truth,
         skin,
+        krt,
         render_options: render_options(opts, Vector3::new(-0.5, -0.5, 1.0), [0.13, 0.14, 0.17]),
     }
 }
@@ -428,7 +456,7 @@ fn blob(opts: &SynthOptions) -> Synthetic {
     let skin = Skin::Cube(tex.bake_cube(BLOB_RADIUS, 512));
     let count = opts.camera_count();
     let target = Point3::origin();
-    let cameras = (0..count)
+    let (cameras, krt): (Vec<Camera>, Vec<Krt>) = (0..count)
         .map(|c| {
             let az = (15.0 + 360.0 * c as f64 / count as f64).to_radians();
             let el = if c % 2 == 0 { 12f64 } else { 28.0 }.to_radians();
@@ -439,7 +467,7 @@ fn blob(opts: &SynthOptions) -> Synthetic {
             );
             camera_looking(format!("cam{c}"), opts, eye, target)
         })
-        .collect();
+        .unzip();
     Synthetic {
         options: opts.clone(),
         cameras,
@@ -447,6 +475,7 @@ fn blob(opts: &SynthOptions) -> Synthetic {
         material,
         truth,
         skin,
+        krt,
         render_options: render_options(opts, Vector3::new(0.4, -0.6, 0.8), [0.12, 0.12, 0.12]),
     }
 }
@@ -526,9 +555,8 @@ impl Synthetic {
         )
         .expect("synthetic meshes and materials are consistent");
         if self.options.noise > 0.0 {
-            let seed = mix64(
-                self.options.seed ^ 0x0153_E000 ^ ((camera as u64) << 40) ^ frame as u64,
-            );
+            let seed =
+                mix64(self.options.seed ^ 0x0153_E000 ^ ((camera as u64) << 40) ^ frame as u64);
             add_noise(&mut img, self.options.noise, seed);
         }
         img
@@ -542,9 +570,9 @@ impl Synthetic {
             .flat_map(|cam| {
                 self.truth.windows(2).enumerate().flat_map(move |(f, w)| {
                     let (p0, p1) = (cam.at(f as u32), cam.at(f as u32 + 1));
-                    w[0].iter().zip(&w[1]).filter_map(move |(a, b)| {
-                        Some((p1.project(b)? - p0.project(a)?).norm())
-                    })
+                    w[0].iter()
+                        .zip(&w[1])
+                        .filter_map(move |(a, b)| Some((p1.project(b)? - p0.project(a)?).norm()))
                 })
             })
             .collect();
@@ -560,6 +588,81 @@ impl Synthetic {
             median: d[d.len() / 2],
         }
     }
+
+    /// The scene file describing this sequence as [`write_dataset`] lays it out.
+    pub fn scene_file(&self) -> SceneFile {
+        let rows = |m: &Matrix3<f64>| {
+            [
+                [m[(0, 0)], m[(0, 1)], m[(0, 2)]],
+                [m[(1, 0)], m[(1, 1)], m[(1, 2)]],
+                [m[(2, 0)], m[(2, 1)], m[(2, 2)]],
+            ]
+        };
+        SceneFile {
+            format: FORMAT.to_string(),
+            frames: FrameRange {
+                first: 0,
+                last: self.frames() - 1,
+            },
+            mesh: "mesh/initial.obj".to_string(),
+            cameras: self
+                .cameras
+                .iter()
+                .zip(&self.krt)
+                .map(|(cam, (k, r, t))| CameraEntry {
+                    name: cam.name.clone(),
+                    width: cam.width,
+                    height: cam.height,
+                    k: Some(rows(k)),
+                    r: Some(rows(r)),
+                    t: Some([t.x, t.y, t.z]),
+                    poses: None,
+                    p: None,
+                    images: format!("images/{}/{{frame:04}}.png", cam.name),
+                })
+                .collect(),
+            ground_truth: Some("truth/{frame:04}.obj".to_string()),
+        }
+    }
+}
+
+/// Generates the sequence of `opts` and writes it under `dir`: `scene.json`
+/// (`modelflow-scene/1`), `mesh/initial.obj` (frame 0, with texture coordinates),
+/// `images/camN/{frame:04}.png` (8-bit) and `truth/{frame:04}.obj`. Frames are rendered and
+/// written in parallel; `progress(done, total)` is called after each file (from worker threads).
+/// The scene file is written last, so a scene file present means a complete data set. Returns
+/// the scene file's path.
+pub fn write_dataset(
+    opts: &SynthOptions,
+    dir: &Path,
+    progress: &(dyn Fn(usize, usize) + Sync),
+) -> Result<PathBuf> {
+    let synth = Synthetic::generate(opts)?;
+    let frames = synth.frames();
+    let ncam = synth.cameras.len();
+    let total = frames as usize * (ncam + 1) + 1;
+    let done = AtomicUsize::new(0);
+    let tick = || progress(done.fetch_add(1, Ordering::Relaxed) + 1, total);
+    write_obj(&dir.join("mesh/initial.obj"), &synth.mesh)?;
+    tick();
+    let jobs: Vec<(Option<usize>, u32)> = (0..frames)
+        .flat_map(|f| (0..=ncam).map(move |c| ((c < ncam).then_some(c), f)))
+        .collect();
+    jobs.par_iter().try_for_each(|&(cam, f)| -> Result<()> {
+        match cam {
+            Some(c) => {
+                let name = &synth.cameras[c].name;
+                let path = dir.join(format!("images/{name}/{f:04}.png"));
+                write_png(&path, &synth.render(c, f))?;
+            }
+            None => write_obj(&dir.join(format!("truth/{f:04}.obj")), &synth.frame_mesh(f))?,
+        }
+        tick();
+        Ok(())
+    })?;
+    let scene = dir.join("scene.json");
+    synth.scene_file().write(&scene)?;
+    Ok(scene)
 }
 
 #[cfg(test)]
@@ -589,10 +692,17 @@ mod tests {
             cameras: Some(0),
             ..Default::default()
         };
-        assert!(Synthetic::generate(&o).unwrap_err().to_string().contains("--cameras 0"));
+        assert!(Synthetic::generate(&o)
+            .unwrap_err()
+            .to_string()
+            .contains("--cameras 0"));
         o.cameras = None;
         o.supersample = 0;
-        assert!(o.validate().unwrap_err().to_string().contains("--supersample 0"));
+        assert!(o
+            .validate()
+            .unwrap_err()
+            .to_string()
+            .contains("--supersample 0"));
         o.supersample = 3;
         o.noise = f64::NAN;
         assert!(o.validate().unwrap_err().to_string().contains("--noise"));
@@ -628,7 +738,11 @@ mod tests {
             .fold(0.0, f64::max);
         assert!(top_move < 2e-3, "top edge moved {top_move} m");
         let bottom = CLOTH_N * (CLOTH_N - 1) + CLOTH_N / 2;
-        let bottom_move = s.truth.iter().map(|f| (f[bottom] - first[bottom]).norm()).fold(0.0, f64::max);
+        let bottom_move = s
+            .truth
+            .iter()
+            .map(|f| (f[bottom] - first[bottom]).norm())
+            .fold(0.0, f64::max);
         assert!(bottom_move > 0.05, "bottom moved only {bottom_move} m");
     }
 
@@ -687,7 +801,10 @@ mod tests {
                 }
             }
         }
-        assert!(occluded > 10, "only {occluded} front-facing vertices hidden");
+        assert!(
+            occluded > 10,
+            "only {occluded} front-facing vertices hidden"
+        );
     }
 
     #[test]
@@ -704,7 +821,12 @@ mod tests {
         assert_eq!(a, b);
         o.seed = 2;
         let c = Synthetic::generate(&o).unwrap().render(1, 2);
-        let differ = a.pixels().iter().zip(c.pixels()).filter(|(x, y)| x != y).count();
+        let differ = a
+            .pixels()
+            .iter()
+            .zip(c.pixels())
+            .filter(|(x, y)| x != y)
+            .count();
         assert!(differ > a.pixels().len() / 3, "{differ}");
     }
 
@@ -718,7 +840,9 @@ mod tests {
             ..Default::default()
         };
         let clean = Synthetic::generate(&o).unwrap().render(0, 0);
-        let noisy = Synthetic::generate(&SynthOptions { noise: 0.03, ..o }).unwrap().render(0, 0);
+        let noisy = Synthetic::generate(&SynthOptions { noise: 0.03, ..o })
+            .unwrap()
+            .render(0, 0);
         let (mut s2, mut n) = (0.0, 0.0);
         for (a, b) in clean.pixels().iter().zip(noisy.pixels()) {
             for ch in 0..3 {
@@ -731,5 +855,45 @@ mod tests {
         }
         let sigma = (s2 / n).sqrt();
         assert!((sigma - 0.03).abs() < 0.002, "{sigma}");
+    }
+
+    #[test]
+    fn written_dataset_loads_and_matches_memory() {
+        let o = SynthOptions {
+            frames: 3,
+            width: 160,
+            height: 120,
+            cameras: Some(3),
+            ..Default::default()
+        };
+        let dir = tempfile::tempdir().unwrap();
+        let calls = AtomicUsize::new(0);
+        let path = write_dataset(&o, dir.path(), &|done, total| {
+            assert!(done <= total && total == 3 * 4 + 1);
+            calls.fetch_add(1, Ordering::Relaxed);
+        })
+        .unwrap();
+        assert_eq!(calls.load(Ordering::Relaxed), 13);
+        let scene = crate::scene::Scene::load(&path).unwrap();
+        let s = Synthetic::generate(&o).unwrap();
+        assert_eq!((scene.first, scene.last), (0, 2));
+        assert_eq!(scene.cameras.len(), 3);
+        assert_eq!(scene.mesh.triangles, s.mesh.triangles);
+        for (a, b) in scene.cameras.iter().zip(&s.cameras) {
+            let x = s.truth[1][100];
+            let (pa, pb) = (a.at(1).project(&x).unwrap(), b.at(1).project(&x).unwrap());
+            assert!((pa - pb).norm() < 1e-9);
+        }
+        let truth = scene.ground_truth(2).unwrap().unwrap();
+        assert_eq!(truth.positions, s.truth[2], "OBJ round trip is exact");
+        let imgs = scene.load_images(2).unwrap();
+        let mem = s.render(2, 2);
+        let worst = imgs[2]
+            .pixels()
+            .iter()
+            .zip(mem.pixels())
+            .flat_map(|(a, b)| (0..3).map(move |c| (a[c] - b[c]).abs()))
+            .fold(0.0f32, f32::max);
+        assert!(worst <= 0.5 / 255.0 + 1e-6, "{worst}");
     }
 }
