@@ -5,6 +5,7 @@
 use clap::{Parser, Subcommand};
 
 mod eval;
+mod synth;
 
 #[derive(Parser)]
 #[command(
@@ -21,12 +22,15 @@ struct Cli {
 enum Command {
     /// Score a run folder against the scene's ground truth.
     Eval(eval::Args),
+    /// Write synthetic multi-view footage with ground truth (presets: cloth, blob).
+    Synth(synth::Args),
 }
 
 fn main() -> std::process::ExitCode {
     let cli = Cli::parse();
     let result: anyhow::Result<()> = match cli.command {
         Command::Eval(a) => eval::run(a),
+        Command::Synth(a) => synth::run(a),
     };
     match result {
         Ok(()) => std::process::ExitCode::SUCCESS,

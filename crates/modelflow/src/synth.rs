@@ -637,32 +637,39 @@ pub fn write_dataset(
     dir: &Path,
     progress: &(dyn Fn(usize, usize) + Sync),
 ) -> Result<PathBuf> {
-    let synth = Synthetic::generate(opts)?;
-    let frames = synth.frames();
-    let ncam = synth.cameras.len();
-    let total = frames as usize * (ncam + 1) + 1;
-    let done = AtomicUsize::new(0);
-    let tick = || progress(done.fetch_add(1, Ordering::Relaxed) + 1, total);
-    write_obj(&dir.join("mesh/initial.obj"), &synth.mesh)?;
-    tick();
-    let jobs: Vec<(Option<usize>, u32)> = (0..frames)
-        .flat_map(|f| (0..=ncam).map(move |c| ((c < ncam).then_some(c), f)))
-        .collect();
-    jobs.par_iter().try_for_each(|&(cam, f)| -> Result<()> {
-        match cam {
-            Some(c) => {
-                let name = &synth.cameras[c].name;
-                let path = dir.join(format!("images/{name}/{f:04}.png"));
-                write_png(&path, &synth.render(c, f))?;
-            }
-            None => write_obj(&dir.join(format!("truth/{f:04}.obj")), &synth.frame_mesh(f))?,
-        }
+    Synthetic::generate(opts)?.write(dir, progress)
+}
+
+impl Synthetic {
+    /// Writes this sequence under `dir`; see [`write_dataset`].
+    pub fn write(&self, dir: &Path, progress: &(dyn Fn(usize, usize) + Sync)) -> Result<PathBuf> {
+        let synth = self;
+        let frames = synth.frames();
+        let ncam = synth.cameras.len();
+        let total = frames as usize * (ncam + 1) + 1;
+        let done = AtomicUsize::new(0);
+        let tick = || progress(done.fetch_add(1, Ordering::Relaxed) + 1, total);
+        write_obj(&dir.join("mesh/initial.obj"), &synth.mesh)?;
         tick();
-        Ok(())
-    })?;
-    let scene = dir.join("scene.json");
-    synth.scene_file().write(&scene)?;
-    Ok(scene)
+        let jobs: Vec<(Option<usize>, u32)> = (0..frames)
+            .flat_map(|f| (0..=ncam).map(move |c| ((c < ncam).then_some(c), f)))
+            .collect();
+        jobs.par_iter().try_for_each(|&(cam, f)| -> Result<()> {
+            match cam {
+                Some(c) => {
+                    let name = &synth.cameras[c].name;
+                    let path = dir.join(format!("images/{name}/{f:04}.png"));
+                    write_png(&path, &synth.render(c, f))?;
+                }
+                None => write_obj(&dir.join(format!("truth/{f:04}.obj")), &synth.frame_mesh(f))?,
+            }
+            tick();
+            Ok(())
+        })?;
+        let scene = dir.join("scene.json");
+        synth.scene_file().write(&scene)?;
+        Ok(scene)
+    }
 }
 
 #[cfg(test)]
