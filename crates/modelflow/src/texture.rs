@@ -337,10 +337,30 @@ impl PlaneTexture {
     pub fn sample(&self, x: f64, y: f64) -> [f32; 3] {
         let u = (x - self.origin[0]) / self.texel[0] - 0.5;
         let v = (y - self.origin[1]) / self.texel[1] - 0.5;
-        let (w, h) = (self.image.width() as f64, self.image.height() as f64);
-        self.image
-            .sample_unchecked(u.clamp(0.0, w - 1.0), v.clamp(0.0, h - 1.0))
+        bilinear_clamped(&self.image, u, v)
     }
+}
+
+/// Bilinear sample at `(u, v)` (texel centres at integers), clamped to the border texels. The
+/// renderer's hot path: one clamp, no `Option`, `f32` weights.
+#[inline]
+fn bilinear_clamped(img: &RgbImage, u: f64, v: f64) -> [f32; 3] {
+    let (w, h) = (img.width(), img.height());
+    let u = u.clamp(0.0, (w - 1) as f64);
+    let v = v.clamp(0.0, (h - 1) as f64);
+    let (x0, y0) = (u as usize, v as usize);
+    let (fx, fy) = ((u - x0 as f64) as f32, (v - y0 as f64) as f32);
+    let (x1, y1) = ((x0 + 1).min(w - 1), (y0 + 1).min(h - 1));
+    let px = img.pixels();
+    let (a, b) = (px[y0 * w + x0], px[y0 * w + x1]);
+    let (c, d) = (px[y1 * w + x0], px[y1 * w + x1]);
+    let mut out = [0.0f32; 3];
+    for ch in 0..3 {
+        let top = a[ch] + (b[ch] - a[ch]) * fx;
+        let bot = c[ch] + (d[ch] - c[ch]) * fx;
+        out[ch] = top + (bot - top) * fy;
+    }
+    out
 }
 
 /// Direction for face `f` (+x, -x, +y, -y, +z, -z) at face coordinates `s, t ∈ [-1, 1]`.
@@ -378,9 +398,9 @@ impl CubeTexture {
         };
         let m = if m > 0.0 { m } else { 1.0 };
         let r = self.res as f64;
-        let u = ((s / m + 1.0) * 0.5 * r - 0.5).clamp(0.0, r - 1.0);
-        let v = ((t / m + 1.0) * 0.5 * r - 0.5).clamp(0.0, r - 1.0);
-        self.faces[f].sample_unchecked(u, v)
+        let u = (s / m + 1.0) * 0.5 * r - 0.5;
+        let v = (t / m + 1.0) * 0.5 * r - 0.5;
+        bilinear_clamped(&self.faces[f], u, v)
     }
 }
 
@@ -452,6 +472,22 @@ mod tests {
         let (x, y) = (-0.5 + 3.5 * 0.01, 0.25 + 5.5 * 0.01);
         assert_eq!(t.sample(x, y), tex.eval(&[x, y, 0.0]));
         assert_eq!(t.sample(x, y), t.image.get(3, 5));
+    }
+
+    #[test]
+    fn plane_sampling_is_bilinear_between_texel_centres_and_clamped_outside() {
+        let t = Texture::new(5, 0.01).bake_plane([0.0, 0.0], [0.04, 0.03], 100.0);
+        let g = |i: usize, j: usize| t.image.get(i, j);
+        // Material (0.02, 0.012) is texel coordinate (1.5, 0.7).
+        let s = t.sample(0.02, 0.012);
+        for ch in 0..3 {
+            let top = 0.5 * (g(1, 0)[ch] + g(2, 0)[ch]);
+            let bot = 0.5 * (g(1, 1)[ch] + g(2, 1)[ch]);
+            let want = top + 0.7 * (bot - top);
+            assert!((s[ch] - want).abs() < 1e-5, "{s:?}");
+        }
+        assert_eq!(t.sample(-1.0, -1.0), g(0, 0));
+        assert_eq!(t.sample(1.0, 1.0), g(3, 2));
     }
 
     #[test]
