@@ -556,7 +556,7 @@ mod tests {
             assert!(sw > 1.0, "dot visible");
             let (u, v) = (su / sw, sv / sw);
             assert!(
-                (u - want.x).abs() < 0.1 && (v - want.y).abs() < 0.1,
+                (u - want.x).abs() < 0.03 && (v - want.y).abs() < 0.03,
                 "centroid ({u:.3}, {v:.3}) vs projection ({:.3}, {:.3})",
                 want.x,
                 want.y
