@@ -533,12 +533,13 @@ impl Synthetic {
         self.truth.len() as u32
     }
 
-    /// The true mesh at `frame`.
+    /// The true mesh at `frame` (panics past the last frame).
     pub fn frame_mesh(&self, frame: u32) -> Mesh {
         self.mesh.with_positions(self.truth[frame as usize].clone())
     }
 
-    /// The image of camera `camera` at `frame` (with the configured noise).
+    /// The image of camera `camera` at `frame` (with the configured noise). Panics if either is
+    /// out of range (`cameras.len()`, [`Synthetic::frames`]).
     pub fn render(&self, camera: usize, frame: u32) -> RgbImage {
         let mesh = self.frame_mesh(frame);
         let surface = match &self.skin {
