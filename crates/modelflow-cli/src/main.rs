@@ -6,6 +6,7 @@ use clap::{Parser, Subcommand};
 
 mod eval;
 mod progress;
+mod synth;
 mod track;
 
 #[derive(Parser)]
@@ -25,6 +26,8 @@ enum Command {
     Eval(eval::Args),
     /// Track the scene's mesh through every frame (Model Flow).
     Track(track::Args),
+    /// Write synthetic multi-view footage with ground truth (presets: cloth, blob).
+    Synth(synth::Args),
 }
 
 fn main() -> std::process::ExitCode {
@@ -32,6 +35,7 @@ fn main() -> std::process::ExitCode {
     let result: anyhow::Result<()> = match cli.command {
         Command::Eval(a) => eval::run(a),
         Command::Track(a) => track::run(a),
+        Command::Synth(a) => synth::run(a),
     };
     match result {
         Ok(()) => std::process::ExitCode::SUCCESS,

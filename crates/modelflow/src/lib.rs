@@ -12,10 +12,13 @@ pub mod meshio;
 pub mod patch;
 pub mod pyramid;
 pub mod raster;
+pub mod render;
 pub mod scene;
 pub mod solve;
 pub mod sparse;
 pub mod springs;
+pub mod synth;
+pub mod texture;
 pub mod track;
 pub mod warp;
 
