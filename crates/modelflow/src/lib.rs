@@ -2,10 +2,13 @@
 //! footage, after "Model Flowing" (Reuterswärd, 2005). See `ARCHITECTURE.md` for the map.
 
 pub mod camera;
+pub mod colormap;
+pub mod draw;
 pub mod error;
 pub mod fsutil;
 pub mod image;
 pub mod mesh;
+pub mod plot;
 pub mod scene;
 
 pub use error::{Error, Result};
