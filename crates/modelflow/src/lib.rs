@@ -8,6 +8,7 @@ pub mod error;
 pub mod fsutil;
 pub mod image;
 pub mod mesh;
+pub mod overlay;
 pub mod plot;
 pub mod scene;
 

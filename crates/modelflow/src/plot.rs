@@ -147,7 +147,11 @@ impl LinePlot {
         });
         // Non-negative quantities start their axis at zero.
         let ylo = if ylo >= 0.0 { 0.0 } else { ylo };
-        let x = axis(xlo, xhi, false, true);
+        let mut x = axis(xlo, xhi, false, true);
+        // A little room so that markers at the ends are not cut by the frame.
+        let pad = 0.015 * (x.hi - x.lo);
+        x.lo -= pad;
+        x.hi += pad;
         let y = axis(ylo, yhi, true, false);
         let tick_w = y
             .ticks
@@ -478,10 +482,7 @@ pub(crate) mod tests {
         let a = axis(0.0, 3.3, true, false);
         assert_eq!((a.lo, a.hi), (0.0, 4.0));
         let labels: Vec<&str> = a.ticks.iter().map(|t| t.1.as_str()).collect();
-        assert_eq!(
-            labels,
-            ["0", "1", "2", "3", "4"]
-        );
+        assert_eq!(labels, ["0", "1", "2", "3", "4"]);
         let f = axis(0.0, 119.0, false, true);
         assert_eq!((f.lo, f.hi), (0.0, 119.0));
         assert_eq!(f.ticks.last().unwrap().1, "100");
