@@ -12,6 +12,8 @@ pub mod mesh;
 pub mod meshio;
 pub mod overlay;
 pub mod plot;
+pub mod render;
 pub mod scene;
+pub mod texture;
 
 pub use error::{Error, Result};
