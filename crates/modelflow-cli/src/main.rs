@@ -4,6 +4,8 @@
 
 use clap::{Parser, Subcommand};
 
+mod eval;
+
 #[derive(Parser)]
 #[command(
     name = "modelflow",
@@ -16,11 +18,16 @@ struct Cli {
 }
 
 #[derive(Subcommand)]
-enum Command {}
+enum Command {
+    /// Score a run folder against the scene's ground truth.
+    Eval(eval::Args),
+}
 
 fn main() -> std::process::ExitCode {
     let cli = Cli::parse();
-    let result: anyhow::Result<()> = match cli.command {};
+    let result: anyhow::Result<()> = match cli.command {
+        Command::Eval(a) => eval::run(a),
+    };
     match result {
         Ok(()) => std::process::ExitCode::SUCCESS,
         Err(e) => {

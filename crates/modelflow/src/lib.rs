@@ -5,6 +5,7 @@ pub mod camera;
 pub mod colormap;
 pub mod draw;
 pub mod error;
+pub mod eval;
 pub mod fsutil;
 pub mod image;
 pub mod imageio;
