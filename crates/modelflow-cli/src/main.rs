@@ -5,6 +5,7 @@
 use clap::{Parser, Subcommand};
 
 mod eval;
+mod report;
 
 #[derive(Parser)]
 #[command(
@@ -21,12 +22,15 @@ struct Cli {
 enum Command {
     /// Score a run folder against the scene's ground truth.
     Eval(eval::Args),
+    /// Write an HTML report comparing runs: error plot, overlays, oblique and error views.
+    Report(report::Args),
 }
 
 fn main() -> std::process::ExitCode {
     let cli = Cli::parse();
     let result: anyhow::Result<()> = match cli.command {
         Command::Eval(a) => eval::run(a),
+        Command::Report(a) => report::run(a),
     };
     match result {
         Ok(()) => std::process::ExitCode::SUCCESS,

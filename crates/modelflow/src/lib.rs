@@ -14,6 +14,7 @@ pub mod meshio;
 pub mod overlay;
 pub mod plot;
 pub mod render;
+pub mod report;
 pub mod scene;
 pub mod texture;
 
