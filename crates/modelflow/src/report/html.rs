@@ -21,7 +21,7 @@ table{border-collapse:collapse;margin:.6em 0}th,td{border:1px solid #ccc;padding
 th{background:#f3f3f3}td:first-child,th:first-child{text-align:left}\
 figure{margin:1em 0}figure img{max-width:100%;height:auto;border:1px solid #ccc;display:block}\
 figcaption{color:#555;font-size:.9em;margin-top:.3em}.swatch{display:inline-block;width:1.6em;height:.35em;\
-vertical-align:middle;margin-right:.4em}.muted{color:#666}";
+vertical-align:middle;margin-right:.4em}.muted{color:#666}.kv td{text-align:left}";
 
 fn num(v: Option<f64>) -> String {
     v.filter(|v| v.is_finite()).map_or("—".to_string(), fmt_sig)
@@ -70,7 +70,7 @@ pub(super) fn page(
 
     // Scene summary.
     let n_frames = scene.last - scene.first + 1;
-    let _ = writeln!(o, "<h2>Scene</h2>\n<table>");
+    let _ = writeln!(o, "<h2>Scene</h2>\n<table class=\"kv\">");
     let _ = writeln!(
         o,
         "<tr><th>frames</th><td>{} – {} ({n_frames})</td></tr>",
