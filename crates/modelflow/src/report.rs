@@ -629,3 +629,6 @@ pub(crate) fn fmt_sig(v: f64) -> String {
     let digits = (2 - v.abs().log10().floor() as i32).clamp(0, 9) as usize;
     format!("{v:.digits$}")
 }
+
+#[cfg(test)]
+mod tests;
