@@ -5,7 +5,9 @@
 use clap::{Parser, Subcommand};
 
 mod eval;
+mod progress;
 mod report;
+mod track;
 
 #[derive(Parser)]
 #[command(
@@ -24,6 +26,8 @@ enum Command {
     Eval(eval::Args),
     /// Write an HTML report comparing runs: error plot, overlays, oblique and error views.
     Report(report::Args),
+    /// Track the scene's mesh through every frame (Model Flow).
+    Track(track::Args),
 }
 
 fn main() -> std::process::ExitCode {
@@ -31,6 +35,7 @@ fn main() -> std::process::ExitCode {
     let result: anyhow::Result<()> = match cli.command {
         Command::Eval(a) => eval::run(a),
         Command::Report(a) => report::run(a),
+        Command::Track(a) => track::run(a),
     };
     match result {
         Ok(()) => std::process::ExitCode::SUCCESS,

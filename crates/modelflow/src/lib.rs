@@ -12,10 +12,18 @@ pub mod imageio;
 pub mod mesh;
 pub mod meshio;
 pub mod overlay;
+pub mod patch;
 pub mod plot;
+pub mod pyramid;
+pub mod raster;
 pub mod render;
 pub mod report;
 pub mod scene;
+pub mod solve;
+pub mod sparse;
+pub mod springs;
 pub mod texture;
+pub mod track;
+pub mod warp;
 
 pub use error::{Error, Result};
