@@ -407,7 +407,7 @@ fn overlay_sheet(
             let style = WireStyle {
                 colour: colormap::overlay_colour(i),
                 width: 1.0,
-                alpha: 0.9,
+                alpha: 0.75,
                 hidden_alpha: 0.2,
             };
             overlay::wireframe(&mut p, mesh, &proj, Some(&depth), &style);
