@@ -340,6 +340,48 @@ mod tests {
     }
 
     #[test]
+    fn back_edges_of_a_box_are_faint_against_the_rendered_depth() {
+        // Unit cube at the origin, camera 4 in front: the front face (depth 3.5) hides the
+        // back face (depth 4.5), whose edges project inside the front face's outline.
+        let mut pos = Vec::new();
+        for z in [-0.5, 0.5] {
+            for y in [-0.5, 0.5] {
+                for x in [-0.5, 0.5] {
+                    pos.push(Point3::new(x, y, z));
+                }
+            }
+        }
+        let quads = [
+            [0, 1, 3, 2],
+            [4, 6, 7, 5],
+            [0, 4, 5, 1],
+            [2, 3, 7, 6],
+            [0, 2, 6, 4],
+            [1, 5, 7, 3],
+        ];
+        let tris = quads
+            .iter()
+            .flat_map(|q| [[q[0], q[1], q[2]], [q[0], q[2], q[3]]])
+            .collect();
+        let mesh = Mesh::new(pos, tris);
+        let p = camera();
+        let depth = crate::render::depth_map(&mesh, &p, 160, 120).unwrap();
+        let mut img = draw::filled(160, 120, [0.0; 3]);
+        let style = WireStyle {
+            colour: [1.0; 3],
+            width: 1.0,
+            alpha: 1.0,
+            hidden_alpha: 0.3,
+        };
+        wireframe(&mut img, &mesh, &p, Some(&depth), &style);
+        // Front top edge: v = 59.5 − 200·0.5/3.5 = 30.93; back top edge: v = 59.5 − 200·0.5/4.5 = 37.28.
+        let col = |v: usize| img.get(79, v)[0].max(img.get(80, v)[0]);
+        assert!(col(31) > 0.85, "front edge drawn fully: {}", col(31));
+        let back = col(37).max(col(38));
+        assert!(back > 0.1 && back <= 0.3 + 1e-6, "back edge faint: {back}");
+    }
+
+    #[test]
     fn magnified_camera_matches_magnified_image() {
         let p = camera();
         let m = magnified(&p, 3.0);
