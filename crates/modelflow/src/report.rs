@@ -77,12 +77,13 @@ pub struct ReportSummary {
 struct Run {
     name: String,
     dir: PathBuf,
-    meshes: Vec<Mesh>,
+    /// `(frame, mesh)` for every scene frame, in order.
+    meshes: Vec<(u32, Mesh)>,
 }
 
 impl Run {
     fn at(&self, scene: &Scene, frame: u32) -> &Mesh {
-        &self.meshes[(frame - scene.first) as usize]
+        &self.meshes[(frame - scene.first) as usize].1
     }
 }
 
@@ -122,11 +123,7 @@ pub fn write_report(
     if has_truth {
         let reports: Vec<EvalReport> = loaded
             .iter()
-            .map(|r| {
-                let framed: Vec<(u32, Mesh)> =
-                    scene.frames().zip(r.meshes.iter().cloned()).collect();
-                eval::evaluate(scene, &framed).map_err(|e| context(&r.name, &r.dir, e))
-            })
+            .map(|r| eval::evaluate(scene, &r.meshes).map_err(|e| context(&r.name, &r.dir, e)))
             .collect::<Result<_>>()?;
         plot = LinePlot {
             title: "RMS vertex error against ground truth".into(),
@@ -159,7 +156,10 @@ pub fn write_report(
             });
         }
     } else {
-        let meshes: Vec<&[Mesh]> = loaded.iter().map(|r| r.meshes.as_slice()).collect();
+        let meshes: Vec<Vec<&Mesh>> = loaded
+            .iter()
+            .map(|r| r.meshes.iter().map(|(_, m)| m).collect())
+            .collect();
         let costs = photometric::cost_per_frame(scene, &meshes)?;
         plot = LinePlot {
             title: "Photometric cost (no ground truth)".into(),
@@ -328,7 +328,7 @@ fn load_run(scene: &Scene, name: &str, dir: &Path) -> Result<Run> {
     Ok(Run {
         name: name.to_string(),
         dir: dir.to_path_buf(),
-        meshes: got.into_iter().map(|(_, m)| m).collect(),
+        meshes: got,
     })
 }
 

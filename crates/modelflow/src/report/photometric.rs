@@ -52,14 +52,14 @@ fn vertex_colours(
 
 /// The photometric cost of each run (its mesh per scene frame, in order) at every scene frame:
 /// `result[run][frame - first]`. Frames are processed in parallel, each loading its own images.
-pub fn cost_per_frame(scene: &Scene, runs: &[&[Mesh]]) -> Result<Vec<Vec<Option<f64>>>> {
+pub fn cost_per_frame(scene: &Scene, runs: &[Vec<&Mesh>]) -> Result<Vec<Vec<Option<f64>>>> {
     let first_images = scene.load_images(scene.first)?;
     // reference[run][camera][vertex]
     let reference: Vec<Vec<Vec<Option<[f32; 3]>>>> = runs
         .par_iter()
         .map(|meshes| {
             (0..scene.cameras.len())
-                .map(|c| vertex_colours(scene, c, scene.first, &meshes[0], &first_images[c]))
+                .map(|c| vertex_colours(scene, c, scene.first, meshes[0], &first_images[c]))
                 .collect::<Result<Vec<_>>>()
         })
         .collect::<Result<_>>()?;
@@ -72,7 +72,7 @@ pub fn cost_per_frame(scene: &Scene, runs: &[&[Mesh]]) -> Result<Vec<Vec<Option<
             runs.iter()
                 .zip(&reference)
                 .map(|(meshes, refs)| {
-                    let mesh = &meshes[(t - scene.first) as usize];
+                    let mesh = meshes[(t - scene.first) as usize];
                     let (mut sum, mut n) = (0.0f64, 0usize);
                     for (c, img) in images.iter().enumerate() {
                         let now = vertex_colours(scene, c, t, mesh, img)?;
