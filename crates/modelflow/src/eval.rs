@@ -4,7 +4,7 @@
 
 use crate::error::{Error, Result};
 use crate::mesh::Mesh;
-use crate::meshio::read_mesh;
+use crate::meshio::{read_mesh_with, Checks};
 use crate::scene::Scene;
 use rayon::prelude::*;
 use serde::Serialize;
@@ -23,7 +23,7 @@ pub fn frame_number(stem: &str) -> Option<u32> {
 
 /// Reads a run folder: every `.obj` file whose stem holds a number (the frame: the last run of
 /// digits) is read; other files are ignored. Sorted by frame; two files for one frame is an
-/// error.
+/// error. Degenerate triangles are allowed (a failing run may collapse some).
 pub fn read_run(dir: &Path) -> Result<Vec<(u32, Mesh)>> {
     let entries = std::fs::read_dir(dir).map_err(|e| Error::io(dir, e))?;
     let mut files: Vec<(u32, PathBuf)> = Vec::new();
@@ -57,7 +57,7 @@ pub fn read_run(dir: &Path) -> Result<Vec<(u32, Mesh)>> {
     }
     files
         .par_iter()
-        .map(|(f, p)| Ok((*f, read_mesh(p)?)))
+        .map(|(f, p)| Ok((*f, read_mesh_with(p, Checks::Structure)?)))
         .collect()
 }
 
@@ -103,30 +103,29 @@ pub fn evaluate(scene: &Scene, run: &[(u32, Mesh)]) -> Result<EvalReport> {
             scene.first, scene.last
         )));
     }
-    let missing: Vec<String> = scene
-        .frames()
-        .filter(|f| !run.iter().any(|(g, _)| g == f))
-        .map(|f| f.to_string())
-        .collect();
+    let have: std::collections::BTreeSet<u32> = run.iter().map(|(f, _)| *f).collect();
+    let missing: Vec<u32> = scene.frames().filter(|f| !have.contains(f)).collect();
     if !missing.is_empty() {
+        let mut shown: Vec<String> = missing.iter().take(10).map(|f| f.to_string()).collect();
+        if missing.len() > 10 {
+            shown.push(format!("... ({} frames in all)", missing.len()));
+        }
         return Err(Error::Usage(format!(
             "the run has no mesh for frame(s) {} (the scene has frames {}..={})",
-            missing.join(", "),
+            shown.join(", "),
             scene.first,
             scene.last
         )));
     }
     let scale = scene.mesh.bbox_diagonal();
+    let by_frame: std::collections::BTreeMap<u32, &Mesh> =
+        run.iter().map(|(f, m)| (*f, m)).collect();
     let per_frame = scene
         .frames()
         .collect::<Vec<_>>()
         .par_iter()
         .map(|&frame| {
-            let mesh = &run
-                .iter()
-                .find(|(f, _)| *f == frame)
-                .unwrap_or_else(|| unreachable!("checked above"))
-                .1;
+            let mesh = by_frame[&frame];
             let truth = scene
                 .ground_truth(frame)
                 .unwrap_or_else(|| unreachable!("checked above"))?;

@@ -2,9 +2,9 @@
 //! orders) in, OBJ out, with validation that names the file and the line (OBJ) or element (PLY)
 //! at fault.
 //!
-//! Both readers are written by hand: the crates for the job (`tobj`, `ply-rs`) either drop the
-//! line numbers we must report, need a vertex-splitting pass we do not want (we keep vertex
-//! identity, which the tracker depends on), or are no longer maintained; the formats subset we
+//! Both readers are written by hand: `tobj` reports no line numbers (which our errors must give)
+//! and, to give per-vertex texture coordinates, splits vertices, changing the vertex identity
+//! the tracker and the ground truth depend on; `ply-rs` is no longer maintained. The subset we
 //! need (positions, optional texture coordinates, polygon faces) is small.
 
 use crate::error::{Error, Result};
@@ -14,9 +14,24 @@ use nalgebra::Point3;
 use std::io::Write;
 use std::path::Path;
 
+/// How much of [`validate`] a reader applies.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Checks {
+    /// Everything, including degenerate triangles: for input meshes.
+    Full,
+    /// Structure only (triangles present, indices in range, finite positions), degenerate
+    /// triangles allowed: for meshes a run produced, which may have collapsed triangles.
+    Structure,
+}
+
 /// Reads a mesh, dispatching on the file extension (`.obj` or `.ply`, any case), and validates
-/// it (see [`validate`]).
+/// it fully (see [`validate`]).
 pub fn read_mesh(path: &Path) -> Result<Mesh> {
+    read_mesh_with(path, Checks::Full)
+}
+
+/// [`read_mesh`] with a choice of checks.
+pub fn read_mesh_with(path: &Path, checks: Checks) -> Result<Mesh> {
     let ext = path
         .extension()
         .map(|e| e.to_string_lossy().to_ascii_lowercase())
@@ -24,11 +39,11 @@ pub fn read_mesh(path: &Path) -> Result<Mesh> {
     match ext.as_str() {
         "obj" => {
             let text = std::fs::read(path).map_err(|e| Error::io(path, e))?;
-            parse_obj(path, &String::from_utf8_lossy(&text))
+            parse_obj(path, &String::from_utf8_lossy(&text), checks)
         }
         "ply" => {
             let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
-            parse_ply(path, &bytes)
+            parse_ply(path, &bytes, checks)
         }
         _ => Err(Error::invalid(
             path,
@@ -39,9 +54,17 @@ pub fn read_mesh(path: &Path) -> Result<Mesh> {
 }
 
 /// Checks a mesh read from `path`: at least one triangle, finite positions, indices in range,
-/// no degenerate triangle (repeated index or zero area). `locate(i)` names triangle `i`'s place
-/// in the file (e.g. `line 12`).
-pub fn validate(path: &Path, mesh: &Mesh, locate: impl Fn(usize) -> String) -> Result<()> {
+/// and with [`Checks::Full`] no degenerate triangle (repeated index or zero area). `locate(i)`
+/// names triangle `i`'s place in the file (e.g. `line 12`); vertex numbers in messages start at
+/// `index_base` (1 for OBJ, 0 for PLY), as in the file.
+pub fn validate(
+    path: &Path,
+    mesh: &Mesh,
+    checks: Checks,
+    index_base: u32,
+    locate: impl Fn(usize) -> String,
+) -> Result<()> {
+    let base = index_base as u64;
     let n = mesh.positions.len();
     if let Some(i) = mesh
         .positions
@@ -50,7 +73,7 @@ pub fn validate(path: &Path, mesh: &Mesh, locate: impl Fn(usize) -> String) -> R
     {
         return Err(Error::invalid(
             path,
-            format!("vertex {}", i + 1),
+            format!("vertex {}", i as u64 + base),
             format!(
                 "non-finite coordinate {:?}",
                 mesh.positions[i].coords.as_slice()
@@ -71,9 +94,12 @@ pub fn validate(path: &Path, mesh: &Mesh, locate: impl Fn(usize) -> String) -> R
                 locate(i),
                 format!(
                     "vertex index {} out of range (the mesh has {n} vertices)",
-                    bad as u64 + 1
+                    bad as u64 + base
                 ),
             ));
+        }
+        if checks == Checks::Structure {
+            continue;
         }
         if t[0] == t[1] || t[1] == t[2] || t[0] == t[2] {
             return Err(Error::invalid(
@@ -81,9 +107,9 @@ pub fn validate(path: &Path, mesh: &Mesh, locate: impl Fn(usize) -> String) -> R
                 locate(i),
                 format!(
                     "degenerate triangle: repeated vertex in {} {} {}",
-                    t[0] + 1,
-                    t[1] + 1,
-                    t[2] + 1
+                    t[0] as u64 + base,
+                    t[1] as u64 + base,
+                    t[2] as u64 + base
                 ),
             ));
         }
@@ -97,9 +123,9 @@ pub fn validate(path: &Path, mesh: &Mesh, locate: impl Fn(usize) -> String) -> R
                 locate(i),
                 format!(
                     "degenerate triangle: vertices {} {} {} have zero area",
-                    t[0] + 1,
-                    t[1] + 1,
-                    t[2] + 1
+                    t[0] as u64 + base,
+                    t[1] as u64 + base,
+                    t[2] as u64 + base
                 ),
             ));
         }
@@ -120,7 +146,7 @@ pub fn validate(path: &Path, mesh: &Mesh, locate: impl Fn(usize) -> String) -> R
 /// indices relative to the end); polygons are fan-triangulated; every other statement is
 /// ignored. Per-vertex texture coordinates are kept only when the faces map each vertex to one
 /// `vt` consistently.
-pub fn parse_obj(path: &Path, text: &str) -> Result<Mesh> {
+pub fn parse_obj(path: &Path, text: &str, checks: Checks) -> Result<Mesh> {
     let mut positions: Vec<Point3<f64>> = Vec::new();
     let mut tex: Vec<[f64; 2]> = Vec::new();
     let mut triangles: Vec<[u32; 3]> = Vec::new();
@@ -238,7 +264,7 @@ pub fn parse_obj(path: &Path, text: &str) -> Result<Mesh> {
         triangles,
         uvs,
     };
-    validate(path, &mesh, |i| format!("line {}", tri_lines[i]))?;
+    validate(path, &mesh, checks, 1, |i| format!("line {}", tri_lines[i]))?;
     Ok(mesh)
 }
 
@@ -408,7 +434,7 @@ impl ValueSource for Binary<'_> {
 }
 
 struct Ascii<'a> {
-    lines: std::iter::Peekable<std::str::Lines<'a>>,
+    lines: std::str::Lines<'a>,
     current: Vec<&'a str>,
     next_tok: usize,
 }
@@ -461,7 +487,7 @@ impl ValueSource for Ascii<'_> {
 /// `vertex` element (any numeric type), optional texture coordinates (`u v`, `s t` or
 /// `texture_u texture_v`) and the `vertex_indices`/`vertex_index` list of the `face` element
 /// (any integer types; polygons fan-triangulated). Every other property and element is skipped.
-pub fn parse_ply(path: &Path, bytes: &[u8]) -> Result<Mesh> {
+pub fn parse_ply(path: &Path, bytes: &[u8], checks: Checks) -> Result<Mesh> {
     let header_err = |msg: String| Error::invalid(path, "header", msg);
     // Header: ascii lines up to `end_header`.
     let mut pos = 0usize;
@@ -541,11 +567,11 @@ pub fn parse_ply(path: &Path, bytes: &[u8]) -> Result<Mesh> {
             let text = std::str::from_utf8(body)
                 .map_err(|_| Error::invalid(path, "body", "ascii PLY body is not valid text"))?;
             let mut src = Ascii {
-                lines: text.lines().peekable(),
+                lines: text.lines(),
                 current: Vec::new(),
                 next_tok: 0,
             };
-            read_ply_body(path, &elements, &mut src)
+            read_ply_body(path, &elements, &mut src, checks)
         }
         PlyFormat::Le | PlyFormat::Be => {
             let mut src = Binary {
@@ -553,12 +579,17 @@ pub fn parse_ply(path: &Path, bytes: &[u8]) -> Result<Mesh> {
                 pos: 0,
                 big: format == PlyFormat::Be,
             };
-            read_ply_body(path, &elements, &mut src)
+            read_ply_body(path, &elements, &mut src, checks)
         }
     }
 }
 
-fn read_ply_body(path: &Path, elements: &[Element], src: &mut impl ValueSource) -> Result<Mesh> {
+fn read_ply_body(
+    path: &Path,
+    elements: &[Element],
+    src: &mut impl ValueSource,
+    checks: Checks,
+) -> Result<Mesh> {
     let mut positions = Vec::new();
     let mut uvs: Vec<[f64; 2]> = Vec::new();
     let mut triangles = Vec::new();
@@ -588,7 +619,7 @@ fn read_ply_body(path: &Path, elements: &[Element], src: &mut impl ValueSource) 
             let uv = [("u", "v"), ("s", "t"), ("texture_u", "texture_v")]
                 .iter()
                 .find_map(|(a, b)| Some([find(a)?, find(b)?]));
-            positions.reserve(el.count.min(1 << 24));
+            positions.reserve(el.count.min(1 << 16));
             (Some(xyz), uv)
         } else {
             (None, None)
@@ -602,6 +633,10 @@ fn read_ply_body(path: &Path, elements: &[Element], src: &mut impl ValueSource) 
             None
         };
         let mut vals = [0.0f64; 5];
+        if el.props.is_empty() && !is_vertex {
+            // Nothing stored per element: nothing to read (and no loop over a junk count).
+            continue;
+        }
         for i in 0..el.count {
             for (pi, p) in el.props.iter().enumerate() {
                 match p.kind {
@@ -669,6 +704,8 @@ fn read_ply_body(path: &Path, elements: &[Element], src: &mut impl ValueSource) 
         triangles,
         uvs: has_uv.then_some(uvs),
     };
-    validate(path, &mesh, |i| format!("face[{}]", tri_faces[i]))?;
+    validate(path, &mesh, checks, 0, |i| {
+        format!("face[{}]", tri_faces[i])
+    })?;
     Ok(mesh)
 }

@@ -200,15 +200,14 @@ impl SceneFile {
     /// structural one (`cameras[1]`, `frames`, ...).
     pub fn parse(path: &Path, text: &str) -> Result<SceneFile> {
         let value: serde_json::Value = serde_json::from_str(text).map_err(|e| {
-            Error::invalid(
-                path,
-                format!("line {} column {}", e.line(), e.column()),
-                if e.to_string().starts_with("number out of range") {
-                    format!("invalid JSON: {e} (numbers must be finite)")
-                } else {
-                    format!("invalid JSON: {e}")
-                },
-            )
+            let at = format!("line {} column {}", e.line(), e.column());
+            let what = e.to_string().replace(&format!(" at {at}"), "");
+            let hint = if what.starts_with("number out of range") {
+                " (numbers must be finite)"
+            } else {
+                ""
+            };
+            Error::invalid(path, at, format!("invalid JSON: {what}{hint}"))
         })?;
         let obj = value
             .as_object()
@@ -391,7 +390,8 @@ fn build_camera(path: &Path, i: usize, c: &CameraEntry, first: u32, last: u32) -
             "give either poses or R and t, not both",
         )),
         (Some(poses), None, None) => {
-            let mut slot: Vec<Option<Projection>> = vec![None; nframes];
+            // Keyed by frame: memory bounded by the file, not by the (user-given) frame range.
+            let mut by_frame: std::collections::BTreeMap<u32, Projection> = Default::default();
             for (j, pe) in poses.iter().enumerate() {
                 let pf = format!("cameras[{i}].poses[{j}]");
                 if pe.frame < first || pe.frame > last {
@@ -406,30 +406,32 @@ fn build_camera(path: &Path, i: usize, c: &CameraEntry, first: u32, last: u32) -
                 }
                 let r = check_r(path, &format!("{pf}.R"), &pe.r)?;
                 let t = check_t(path, &format!("{pf}.t"), &pe.t)?;
-                let s = &mut slot[(pe.frame - first) as usize];
-                if s.is_some() {
+                let proj = projection(path, &pf, Projection::from_krt(&k, &r, &t))?;
+                if by_frame.insert(pe.frame, proj).is_some() {
                     return Err(Error::invalid(
                         path,
                         format!("{pf}.frame"),
                         format!("frame {} has more than one pose", pe.frame),
                     ));
                 }
-                *s = Some(projection(path, &pf, Projection::from_krt(&k, &r, &t))?);
             }
-            let missing: Vec<u32> = slot
-                .iter()
-                .enumerate()
-                .filter(|(_, s)| s.is_none())
-                .map(|(j, _)| first + j as u32)
-                .collect();
-            if !missing.is_empty() {
+            if by_frame.len() != nframes {
+                let missing: Vec<u32> = (first..=last)
+                    .filter(|f| !by_frame.contains_key(f))
+                    .take(11)
+                    .collect();
                 return Err(Error::invalid(
                     path,
                     f("poses"),
-                    format!("no pose for frame(s) {}", list_frames(&missing)),
+                    format!(
+                        "no pose for frame(s) {} ({} poses for {nframes} frames)",
+                        list_frames(&missing),
+                        by_frame.len()
+                    ),
                 ));
             }
-            let poses: Vec<Projection> = slot.into_iter().flatten().collect();
+            let slot = by_frame.into_values();
+            let poses: Vec<Projection> = slot.collect();
             Ok(Camera::moving(&c.name, c.width, c.height, first, poses))
         }
         (None, Some(r), Some(t)) => {
@@ -454,7 +456,7 @@ fn build_camera(path: &Path, i: usize, c: &CameraEntry, first: u32, last: u32) -
 fn list_frames(frames: &[u32]) -> String {
     let shown: Vec<String> = frames.iter().take(10).map(|f| f.to_string()).collect();
     if frames.len() > 10 {
-        format!("{} ... ({} in all)", shown.join(", "), frames.len())
+        format!("{}, ...", shown.join(", "))
     } else {
         shown.join(", ")
     }
@@ -541,42 +543,53 @@ impl Scene {
             ),
             None => None,
         };
-        // Every image present and of the declared size (headers only, in parallel; the first
-        // problem in camera-then-frame order is reported, whatever the thread count).
-        let jobs: Vec<(usize, u32)> = (0..cameras.len())
-            .flat_map(|i| (first..=last).map(move |f| (i, f)))
-            .collect();
-        let problem = jobs
-            .par_iter()
-            .map(|&(i, f)| -> Result<()> {
-                let p = images[i].path(f);
-                let field = format!("cameras[{i}].images");
-                if !p.is_file() {
-                    return Err(Error::invalid(
-                        path,
-                        field,
-                        format!("frame {f}: image not found: {}", p.display()),
-                    ));
-                }
-                let (w, h) = image_size(&p)?;
-                let cam = &cameras[i];
-                if (w, h) != (cam.width, cam.height) {
-                    return Err(Error::invalid(
-                        path,
-                        field,
-                        format!(
-                            "frame {f}: {} is {w}x{h}, but the camera is declared {}x{}",
-                            p.display(),
-                            cam.width,
-                            cam.height
-                        ),
-                    ));
-                }
-                Ok(())
-            })
-            .find_first(|r| r.is_err());
-        if let Some(Err(e)) = problem {
-            return Err(e);
+        // Every image present and of the declared size (headers only, in parallel). Checked in
+        // blocks of 64 frames, so that memory does not grow with the frame range; the problem
+        // reported is the first in (block, camera, frame) order, whatever the thread count.
+        let check = |i: usize, f: u32| -> Result<()> {
+            let p = images[i].path(f);
+            let field = format!("cameras[{i}].images");
+            if !p.is_file() {
+                return Err(Error::invalid(
+                    path,
+                    field,
+                    format!("frame {f}: image not found: {}", p.display()),
+                ));
+            }
+            let (w, h) = image_size(&p)?;
+            let cam = &cameras[i];
+            if (w, h) != (cam.width, cam.height) {
+                return Err(Error::invalid(
+                    path,
+                    field,
+                    format!(
+                        "frame {f}: {} is {w}x{h}, but the camera is declared {}x{}",
+                        p.display(),
+                        cam.width,
+                        cam.height
+                    ),
+                ));
+            }
+            Ok(())
+        };
+        const BLOCK: u32 = 64;
+        let mut start = first;
+        loop {
+            let end = start.saturating_add(BLOCK - 1).min(last);
+            let jobs: Vec<(usize, u32)> = (0..cameras.len())
+                .flat_map(|i| (start..=end).map(move |f| (i, f)))
+                .collect();
+            if let Some(Err(e)) = jobs
+                .par_iter()
+                .map(|&(i, f)| check(i, f))
+                .find_first(|r| r.is_err())
+            {
+                return Err(e);
+            }
+            if end == last {
+                break;
+            }
+            start = end + 1;
         }
         if let Some(g) = &ground_truth {
             if let Some(f) = (first..=last).find(|&f| !g.path(f).is_file()) {

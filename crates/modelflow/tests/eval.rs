@@ -92,6 +92,22 @@ fn one_vertex_off_gives_rms_and_max() {
 }
 
 #[test]
+fn collapsed_triangles_in_a_run_are_scored_not_rejected() {
+    let dir = tempfile::tempdir().unwrap();
+    let (path, _) = write_scene(dir.path());
+    let scene = Scene::load(&path).unwrap();
+    let run_dir = dir.path().join("run");
+    write_run(&run_dir, Vector3::zeros());
+    // Vertex 1 collapsed onto vertex 0 in the last frame.
+    let mut m = truth(2);
+    m.positions[1] = m.positions[0];
+    write_obj(&run_dir.join("0002.obj"), &m).unwrap();
+    assert!(modelflow::meshio::read_mesh(&run_dir.join("0002.obj")).is_err());
+    let r = evaluate(&scene, &read_run(&run_dir).unwrap()).unwrap();
+    assert!((r.per_frame[2].max - 0.25).abs() < 1e-12);
+}
+
+#[test]
 fn run_errors() {
     let dir = tempfile::tempdir().unwrap();
     let (path, mut file) = write_scene(dir.path());

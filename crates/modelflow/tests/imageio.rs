@@ -240,3 +240,18 @@ fn errors_name_the_file() {
         .to_string()
         .contains("notes.txt"));
 }
+
+#[test]
+fn image_size_reads_only_the_header() {
+    let dir = tempfile::tempdir().unwrap();
+    let p = dir.path().join("big.png");
+    let noise = RgbImage::from_fn(1000, 600, |x, y| [((x * 7 + y * 13) % 97) as f32 / 96.0; 3]);
+    write_png(&p, &noise).unwrap();
+    // Cut the file to its first 200 bytes: the header survives, the pixels do not.
+    let bytes = std::fs::read(&p).unwrap();
+    assert!(bytes.len() > 10_000);
+    std::fs::write(&p, &bytes[..200]).unwrap();
+    assert_eq!(image_size(&p).unwrap(), (1000, 600));
+    let msg = read_rgb(&p).unwrap_err().to_string();
+    assert!(msg.contains("big.png"), "{msg}");
+}

@@ -521,3 +521,26 @@ mod junk {
         }
     }
 }
+
+#[test]
+fn huge_frame_range_fails_fast_without_allocating_it() {
+    let t = std::time::Instant::now();
+    let msg = broken(|f, _| f.frames.last = u32::MAX);
+    assert_names(
+        &msg,
+        &["scene.json", "cameras[0].images", "frame 3", "not found"],
+    );
+    let msg = broken(|f, _| {
+        to_poses(f, 1, &[0, 1, 2]);
+        f.frames.last = u32::MAX;
+    });
+    assert_names(
+        &msg,
+        &[
+            "scene.json",
+            "cameras[1].poses",
+            "no pose for frame(s) 3, 4",
+        ],
+    );
+    assert!(t.elapsed().as_secs_f64() < 5.0, "{:?}", t.elapsed());
+}
