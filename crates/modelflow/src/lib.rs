@@ -22,6 +22,7 @@ pub mod scene;
 pub mod solve;
 pub mod sparse;
 pub mod springs;
+pub mod synth;
 pub mod texture;
 pub mod track;
 pub mod warp;

@@ -180,10 +180,10 @@ impl Lattice {
         let cover = (0.5 - dist / edge).clamp(0.0, 1.0);
         let hue = unit(mix64(h3 ^ 0xC0));
         let hv = unit3(mix64(h3 ^ 0xC1));
-        let val = if hv[0] < -0.5 {
-            0.12
+        let val = if hv[0] < -0.75 {
+            0.15
         } else {
-            0.55 + 0.45 * hv[1].abs()
+            0.65 + 0.35 * hv[1].abs()
         };
         let sat = 0.6 + 0.4 * hv[2].abs();
         (cover, hsv(hue, sat, val))
@@ -245,7 +245,7 @@ impl Texture {
         let h1 = self.hue[1].noise(p);
         let hue = 0.5 + 0.9 * h0[0] + 0.35 * h1[0];
         let sat = (0.62 + 0.3 * h0[1] + 0.2 * h1[1]).clamp(0.25, 0.95);
-        let base = hsv(hue, sat, 0.82);
+        let base = hsv(hue, sat, 0.9);
         // Detail: roughly equal contrast per octave, so gradients exist at every scale.
         let mut d = [0.0f64; 3];
         for (i, l) in self.detail.iter().enumerate() {
@@ -258,9 +258,9 @@ impl Texture {
         let k = 1.0 / (self.detail.len() as f64).sqrt();
         let (l, c1, c2) = (d[0] * k * 1.6, d[1] * k, d[2] * k);
         let mut c = [
-            base[0] * (0.62 + 0.5 * l) + 0.18 * c1,
-            base[1] * (0.62 + 0.5 * l) + 0.18 * c2,
-            base[2] * (0.62 + 0.5 * l) - 0.12 * (c1 + c2),
+            base[0] * (0.72 + 0.34 * l) + 0.16 * c1,
+            base[1] * (0.72 + 0.34 * l) + 0.16 * c2,
+            base[2] * (0.72 + 0.34 * l) - 0.11 * (c1 + c2),
         ];
         for (lat, density) in &self.spots {
             let edge = self.edge * lat.inv_spacing;
