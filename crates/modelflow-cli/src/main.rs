@@ -6,6 +6,7 @@ use clap::{Parser, Subcommand};
 
 mod eval;
 mod progress;
+mod report;
 mod synth;
 mod track;
 
@@ -24,6 +25,8 @@ struct Cli {
 enum Command {
     /// Score a run folder against the scene's ground truth.
     Eval(eval::Args),
+    /// Write an HTML report comparing runs: error plot, overlays, oblique and error views.
+    Report(report::Args),
     /// Track the scene's mesh through every frame (Model Flow).
     Track(track::Args),
     /// Write synthetic multi-view footage with ground truth (presets: cloth, blob).
@@ -34,6 +37,7 @@ fn main() -> std::process::ExitCode {
     let cli = Cli::parse();
     let result: anyhow::Result<()> = match cli.command {
         Command::Eval(a) => eval::run(a),
+        Command::Report(a) => report::run(a),
         Command::Track(a) => track::run(a),
         Command::Synth(a) => synth::run(a),
     };

@@ -2,6 +2,8 @@
 //! footage, after "Model Flowing" (Reuterswärd, 2005). See `ARCHITECTURE.md` for the map.
 
 pub mod camera;
+pub mod colormap;
+pub mod draw;
 pub mod error;
 pub mod eval;
 pub mod fsutil;
@@ -9,10 +11,13 @@ pub mod image;
 pub mod imageio;
 pub mod mesh;
 pub mod meshio;
+pub mod overlay;
 pub mod patch;
+pub mod plot;
 pub mod pyramid;
 pub mod raster;
 pub mod render;
+pub mod report;
 pub mod scene;
 pub mod solve;
 pub mod sparse;

@@ -633,6 +633,10 @@ fn read_ply_body(
             None
         };
         let mut vals = [0.0f64; 5];
+        if el.props.is_empty() && !is_vertex {
+            // Nothing stored per element: nothing to read (and no loop over a junk count).
+            continue;
+        }
         for i in 0..el.count {
             for (pi, p) in el.props.iter().enumerate() {
                 match p.kind {

@@ -276,6 +276,15 @@ fn ply_errors_name_file_and_element() {
         assert!(msg.contains(&name), "{msg:?} should name the file");
         assert_names(&msg, parts);
     }
+    // An element without properties and an absurd count is skipped at once.
+    let empty = ascii.replace(
+        "element material 1",
+        "element nothing 18446744073709551615\nelement material 1",
+    );
+    assert_eq!(
+        read_mesh(&write(d, "empty.ply", empty.as_bytes())).unwrap(),
+        expected()
+    );
     let bin = ply("binary_big_endian");
     let msg = err(&write(d, "cut.ply", &bin[..bin.len() - 30]));
     assert_names(&msg, &["cut.ply", "face[1]", "truncated"]);

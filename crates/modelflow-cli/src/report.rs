@@ -1,0 +1,50 @@
+//! `modelflow report`: writes an HTML report (error or photometric-cost plot, wireframe overlays,
+//! oblique views, error-coloured meshes) comparing runs on a scene.
+
+use anyhow::{bail, Context};
+use modelflow::report::{write_report, ReportOptions};
+use modelflow::scene::Scene;
+use std::path::PathBuf;
+
+#[derive(clap::Args)]
+pub struct Args {
+    /// The scene file.
+    #[arg(long)]
+    scene: PathBuf,
+    /// A run to show, as NAME=DIR (DIR holds one OBJ per frame and optionally log.jsonl);
+    /// repeat for several runs.
+    #[arg(long = "run", value_name = "NAME=DIR", required = true)]
+    runs: Vec<String>,
+    /// The report folder (created if missing); index.html is written there.
+    #[arg(long)]
+    out: PathBuf,
+    /// Frames to draw overlays for, comma separated (default: first, middle, last).
+    #[arg(long, value_delimiter = ',')]
+    frames: Option<Vec<u32>>,
+    /// Degrees the oblique camera is turned about the vertical axis.
+    #[arg(long, default_value_t = 60.0)]
+    oblique_degrees: f64,
+}
+
+pub fn run(args: Args) -> anyhow::Result<()> {
+    let mut runs = Vec::new();
+    for r in &args.runs {
+        let Some((name, dir)) = r.split_once('=') else {
+            bail!("--run {r:?}: expected NAME=DIR");
+        };
+        if name.is_empty() || dir.is_empty() {
+            bail!("--run {r:?}: expected NAME=DIR with both parts non-empty");
+        }
+        runs.push((name.to_string(), PathBuf::from(dir)));
+    }
+    let scene = Scene::load(&args.scene)?;
+    let opts = ReportOptions {
+        frames: args.frames,
+        oblique_degrees: args.oblique_degrees,
+        ..ReportOptions::default()
+    };
+    let summary = write_report(&scene, &runs, &opts, &args.out)
+        .with_context(|| format!("writing the report into {}", args.out.display()))?;
+    println!("{}", summary.index.display());
+    Ok(())
+}

@@ -1,0 +1,233 @@
+//! End-to-end tests of `write_report` on the Blender cloth sample (with and without its ground
+//! truth), with runs made from the truth: an exact copy and a copy drifting by a known amount.
+
+use super::*;
+use crate::meshio;
+use crate::plot::tests::assert_well_formed;
+use nalgebra::Vector3;
+
+const SAMPLE: &str = concat!(
+    env!("CARGO_MANIFEST_DIR"),
+    "/../../../shared/footage/blender-cloth-sample/scene.json"
+);
+
+/// Writes a run folder: the ground truth of every frame moved by `drift · (frame − first)` in x,
+/// plus a log with the given seconds per frame.
+fn make_run(scene: &Scene, dir: &Path, drift: f64, seconds: Option<&[f64]>) {
+    for f in scene.frames() {
+        let gt = scene.ground_truth(f).unwrap().unwrap();
+        let d = Vector3::new(drift * (f - scene.first) as f64, 0.0, 0.0);
+        let moved = gt.with_positions(gt.positions.iter().map(|p| p + d).collect());
+        meshio::write_obj(&dir.join(format!("{f:04}.obj")), &moved).unwrap();
+    }
+    if let Some(s) = seconds {
+        let log: String = s
+            .iter()
+            .enumerate()
+            .map(|(i, s)| format!("{{\"frame\": {}, \"seconds\": {s}}}\n", i + 1))
+            .collect();
+        std::fs::write(dir.join("log.jsonl"), log).unwrap();
+    }
+}
+
+/// The values of every `src="..."` and `href="..."` attribute.
+fn links(html: &str) -> Vec<String> {
+    let mut out = Vec::new();
+    for attr in ["src=\"", "href=\""] {
+        let mut rest = html;
+        while let Some(i) = rest.find(attr) {
+            let after = &rest[i + attr.len()..];
+            let j = after.find('"').expect("attribute closed");
+            out.push(after[..j].to_string());
+            rest = &after[j..];
+        }
+    }
+    out
+}
+
+fn check_links(out: &Path, html: &str) -> Vec<String> {
+    assert!(
+        !html.contains("http://") && !html.contains("https://"),
+        "the page fetches nothing from the network"
+    );
+    let links = links(html);
+    assert!(!links.is_empty());
+    for l in &links {
+        assert!(
+            !l.contains("//") && !l.starts_with('/'),
+            "relative link expected: {l}"
+        );
+        let p = out.join(l);
+        assert!(p.is_file(), "{l} is linked but missing");
+        if l.ends_with(".png") {
+            let img = imageio::read_rgb(&p).unwrap_or_else(|e| panic!("{l} does not decode: {e}"));
+            assert!(img.width() > 100 && img.height() > 100);
+        } else if l.ends_with(".svg") {
+            assert_well_formed(&std::fs::read_to_string(&p).unwrap());
+        }
+    }
+    links
+}
+
+#[test]
+fn report_with_ground_truth_shows_errors_overlays_and_only_local_decodable_files() {
+    let scene = Scene::load(Path::new(SAMPLE)).unwrap();
+    let tmp = tempfile::tempdir().unwrap();
+    let (exact, drift, out) = (
+        tmp.path().join("exact"),
+        tmp.path().join("drift"),
+        tmp.path().join("report"),
+    );
+    make_run(&scene, &exact, 0.0, None);
+    make_run(&scene, &drift, 0.01, Some(&[0.5, 0.7, 0.9]));
+    let runs = vec![
+        ("exact".to_string(), exact),
+        ("drift & co".to_string(), drift),
+    ];
+    let summary = write_report(&scene, &runs, &ReportOptions::default(), &out).unwrap();
+
+    assert_eq!(summary.frames, vec![0, 5, 11]);
+    assert_eq!(summary.index, out.join("index.html"));
+    let html = std::fs::read_to_string(&summary.index).unwrap();
+    let links = check_links(&out, &html);
+    for f in [0, 5, 11] {
+        for c in ["c0_cam0", "c1_cam1"] {
+            assert!(
+                links.contains(&format!("overlay_f{f:04}_{c}.png")),
+                "overlay of frame {f} {c}"
+            );
+        }
+        assert!(links.contains(&format!("oblique_f{f:04}.png")));
+        assert!(links.contains(&format!("errormap_f{f:04}.png")));
+    }
+    assert!(links.contains(&"error.png".to_string()) && links.contains(&"error.svg".to_string()));
+    for f in &summary.files {
+        assert!(f.is_file() && f.starts_with(&out));
+    }
+
+    let svg = std::fs::read_to_string(out.join("error.svg")).unwrap();
+    assert!(
+        svg.contains(">exact</text>") && svg.contains(">drift &amp; co</text>"),
+        "legend names every run"
+    );
+    assert!(svg.contains("RMS vertex error (% of bbox diagonal)"));
+    assert!(html.contains("drift &amp; co") && html.contains("cam1"));
+
+    // Exact copy: zero error. Drift: RMS = 0.01·frame exactly (OBJ keeps 1e-6 or better).
+    let e0 = summary.runs[0].error.as_ref().unwrap();
+    assert_eq!(e0.rms_mean, 0.0);
+    let e1 = summary.runs[1].error.as_ref().unwrap();
+    for fe in &e1.per_frame {
+        assert!((fe.rms - 0.01 * fe.frame as f64).abs() < 1e-5, "{fe:?}");
+    }
+    assert!((e1.rms_final_pct - 100.0 * 0.11 / scene.mesh.bbox_diagonal()).abs() < 1e-3);
+    assert_eq!(summary.runs[0].seconds_per_frame, None);
+    assert!((summary.runs[1].seconds_per_frame.unwrap() - 0.7).abs() < 1e-12);
+    assert!(
+        html.contains("<td>0.700</td>"),
+        "time per frame in the table"
+    );
+}
+
+#[test]
+fn report_without_ground_truth_plots_photometric_cost() {
+    let mut scene = Scene::load(Path::new(SAMPLE)).unwrap();
+    let tmp = tempfile::tempdir().unwrap();
+    let (exact, drift, out) = (
+        tmp.path().join("exact"),
+        tmp.path().join("drift"),
+        tmp.path().join("report"),
+    );
+    make_run(&scene, &exact, 0.0, None);
+    make_run(&scene, &drift, 0.02, None);
+    scene.ground_truth = None;
+    let runs = vec![("exact".to_string(), exact), ("drift".to_string(), drift)];
+    let opts = ReportOptions {
+        frames: Some(vec![11, 3]),
+        ..ReportOptions::default()
+    };
+    let summary = write_report(&scene, &runs, &opts, &out).unwrap();
+    assert_eq!(summary.frames, vec![3, 11]);
+    let html = std::fs::read_to_string(&summary.index).unwrap();
+    let links = check_links(&out, &html);
+    assert!(
+        links.contains(&"photometric.png".to_string())
+            && links.contains(&"photometric.svg".to_string())
+    );
+    assert!(!out.join("error.png").exists() && !links.iter().any(|l| l.starts_with("errormap")));
+    assert!(links.contains(&"overlay_f0011_c1_cam1.png".to_string()));
+    assert!(html.contains("Photometric cost") && !html.contains("RMS error"));
+    let svg = std::fs::read_to_string(out.join("photometric.svg")).unwrap();
+    assert!(svg.contains(">exact</text>") && svg.contains(">drift</text>"));
+
+    let exact = summary.runs[0].photometric.as_ref().unwrap();
+    let drift = summary.runs[1].photometric.as_ref().unwrap();
+    assert_eq!(exact.len(), 12);
+    assert!(summary.runs.iter().all(|r| r.error.is_none()));
+    // Frame 0 compares the first frame with itself.
+    assert_eq!(exact[0], Some(0.0));
+    // The exact run keeps its colours far better than the one sliding off the cloth.
+    let (e, d) = (exact[11].unwrap(), drift[11].unwrap());
+    eprintln!("photometric cost at frame 11: exact {e}, drift {d}");
+    assert!(d > 3.0 * e && d > 1e-3, "exact {e}, drift {d}");
+}
+
+#[test]
+fn bad_runs_and_logs_are_named() {
+    let scene = Scene::load(Path::new(SAMPLE)).unwrap();
+    let tmp = tempfile::tempdir().unwrap();
+    let run = tmp.path().join("run");
+    make_run(&scene, &run, 0.0, None);
+    std::fs::remove_file(run.join("0005.obj")).unwrap();
+    let out = tmp.path().join("report");
+    let err = write_report(
+        &scene,
+        &[("r".into(), run.clone())],
+        &ReportOptions::default(),
+        &out,
+    )
+    .unwrap_err()
+    .to_string();
+    assert!(err.contains("0005.obj") && err.contains("run"), "{err}");
+
+    make_run(&scene, &run, 0.0, None);
+    std::fs::write(
+        run.join("log.jsonl"),
+        "{\"frame\": 1, \"seconds\": 0.2}\n{\"frame\": 2}\n",
+    )
+    .unwrap();
+    let err = write_report(
+        &scene,
+        &[("r".into(), run.clone())],
+        &ReportOptions::default(),
+        &out,
+    )
+    .unwrap_err()
+    .to_string();
+    assert!(
+        err.contains("log.jsonl") && err.contains("line 2") && err.contains("seconds"),
+        "{err}"
+    );
+
+    let err = write_report(
+        &scene,
+        &[("r".into(), run.clone()), ("r".into(), run.clone())],
+        &ReportOptions::default(),
+        &out,
+    )
+    .unwrap_err()
+    .to_string();
+    assert!(err.contains("two runs are named"), "{err}");
+    let opts = ReportOptions {
+        frames: Some(vec![40]),
+        ..ReportOptions::default()
+    };
+    let err = write_report(&scene, &[("r".into(), run)], &opts, &out)
+        .unwrap_err()
+        .to_string();
+    assert!(err.contains("frame 40") && err.contains("0..=11"), "{err}");
+    assert!(
+        !out.join("index.html").exists(),
+        "nothing written on bad input"
+    );
+}
