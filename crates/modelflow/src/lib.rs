@@ -1,11 +1,15 @@
 //! modelflow: markerless capture of deforming geometry from calibrated, synchronised multi-view
 //! footage, after "Model Flowing" (Reuterswärd, 2005). See `ARCHITECTURE.md` for the map.
 
+pub mod baseline;
 pub mod camera;
 pub mod error;
 pub mod fsutil;
 pub mod image;
+pub mod lk;
 pub mod mesh;
 pub mod scene;
+pub mod triangulate;
+pub mod visibility;
 
 pub use error::{Error, Result};

@@ -1,0 +1,143 @@
+//! Which mesh vertices a camera sees: in front of it, inside its image and not hidden by another
+//! part of the mesh. A small z-buffer of the mesh's triangles (depth only, perspective-correct,
+//! pixel centres at integer coordinates as in `camera`) decides the last point. The optical-flow
+//! baseline (`baseline`) uses it to choose which vertices each camera tracks.
+//!
+//! Written for the baseline while the tracker's own rasterizer (`raster`) was not yet available;
+//! it is deliberately small: no shading, no triangle ids beyond what the vertex test needs.
+
+use crate::camera::Projection;
+use nalgebra::Point3;
+
+/// Relative depth tolerance of the vertex test: a vertex counts as visible if it is no more than
+/// this fraction of its depth behind the nearest surface at its pixel.
+const DEPTH_TOLERANCE: f64 = 1e-3;
+
+/// For each vertex, whether the camera `proj` with an image of `width`×`height` sees it.
+///
+/// A vertex is visible when it projects in front of the camera and inside the image, and at its
+/// nearest pixel centre either nothing is drawn, the nearest surface is one of its own triangles,
+/// or the nearest surface is not in front of it by more than [`DEPTH_TOLERANCE`].
+pub fn visible_vertices(
+    positions: &[Point3<f64>],
+    triangles: &[[u32; 3]],
+    proj: &Projection,
+    width: u32,
+    height: u32,
+) -> Vec<bool> {
+    let (w, h) = (width as usize, height as usize);
+    // Projected vertices: (u, v, depth); depth <= 0 marks a vertex behind the camera.
+    let projected: Vec<[f64; 3]> = positions
+        .iter()
+        .map(|x| {
+            let p = proj.project_h(x);
+            if p.z > 0.0 {
+                [p.x / p.z, p.y / p.z, p.z]
+            } else {
+                [f64::NAN, f64::NAN, p.z]
+            }
+        })
+        .collect();
+    let mut depth = vec![f64::INFINITY; w * h];
+    let mut owner = vec![u32::MAX; w * h];
+    for (ti, tri) in triangles.iter().enumerate() {
+        let [a, b, c] = tri.map(|i| projected[i as usize]);
+        if a[2] <= 0.0 || b[2] <= 0.0 || c[2] <= 0.0 {
+            continue; // crosses or lies behind the camera plane: not drawn
+        }
+        let area = (b[0] - a[0]) * (c[1] - a[1]) - (b[1] - a[1]) * (c[0] - a[0]);
+        if area.abs() < 1e-12 {
+            continue;
+        }
+        let x0 = a[0].min(b[0]).min(c[0]).ceil().max(0.0);
+        let x1 = a[0].max(b[0]).max(c[0]).floor().min(w as f64 - 1.0);
+        let y0 = a[1].min(b[1]).min(c[1]).ceil().max(0.0);
+        let y1 = a[1].max(b[1]).max(c[1]).floor().min(h as f64 - 1.0);
+        if x0 > x1 || y0 > y1 {
+            continue;
+        }
+        let (inv_a, inv_b, inv_c) = (1.0 / a[2], 1.0 / b[2], 1.0 / c[2]);
+        for y in y0 as usize..=y1 as usize {
+            for x in x0 as usize..=x1 as usize {
+                let (px, py) = (x as f64, y as f64);
+                let wa = ((b[0] - px) * (c[1] - py) - (b[1] - py) * (c[0] - px)) / area;
+                let wb = ((c[0] - px) * (a[1] - py) - (c[1] - py) * (a[0] - px)) / area;
+                let wc = 1.0 - wa - wb;
+                if wa < -1e-9 || wb < -1e-9 || wc < -1e-9 {
+                    continue;
+                }
+                let z = 1.0 / (wa * inv_a + wb * inv_b + wc * inv_c);
+                let k = y * w + x;
+                if z < depth[k] {
+                    depth[k] = z;
+                    owner[k] = ti as u32;
+                }
+            }
+        }
+    }
+    projected
+        .iter()
+        .enumerate()
+        .map(|(vi, &[u, v, z])| {
+            if z <= 0.0 || !(u >= -0.5 && v >= -0.5 && u < w as f64 - 0.5 && v < h as f64 - 0.5) {
+                return false;
+            }
+            let x = (u.round().max(0.0) as usize).min(w - 1);
+            let y = (v.round().max(0.0) as usize).min(h - 1);
+            let k = y * w + x;
+            owner[k] == u32::MAX
+                || triangles[owner[k] as usize].contains(&(vi as u32))
+                || z <= depth[k] * (1.0 + DEPTH_TOLERANCE)
+        })
+        .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::mesh::grid;
+    use nalgebra::{Matrix3, Vector3};
+
+    fn camera() -> Projection {
+        let k = Matrix3::new(200.0, 0.0, 49.5, 0.0, 200.0, 49.5, 0.0, 0.0, 1.0);
+        Projection::from_krt(&k, &Matrix3::identity(), &Vector3::new(0.0, 0.0, 4.0)).unwrap()
+    }
+
+    #[test]
+    fn a_front_plate_hides_the_back_plate() {
+        // Back plate at z = 1 spanning [-0.5, 0.5]², front plate at z = 0 covering x < 0.
+        let back = grid(5, 5, |u, v| Point3::new(u - 0.5, v - 0.5, 1.0));
+        let front = grid(3, 3, |u, v| {
+            Point3::new(-0.8 + 0.78 * u, v - 0.5 + 0.0, 0.0)
+        });
+        let mut positions = back.positions.clone();
+        let mut triangles = back.triangles.clone();
+        let off = positions.len() as u32;
+        positions.extend(front.positions.iter().copied());
+        triangles.extend(front.triangles.iter().map(|t| t.map(|i| i + off)));
+        // Stretch the front plate vertically so that it covers the back plate's rows.
+        for p in &mut positions[off as usize..] {
+            p.y *= 1.6;
+        }
+        let vis = visible_vertices(&positions, &triangles, &camera(), 100, 100);
+        for (i, p) in back.positions.iter().enumerate() {
+            let hidden = p.x < -0.1;
+            assert_eq!(vis[i], !hidden, "back vertex {i} at {p:?}");
+        }
+        assert!(
+            vis[off as usize..].iter().all(|&v| v),
+            "front plate is fully visible"
+        );
+    }
+
+    #[test]
+    fn vertices_outside_the_image_or_behind_are_not_visible() {
+        let positions = vec![
+            Point3::new(0.0, 0.0, 0.0),
+            Point3::new(5.0, 0.0, 0.0),
+            Point3::new(0.0, 0.0, -6.0),
+        ];
+        let vis = visible_vertices(&positions, &[[0, 1, 2]], &camera(), 100, 100);
+        assert_eq!(vis, vec![true, false, false]);
+    }
+}
