@@ -8,8 +8,13 @@ pub mod fsutil;
 pub mod image;
 pub mod lk;
 pub mod mesh;
+pub mod pyramid;
+pub mod raster;
 pub mod scene;
+pub mod sparse;
+pub mod springs;
 pub mod triangulate;
 pub mod visibility;
+pub mod warp;
 
 pub use error::{Error, Result};

@@ -1,0 +1,120 @@
+//! Per-frame image data prepared for the tracker: a Gaussian-smoothed image pyramid whose levels
+//! hold, per pixel and interleaved, the RGB value and its u and v derivatives (nine floats), so
+//! that one bilinear fetch gives the tracker everything it needs at a warped position.
+//!
+//! Level 0 is full resolution; level `l` is reduced `2^l` times, following the pixel-centre
+//! convention of `camera` (`Projection::downscaled`).
+
+use crate::image::RgbImage;
+
+/// An image with its gradients: per pixel `[r, g, b, ∂r/∂u, ∂g/∂u, ∂b/∂u, ∂r/∂v, ∂g/∂v, ∂b/∂v]`.
+#[derive(Clone, Debug)]
+pub struct GradientImage {
+    width: usize,
+    height: usize,
+    data: Vec<[f32; 9]>,
+}
+
+impl GradientImage {
+    pub fn new(img: &RgbImage) -> Self {
+        let (gx, gy) = img.gradients();
+        let data = img
+            .pixels()
+            .iter()
+            .zip(gx.pixels())
+            .zip(gy.pixels())
+            .map(|((c, x), y)| [c[0], c[1], c[2], x[0], x[1], x[2], y[0], y[1], y[2]])
+            .collect();
+        GradientImage {
+            width: img.width(),
+            height: img.height(),
+            data,
+        }
+    }
+
+    pub fn width(&self) -> usize {
+        self.width
+    }
+
+    pub fn height(&self) -> usize {
+        self.height
+    }
+
+    /// Colour at a pixel centre.
+    #[inline]
+    pub fn color(&self, x: usize, y: usize) -> [f32; 3] {
+        let p = &self.data[y * self.width + x];
+        [p[0], p[1], p[2]]
+    }
+
+    /// Bilinear sample of colour and gradients, or `None` unless `(u, v)` lies in
+    /// `[0, w-1] × [0, h-1]`.
+    #[inline]
+    pub fn sample(&self, u: f64, v: f64) -> Option<[f32; 9]> {
+        if !(u >= 0.0 && v >= 0.0 && u <= (self.width - 1) as f64 && v <= (self.height - 1) as f64)
+        {
+            return None;
+        }
+        let x0 = (u as usize).min(self.width.saturating_sub(2));
+        let y0 = (v as usize).min(self.height.saturating_sub(2));
+        let x1 = (x0 + 1).min(self.width - 1);
+        let y1 = (y0 + 1).min(self.height - 1);
+        let fx = (u - x0 as f64) as f32;
+        let fy = (v - y0 as f64) as f32;
+        let w00 = (1.0 - fx) * (1.0 - fy);
+        let w10 = fx * (1.0 - fy);
+        let w01 = (1.0 - fx) * fy;
+        let w11 = fx * fy;
+        let a = &self.data[y0 * self.width + x0];
+        let b = &self.data[y0 * self.width + x1];
+        let c = &self.data[y1 * self.width + x0];
+        let d = &self.data[y1 * self.width + x1];
+        let mut out = [0.0f32; 9];
+        for k in 0..9 {
+            out[k] = w00 * a[k] + w10 * b[k] + w01 * c[k] + w11 * d[k];
+        }
+        Some(out)
+    }
+}
+
+/// Pyramid of one camera's image at one frame.
+#[derive(Clone, Debug)]
+pub struct Pyramid {
+    pub levels: Vec<GradientImage>,
+}
+
+impl Pyramid {
+    /// `levels` levels (at least one); each is smoothed with `sigma` pixels (at its own scale)
+    /// before its gradients are taken.
+    pub fn new(img: &RgbImage, levels: usize, sigma: f64) -> Self {
+        let mut out = Vec::with_capacity(levels.max(1));
+        let mut cur = img.clone();
+        for l in 0..levels.max(1) {
+            if l > 0 {
+                cur = cur.downsample2();
+            }
+            out.push(GradientImage::new(&cur.blurred(sigma)));
+        }
+        Pyramid { levels: out }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn sample_gives_value_and_gradient_of_a_linear_image() {
+        let img = RgbImage::from_fn(16, 12, |x, y| [0.01 * x as f32, 0.02 * y as f32, 0.5]);
+        let g = GradientImage::new(&img);
+        let s = g.sample(5.25, 7.5).unwrap();
+        assert!((s[0] - 0.0525).abs() < 1e-6 && (s[1] - 0.15).abs() < 1e-6);
+        assert!((s[3] - 0.01).abs() < 1e-6 && (s[7] - 0.02).abs() < 1e-6 && s[5].abs() < 1e-6);
+        assert!(g.sample(15.01, 3.0).is_none());
+        let p = Pyramid::new(&img, 3, 0.0);
+        assert_eq!((p.levels[2].width(), p.levels[2].height()), (4, 3));
+        // Level 1 pixel (2, 3) is centred at (4.5, 6.5) of level 0.
+        let c = p.levels[1].color(2, 3);
+        assert!((c[0] - 0.045).abs() < 1e-6 && (c[1] - 0.13).abs() < 1e-6);
+    }
+}
