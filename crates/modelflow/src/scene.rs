@@ -2,8 +2,15 @@
 //! scene file, resolving per-frame image and ground-truth paths, loading a frame's images, and
 //! writing a scene file (for synthetic footage).
 
-use crate::camera::Camera;
+use crate::camera::{is_rotation, Camera, Projection, ProjectionError};
+use crate::error::{Error, Result};
+use crate::fsutil::write_atomic;
+use crate::image::RgbImage;
+use crate::imageio::{image_size, read_rgb};
 use crate::mesh::Mesh;
+use crate::meshio::read_mesh;
+use nalgebra::{Matrix3, Matrix3x4, Vector3};
+use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
 
@@ -89,5 +96,579 @@ impl Scene {
 
     pub fn dir(&self) -> &Path {
         self.path.parent().unwrap_or(Path::new("."))
+    }
+}
+
+impl FramePattern {
+    /// A pattern relative to `base`; fails (with the reason) unless it holds at least one
+    /// `{frame}` or `{frame:0N}` placeholder and no other `{`/`}`.
+    pub fn new(base: impl Into<PathBuf>, pattern: impl Into<String>) -> Result<Self, String> {
+        let pattern = pattern.into();
+        let pieces = split_pattern(&pattern)?;
+        if !pieces.iter().any(|p| matches!(p, Piece::Frame(_))) {
+            return Err(format!(
+                "{pattern:?} has no {{frame}} or {{frame:0N}} placeholder"
+            ));
+        }
+        Ok(FramePattern {
+            base: base.into(),
+            pattern,
+        })
+    }
+
+    /// The file of `frame`: `{frame}` becomes the plain number, `{frame:0N}` the number
+    /// zero-padded to `N` digits; relative patterns are joined to `base`.
+    pub fn path(&self, frame: u32) -> PathBuf {
+        let mut s = String::with_capacity(self.pattern.len() + 8);
+        match split_pattern(&self.pattern) {
+            Ok(pieces) => {
+                for p in pieces {
+                    match p {
+                        Piece::Text(t) => s.push_str(t),
+                        Piece::Frame(w) => s.push_str(&format!("{frame:0w$}")),
+                    }
+                }
+            }
+            // Not a valid pattern (built by hand): used as it is.
+            Err(_) => s.push_str(&self.pattern),
+        }
+        self.base.join(s)
+    }
+}
+
+enum Piece<'a> {
+    Text(&'a str),
+    /// Zero-padding width (0 = plain).
+    Frame(usize),
+}
+
+fn split_pattern(p: &str) -> Result<Vec<Piece<'_>>, String> {
+    let mut out = Vec::new();
+    let mut rest = p;
+    while let Some(open) = rest.find(['{', '}']) {
+        if rest.as_bytes()[open] == b'}' {
+            return Err(format!("{p:?}: unmatched `}}`"));
+        }
+        if open > 0 {
+            out.push(Piece::Text(&rest[..open]));
+        }
+        let close = rest[open..]
+            .find('}')
+            .ok_or_else(|| format!("{p:?}: unclosed `{{`"))?
+            + open;
+        let inner = &rest[open + 1..close];
+        let width = if inner == "frame" {
+            0
+        } else if let Some(w) = inner.strip_prefix("frame:0") {
+            w.parse::<usize>()
+                .ok()
+                .filter(|&w| (1..=32).contains(&w))
+                .ok_or_else(|| {
+                    format!("{p:?}: bad placeholder {{{inner}}} (expected {{frame}} or {{frame:0N}}, N from 1 to 32)")
+                })?
+        } else {
+            return Err(format!(
+                "{p:?}: unknown placeholder {{{inner}}} (expected {{frame}} or {{frame:0N}})"
+            ));
+        };
+        out.push(Piece::Frame(width));
+        rest = &rest[close + 1..];
+    }
+    if !rest.is_empty() {
+        out.push(Piece::Text(rest));
+    }
+    Ok(out)
+}
+
+/// Tolerance on `RᵀR = I` and `det R = 1` (Blender and other tools write float32 rotations).
+pub const ROTATION_TOLERANCE: f64 = 1e-4;
+
+/// Share of the mesh's vertices a camera must see (inside its image, in front of it) at the
+/// first frame to count as seeing the mesh; the scene needs two such cameras.
+pub const MIN_VISIBLE_SHARE: f64 = 0.25;
+
+impl SceneFile {
+    /// Writes the scene file as pretty-printed JSON, atomically.
+    pub fn write(&self, path: &Path) -> Result<()> {
+        let mut text = serde_json::to_string_pretty(self)
+            .map_err(|e| Error::Usage(format!("{}: cannot serialise: {e}", path.display())))?;
+        text.push('\n');
+        write_atomic(path, text.as_bytes())
+    }
+
+    /// Parses scene JSON, naming the line and column of a syntax error and the field of a
+    /// structural one (`cameras[1]`, `frames`, ...).
+    pub fn parse(path: &Path, text: &str) -> Result<SceneFile> {
+        let value: serde_json::Value = serde_json::from_str(text).map_err(|e| {
+            Error::invalid(
+                path,
+                format!("line {} column {}", e.line(), e.column()),
+                format!("invalid JSON: {e}"),
+            )
+        })?;
+        let obj = value
+            .as_object()
+            .ok_or_else(|| Error::invalid(path, "(top level)", "expected a JSON object"))?;
+        match obj.get("format") {
+            Some(serde_json::Value::String(f)) if f == FORMAT => {}
+            Some(other) => {
+                return Err(Error::invalid(
+                    path,
+                    "format",
+                    format!("expected \"{FORMAT}\", found {other}"),
+                ))
+            }
+            None => {
+                return Err(Error::invalid(
+                    path,
+                    "format",
+                    format!("missing (expected \"{FORMAT}\")"),
+                ))
+            }
+        }
+        let structural = |field: String, e: serde_json::Error| {
+            Error::invalid(
+                path,
+                field,
+                e.to_string().replace(" at line 0 column 0", ""),
+            )
+        };
+        if let Some(f) = obj.get("frames") {
+            serde_json::from_value::<FrameRange>(f.clone())
+                .map_err(|e| structural("frames".into(), e))?;
+        }
+        if let Some(serde_json::Value::Array(cams)) = obj.get("cameras") {
+            for (i, c) in cams.iter().enumerate() {
+                if let Some(serde_json::Value::Array(poses)) = c.get("poses") {
+                    for (j, p) in poses.iter().enumerate() {
+                        serde_json::from_value::<PoseEntry>(p.clone())
+                            .map_err(|e| structural(format!("cameras[{i}].poses[{j}]"), e))?;
+                    }
+                }
+                serde_json::from_value::<CameraEntry>(c.clone())
+                    .map_err(|e| structural(format!("cameras[{i}]"), e))?;
+            }
+        }
+        serde_json::from_value::<SceneFile>(value).map_err(|e| structural("(top level)".into(), e))
+    }
+}
+
+fn mat3(m: &[[f64; 3]; 3]) -> Matrix3<f64> {
+    Matrix3::from_fn(|i, j| m[i][j])
+}
+
+fn check_k(path: &Path, field: &str, k: &[[f64; 3]; 3]) -> Result<Matrix3<f64>> {
+    let bad = |msg: String| Error::invalid(path, field, msg);
+    if !k.iter().flatten().all(|v| v.is_finite()) {
+        return Err(bad(format!("has a non-finite entry: {k:?}")));
+    }
+    if k[2] != [0.0, 0.0, 1.0] {
+        return Err(bad(format!("last row must be [0, 0, 1], found {:?}", k[2])));
+    }
+    if k[1][0] != 0.0 {
+        return Err(bad(format!(
+            "must be upper-triangular: K[1][0] is {}, expected 0",
+            k[1][0]
+        )));
+    }
+    if k[0][0] <= 0.0 || k[1][1] <= 0.0 {
+        return Err(bad(format!(
+            "is singular or mirrored: focal lengths fx = {}, fy = {} must be positive",
+            k[0][0], k[1][1]
+        )));
+    }
+    Ok(mat3(k))
+}
+
+fn check_r(path: &Path, field: &str, r: &[[f64; 3]; 3]) -> Result<Matrix3<f64>> {
+    let m = mat3(r);
+    if !r.iter().flatten().all(|v| v.is_finite()) {
+        return Err(Error::invalid(
+            path,
+            field,
+            format!("has a non-finite entry: {r:?}"),
+        ));
+    }
+    if !is_rotation(&m, ROTATION_TOLERANCE) {
+        let dev = (m.transpose() * m - Matrix3::identity()).abs().max();
+        return Err(Error::invalid(
+            path,
+            field,
+            format!(
+                "not a rotation matrix (R^T R differs from I by {dev:.3e}, det R = {:.6}; tolerance {ROTATION_TOLERANCE:e})",
+                m.determinant()
+            ),
+        ));
+    }
+    Ok(m)
+}
+
+fn check_t(path: &Path, field: &str, t: &[f64; 3]) -> Result<Vector3<f64>> {
+    if !t.iter().all(|v| v.is_finite()) {
+        return Err(Error::invalid(
+            path,
+            field,
+            format!("has a non-finite entry: {t:?}"),
+        ));
+    }
+    Ok(Vector3::from(*t))
+}
+
+fn projection(
+    path: &Path,
+    field: &str,
+    r: std::result::Result<Projection, ProjectionError>,
+) -> Result<Projection> {
+    r.map_err(|e| Error::invalid(path, field, format!("the projection {e}")))
+}
+
+/// Turns one camera entry into a [`Camera`], validating it.
+fn build_camera(path: &Path, i: usize, c: &CameraEntry, first: u32, last: u32) -> Result<Camera> {
+    let f = |name: &str| format!("cameras[{i}].{name}");
+    let nframes = (last - first) as usize + 1;
+    if c.name.trim().is_empty() {
+        return Err(Error::invalid(path, f("name"), "must not be empty"));
+    }
+    if c.width == 0 || c.height == 0 {
+        return Err(Error::invalid(
+            path,
+            f(if c.width == 0 { "width" } else { "height" }),
+            format!("image size {}x{} must be positive", c.width, c.height),
+        ));
+    }
+    if let Some(ps) = &c.p {
+        if c.k.is_some() || c.r.is_some() || c.t.is_some() || c.poses.is_some() {
+            return Err(Error::invalid(
+                path,
+                f("P"),
+                "give exactly one of K+R+t, K+poses or P (found P together with K, R, t or poses)",
+            ));
+        }
+        if ps.len() != nframes {
+            return Err(Error::invalid(
+                path,
+                f("P"),
+                format!(
+                    "needs exactly one matrix per frame: {nframes} for frames {first}..={last}, found {}",
+                    ps.len()
+                ),
+            ));
+        }
+        let mut poses = ps
+            .iter()
+            .enumerate()
+            .map(|(j, m)| {
+                let m = Matrix3x4::from_fn(|a, b| m[a][b]);
+                projection(
+                    path,
+                    &format!("cameras[{i}].P[{j}] (frame {})", first + j as u32),
+                    Projection::from_matrix(&m),
+                )
+            })
+            .collect::<Result<Vec<_>>>()?;
+        return Ok(if poses.len() == 1 {
+            Camera::fixed(&c.name, c.width, c.height, poses.remove(0))
+        } else {
+            Camera::moving(&c.name, c.width, c.height, first, poses)
+        });
+    }
+    let k = c.k.as_ref().ok_or_else(|| {
+        Error::invalid(
+            path,
+            f("K"),
+            "missing: give exactly one of K+R+t, K+poses or P",
+        )
+    })?;
+    let k = check_k(path, &f("K"), k)?;
+    match (&c.poses, &c.r, &c.t) {
+        (Some(_), Some(_), _) | (Some(_), _, Some(_)) => Err(Error::invalid(
+            path,
+            f("poses"),
+            "give either poses or R and t, not both",
+        )),
+        (Some(poses), None, None) => {
+            let mut slot: Vec<Option<Projection>> = vec![None; nframes];
+            for (j, pe) in poses.iter().enumerate() {
+                let pf = format!("cameras[{i}].poses[{j}]");
+                if pe.frame < first || pe.frame > last {
+                    return Err(Error::invalid(
+                        path,
+                        format!("{pf}.frame"),
+                        format!(
+                            "frame {} outside the scene's frames {first}..={last}",
+                            pe.frame
+                        ),
+                    ));
+                }
+                let r = check_r(path, &format!("{pf}.R"), &pe.r)?;
+                let t = check_t(path, &format!("{pf}.t"), &pe.t)?;
+                let s = &mut slot[(pe.frame - first) as usize];
+                if s.is_some() {
+                    return Err(Error::invalid(
+                        path,
+                        format!("{pf}.frame"),
+                        format!("frame {} has more than one pose", pe.frame),
+                    ));
+                }
+                *s = Some(projection(path, &pf, Projection::from_krt(&k, &r, &t))?);
+            }
+            let missing: Vec<u32> = slot
+                .iter()
+                .enumerate()
+                .filter(|(_, s)| s.is_none())
+                .map(|(j, _)| first + j as u32)
+                .collect();
+            if !missing.is_empty() {
+                return Err(Error::invalid(
+                    path,
+                    f("poses"),
+                    format!("no pose for frame(s) {}", list_frames(&missing)),
+                ));
+            }
+            let poses: Vec<Projection> = slot.into_iter().flatten().collect();
+            Ok(Camera::moving(&c.name, c.width, c.height, first, poses))
+        }
+        (None, Some(r), Some(t)) => {
+            let r = check_r(path, &f("R"), r)?;
+            let t = check_t(path, &f("t"), t)?;
+            let p = projection(path, &f("K"), Projection::from_krt(&k, &r, &t))?;
+            Ok(Camera::fixed(&c.name, c.width, c.height, p))
+        }
+        (None, None, _) => Err(Error::invalid(
+            path,
+            f("R"),
+            "missing: a camera with K needs R and t, or poses",
+        )),
+        (None, Some(_), None) => Err(Error::invalid(
+            path,
+            f("t"),
+            "missing: a camera with K and R needs t",
+        )),
+    }
+}
+
+fn list_frames(frames: &[u32]) -> String {
+    let shown: Vec<String> = frames.iter().take(10).map(|f| f.to_string()).collect();
+    if frames.len() > 10 {
+        format!("{} ... ({} in all)", shown.join(", "), frames.len())
+    } else {
+        shown.join(", ")
+    }
+}
+
+/// Share of `mesh`'s vertices that project inside `cam`'s image, in front of it, at `frame`.
+pub fn visible_share(cam: &Camera, frame: u32, mesh: &Mesh) -> f64 {
+    if mesh.positions.is_empty() {
+        return 0.0;
+    }
+    let p = cam.at(frame);
+    let seen = mesh
+        .positions
+        .iter()
+        .filter(|x| p.project(x).is_some_and(|q| cam.contains(&q)))
+        .count();
+    seen as f64 / mesh.positions.len() as f64
+}
+
+impl Scene {
+    /// Reads and validates a scene file: everything a run will need is checked here, so that a
+    /// run cannot fail half-way on bad input. Errors name the file and the field at fault.
+    pub fn load(path: &Path) -> Result<Scene> {
+        let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
+        let file = SceneFile::parse(path, &text)?;
+        let base = path.parent().unwrap_or(Path::new("")).to_path_buf();
+        let (first, last) = (file.frames.first, file.frames.last);
+        if first > last {
+            return Err(Error::invalid(
+                path,
+                "frames",
+                format!("first ({first}) is after last ({last})"),
+            ));
+        }
+        // Mesh.
+        let mesh_path = base.join(&file.mesh);
+        if !mesh_path.is_file() {
+            return Err(Error::invalid(
+                path,
+                "mesh",
+                format!("file not found: {}", mesh_path.display()),
+            ));
+        }
+        let mesh = read_mesh(&mesh_path)?;
+        // Cameras.
+        if file.cameras.is_empty() {
+            return Err(Error::invalid(path, "cameras", "no camera"));
+        }
+        let mut cameras = Vec::with_capacity(file.cameras.len());
+        let mut images = Vec::with_capacity(file.cameras.len());
+        for (i, c) in file.cameras.iter().enumerate() {
+            if let Some(j) = file.cameras[..i].iter().position(|o| o.name == c.name) {
+                return Err(Error::invalid(
+                    path,
+                    format!("cameras[{i}].name"),
+                    format!(
+                        "{:?} is also the name of cameras[{j}]; names must be unique",
+                        c.name
+                    ),
+                ));
+            }
+            cameras.push(build_camera(path, i, c, first, last)?);
+            images.push(
+                FramePattern::new(&base, &c.images)
+                    .map_err(|m| Error::invalid(path, format!("cameras[{i}].images"), m))?,
+            );
+        }
+        let ground_truth = match &file.ground_truth {
+            Some(g) => Some(
+                FramePattern::new(&base, g).map_err(|m| Error::invalid(path, "ground_truth", m))?,
+            ),
+            None => None,
+        };
+        // Every image present and of the declared size (headers only, in parallel; the first
+        // problem in camera-then-frame order is reported, whatever the thread count).
+        let jobs: Vec<(usize, u32)> = (0..cameras.len())
+            .flat_map(|i| (first..=last).map(move |f| (i, f)))
+            .collect();
+        let problem = jobs
+            .par_iter()
+            .map(|&(i, f)| -> Result<()> {
+                let p = images[i].path(f);
+                let field = format!("cameras[{i}].images");
+                if !p.is_file() {
+                    return Err(Error::invalid(
+                        path,
+                        field,
+                        format!("frame {f}: image not found: {}", p.display()),
+                    ));
+                }
+                let (w, h) = image_size(&p)?;
+                let cam = &cameras[i];
+                if (w, h) != (cam.width, cam.height) {
+                    return Err(Error::invalid(
+                        path,
+                        field,
+                        format!(
+                            "frame {f}: {} is {w}x{h}, but the camera is declared {}x{}",
+                            p.display(),
+                            cam.width,
+                            cam.height
+                        ),
+                    ));
+                }
+                Ok(())
+            })
+            .find_first(|r| r.is_err());
+        if let Some(Err(e)) = problem {
+            return Err(e);
+        }
+        if let Some(g) = &ground_truth {
+            if let Some(f) = (first..=last).find(|&f| !g.path(f).is_file()) {
+                return Err(Error::invalid(
+                    path,
+                    "ground_truth",
+                    format!("frame {f}: file not found: {}", g.path(f).display()),
+                ));
+            }
+        }
+        // The mesh must be seen by at least two cameras at the first frame.
+        let shares: Vec<f64> = cameras
+            .iter()
+            .map(|c| visible_share(c, first, &mesh))
+            .collect();
+        if shares.iter().filter(|&&s| s >= MIN_VISIBLE_SHARE).count() < 2 {
+            let detail: Vec<String> = cameras
+                .iter()
+                .zip(&shares)
+                .map(|(c, s)| format!("{} sees {:.0}%", c.name, 100.0 * s))
+                .collect();
+            return Err(Error::invalid(
+                path,
+                "cameras",
+                format!(
+                    "the mesh is seen by fewer than two cameras at frame {first} (a camera sees it when at least {:.0}% of its vertices project inside the image, in front of the camera): {}",
+                    100.0 * MIN_VISIBLE_SHARE,
+                    detail.join(", ")
+                ),
+            ));
+        }
+        Ok(Scene {
+            path: path.to_path_buf(),
+            first,
+            last,
+            mesh,
+            cameras,
+            images,
+            ground_truth,
+        })
+    }
+
+    fn check_frame(&self, frame: u32) -> Result<()> {
+        if frame < self.first || frame > self.last {
+            return Err(Error::Usage(format!(
+                "{}: frame {frame} is outside the scene's frames {}..={}",
+                self.path.display(),
+                self.first,
+                self.last
+            )));
+        }
+        Ok(())
+    }
+
+    /// The images of `frame`, one per camera in the order of `cameras` (read in parallel),
+    /// each checked to have its camera's size.
+    pub fn load_images(&self, frame: u32) -> Result<Vec<RgbImage>> {
+        self.check_frame(frame)?;
+        self.cameras
+            .par_iter()
+            .zip(self.images.par_iter())
+            .map(|(cam, pat)| {
+                let p = pat.path(frame);
+                let img = read_rgb(&p)?;
+                if (img.width(), img.height()) != (cam.width as usize, cam.height as usize) {
+                    return Err(Error::invalid(
+                        &p,
+                        "size",
+                        format!(
+                            "{}x{}, but camera {} is declared {}x{}",
+                            img.width(),
+                            img.height(),
+                            cam.name,
+                            cam.width,
+                            cam.height
+                        ),
+                    ));
+                }
+                Ok(img)
+            })
+            .collect()
+    }
+
+    /// The ground-truth mesh of `frame`, if the scene has ground truth; it must have the scene
+    /// mesh's vertex count and triangles.
+    pub fn ground_truth(&self, frame: u32) -> Option<Result<Mesh>> {
+        let g = self.ground_truth.as_ref()?;
+        Some(self.check_frame(frame).and_then(|()| {
+            let p = g.path(frame);
+            let m = read_mesh(&p)?;
+            if m.positions.len() != self.mesh.positions.len() {
+                return Err(Error::invalid(
+                    &p,
+                    "vertices",
+                    format!(
+                        "{} vertices, but the scene mesh has {}",
+                        m.positions.len(),
+                        self.mesh.positions.len()
+                    ),
+                ));
+            }
+            if m.triangles != self.mesh.triangles {
+                return Err(Error::invalid(
+                    &p,
+                    "faces",
+                    "the triangles differ from the scene mesh's (ground truth must share its topology)",
+                ));
+            }
+            Ok(m)
+        }))
     }
 }
