@@ -4,6 +4,8 @@
 
 use clap::{Parser, Subcommand};
 
+mod baseline;
+
 #[derive(Parser)]
 #[command(
     name = "modelflow",
@@ -16,11 +18,16 @@ struct Cli {
 }
 
 #[derive(Subcommand)]
-enum Command {}
+enum Command {
+    /// Optical flow per camera then triangulation (the Universal Capture baseline).
+    Baseline(baseline::Args),
+}
 
 fn main() -> std::process::ExitCode {
     let cli = Cli::parse();
-    let result: anyhow::Result<()> = match cli.command {};
+    let result: anyhow::Result<()> = match cli.command {
+        Command::Baseline(args) => baseline::run(args),
+    };
     match result {
         Ok(()) => std::process::ExitCode::SUCCESS,
         Err(e) => {

@@ -6,15 +6,17 @@
 //! It is written here rather than taken from a crate because the baseline must follow the
 //! project's pixel-centre convention at every pyramid level (`camera::Projection::downscaled`),
 //! track all three colour channels, and stay pure Rust (no OpenCV build on CI). Per level `L` a
-//! full-resolution position `u` sits at `(u + 0.5) / 2^L - 0.5`; each level is the previous one
-//! lightly blurred and reduced by [`RgbImage::downsample2`], whose pixel centres follow exactly
-//! that rule. Samples are bilinear; window samples falling off the image are clamped to its border.
-//! A track fails when its window has too little texture (smallest eigenvalue of the gradient
-//! matrix), when it leaves the image, or when tracking it back does not return to its start
+//! full-resolution position `u` sits at `(u + 0.5) / 2^L - 0.5`, the rule the levels of
+//! [`pyramid`] follow (Gaussian low-pass, then 2×2 averaging by [`RgbImage::downsample2`]); the
+//! levels are stored as the Model Flow tracker's `pyramid::Pyramid`. Samples are bilinear.
+//! Window pixels off either image are left out of the sums (a replicated or mirrored border
+//! would be structure that does not move). A track fails when its window has too little texture
+//! (smallest eigenvalue of the gradient matrix), when it leaves the image, or when tracking it back does not return to its start
 //! (forward–backward check). Points are tracked in parallel; each result depends on its own point
 //! only, so the output does not depend on the thread count.
 
 use crate::image::RgbImage;
+use crate::pyramid::{GradientImage, Pyramid};
 use nalgebra::Point2;
 use rayon::prelude::*;
 
@@ -37,9 +39,11 @@ pub struct LkOptions {
     /// summed over the three channels). 5e-6 ≈ OpenCV's default 1e-4 in its own scaling.
     pub min_eigenvalue: f64,
     /// Maximum distance in pixels between a start point and the point obtained by tracking its
-    /// result back to the first image; `None` disables the check.
+    /// result back to the first image (starting there with zero flow, like the forward track);
+    /// `None` disables the check.
     pub forward_backward: Option<f64>,
-    /// Gaussian blur (pixels of the finer level) applied before each 2× reduction.
+    /// Gaussian blur (pixels of each level) applied to every pyramid level before its gradients
+    /// are taken (see [`pyramid`]); 0 uses the images as they are.
     pub pyramid_sigma: f64,
 }
 
@@ -52,98 +56,64 @@ impl Default for LkOptions {
             epsilon: 0.01,
             min_eigenvalue: 5e-6,
             forward_backward: Some(1.0),
-            pyramid_sigma: 0.5,
+            pyramid_sigma: 0.0,
         }
     }
 }
 
-/// One image of a pyramid with its gradients.
-#[derive(Clone, Debug)]
-struct Level {
-    image: RgbImage,
-    gx: RgbImage,
-    gy: RgbImage,
+/// The image pyramid the tracker with `opts` needs, as the tracker's own `pyramid::Pyramid`
+/// type: `opts.levels` levels, fewer when a level would be smaller than a window. As in Bouguet's
+/// (and OpenCV's) pyramid, each level is low-passed before the 2× reduction (Gaussian of σ = 1
+/// pixel, then 2×2 averaging, [`RgbImage::downsample2`]) so coarse levels do not alias; each
+/// level is then smoothed by `opts.pyramid_sigma` before its gradients are taken.
+pub fn pyramid(image: &RgbImage, opts: &LkOptions) -> Pyramid {
+    let min_side = 2 * opts.window_radius + 1;
+    let mut levels = vec![GradientImage::new(&image.blurred(opts.pyramid_sigma))];
+    let mut cur = image.clone();
+    while levels.len() < opts.levels.max(1)
+        && cur.width().div_ceil(2) >= min_side
+        && cur.height().div_ceil(2) >= min_side
+    {
+        cur = cur.blurred(ANTI_ALIAS_SIGMA).downsample2();
+        levels.push(GradientImage::new(&cur.blurred(opts.pyramid_sigma)));
+    }
+    Pyramid { levels }
 }
 
-/// An image pyramid with per-level gradients, built once per image and shared by all points.
-#[derive(Clone, Debug)]
-pub struct Pyramid {
-    levels: Vec<Level>,
-}
+/// Low-pass applied to a level before it is halved (pixels of that level).
+const ANTI_ALIAS_SIGMA: f64 = 1.0;
 
-impl Pyramid {
-    /// Builds up to `levels` levels (at least one), stopping early when a side would drop below
-    /// `min_side` pixels. Level `k+1` is level `k` blurred by `sigma` and reduced 2×.
-    pub fn new(image: &RgbImage, levels: usize, sigma: f64, min_side: usize) -> Pyramid {
-        let make = |img: RgbImage| {
-            let (gx, gy) = img.gradients();
-            Level { image: img, gx, gy }
-        };
-        let mut out = vec![make(image.clone())];
-        while out.len() < levels.max(1) {
-            let prev = &out[out.len() - 1].image;
-            if prev.width().div_ceil(2) < min_side || prev.height().div_ceil(2) < min_side {
-                break;
-            }
-            out.push(make(prev.blurred(sigma).downsample2()));
-        }
-        Pyramid { levels: out }
-    }
-
-    /// The pyramid the tracker with `opts` needs.
-    pub fn for_tracking(image: &RgbImage, opts: &LkOptions) -> Pyramid {
-        Pyramid::new(
-            image,
-            opts.levels,
-            opts.pyramid_sigma,
-            2 * opts.window_radius + 1,
-        )
-    }
-
-    /// Number of levels actually built.
-    pub fn len(&self) -> usize {
-        self.levels.len()
-    }
-
-    /// Always false: a pyramid has at least its full-resolution level.
-    pub fn is_empty(&self) -> bool {
-        self.levels.is_empty()
-    }
-
-    /// The image of level `i` (0 = full resolution).
-    pub fn level(&self, i: usize) -> &RgbImage {
-        &self.levels[i].image
-    }
-
-    fn width(&self) -> usize {
-        self.levels[0].image.width()
-    }
-
-    fn height(&self) -> usize {
-        self.levels[0].image.height()
-    }
-}
-
-/// Bilinear sample with the position clamped into the image (border replication).
+/// Whether a bilinear sample at `(u, v)` stays inside a level.
 #[inline]
-fn sample_clamped(img: &RgbImage, u: f64, v: f64) -> [f32; 3] {
-    let u = u.clamp(0.0, (img.width() - 1) as f64);
-    let v = v.clamp(0.0, (img.height() - 1) as f64);
-    img.sample_unchecked(u, v)
+fn in_level(img: &GradientImage, u: f64, v: f64) -> bool {
+    u >= 0.0 && v >= 0.0 && u <= (img.width() - 1) as f64 && v <= (img.height() - 1) as f64
+}
+
+/// Bilinear sample of colour only at a position inside `[0, w-1] × [0, h-1]`: the inner loop's
+/// fetch (the tracker's `GradientImage::sample` would also interpolate the six gradients).
+#[inline]
+fn color_at(img: &GradientImage, u: f64, v: f64) -> [f32; 3] {
+    let (w, h) = (img.width(), img.height());
+    let x0 = (u as usize).min(w.saturating_sub(2));
+    let y0 = (v as usize).min(h.saturating_sub(2));
+    let (x1, y1) = ((x0 + 1).min(w - 1), (y0 + 1).min(h - 1));
+    let fx = (u - x0 as f64) as f32;
+    let fy = (v - y0 as f64) as f32;
+    let (a, b) = (img.color(x0, y0), img.color(x1, y0));
+    let (c, d) = (img.color(x0, y1), img.color(x1, y1));
+    let mut out = [0.0f32; 3];
+    for k in 0..3 {
+        let top = a[k] + (b[k] - a[k]) * fx;
+        let bottom = c[k] + (d[k] - c[k]) * fx;
+        out[k] = top + (bottom - top) * fy;
+    }
+    out
 }
 
 /// Whether a full-resolution position is inside an image of this size (pixel centres at integers).
 #[inline]
 fn inside(p: Point2<f64>, w: usize, h: usize) -> bool {
     p.x >= -0.5 && p.y >= -0.5 && p.x < w as f64 - 0.5 && p.y < h as f64 - 0.5
-}
-
-/// One window pixel of the template: intensity and gradient per channel.
-#[derive(Clone, Copy, Default)]
-struct TemplatePixel {
-    value: [f32; 3],
-    gx: [f32; 3],
-    gy: [f32; 3],
 }
 
 /// Tracks `start` (in `prev`) into `next`, beginning the search at `guess`. `None` if it fails.
@@ -153,14 +123,18 @@ fn track_one(
     start: Point2<f64>,
     guess: Point2<f64>,
     opts: &LkOptions,
-    window: &mut Vec<TemplatePixel>,
+    window: &mut Vec<[f32; 9]>,
 ) -> Option<Point2<f64>> {
-    if !inside(start, prev.width(), prev.height()) || !guess.x.is_finite() || !guess.y.is_finite() {
+    let (w0, h0) = (prev.levels[0].width(), prev.levels[0].height());
+    if !inside(start, w0, h0) || !guess.x.is_finite() || !guess.y.is_finite() {
         return None;
     }
     let r = opts.window_radius as isize;
-    let n = ((2 * r + 1) * (2 * r + 1)) as f64;
-    let levels = prev.len().min(next.len()).min(opts.levels.max(1));
+    let levels = prev
+        .levels
+        .len()
+        .min(next.levels.len())
+        .min(opts.levels.max(1));
     let mut q = guess;
     for l in (0..levels).rev() {
         let scale = (1u32 << l) as f64;
@@ -168,61 +142,75 @@ fn track_one(
         let up = |x: f64| (x + 0.5) * scale - 0.5;
         let (li, lj) = (&prev.levels[l], &next.levels[l]);
         let (px, py) = (down(start.x), down(start.y));
-        // Template and its gradient matrix G.
+        // Template and its gradient matrix G, over the window pixels inside the image (a
+        // border replicated or mirrored into the window would be structure that does not move).
         window.clear();
         let (mut gxx, mut gxy, mut gyy) = (0.0f64, 0.0f64, 0.0f64);
+        let mut valid = 0usize;
         for dy in -r..=r {
             for dx in -r..=r {
                 let (u, v) = (px + dx as f64, py + dy as f64);
-                let t = TemplatePixel {
-                    value: sample_clamped(&li.image, u, v),
-                    gx: sample_clamped(&li.gx, u, v),
-                    gy: sample_clamped(&li.gy, u, v),
-                };
-                for c in 0..3 {
-                    let (a, b) = (t.gx[c] as f64, t.gy[c] as f64);
-                    gxx += a * a;
-                    gxy += a * b;
-                    gyy += b * b;
+                match li.sample(u, v) {
+                    Some(t) => {
+                        for c in 0..3 {
+                            let (a, b) = (t[3 + c] as f64, t[6 + c] as f64);
+                            gxx += a * a;
+                            gxy += a * b;
+                            gyy += b * b;
+                        }
+                        valid += 1;
+                        window.push(t);
+                    }
+                    None => window.push([f32::NAN; 9]),
                 }
-                window.push(t);
             }
         }
         let half_trace = 0.5 * (gxx + gyy);
         let lambda_min = half_trace - (0.25 * (gxx - gyy).powi(2) + gxy * gxy).sqrt();
-        let det = gxx * gyy - gxy * gxy;
-        if lambda_min / n < opts.min_eigenvalue || det <= f64::EPSILON {
+        if 2 * valid < window.len() || lambda_min / (valid as f64) < opts.min_eigenvalue {
             if l == 0 {
                 return None;
             }
-            continue; // too flat at this scale: keep the estimate, refine on finer levels
+            continue; // too flat (or mostly off the image) at this scale: refine on finer levels
         }
         let (mut qx, mut qy) = (down(q.x), down(q.y));
-        let (lw, lh) = (lj.image.width() as f64, lj.image.height() as f64);
         let mut prev_step = (0.0f64, 0.0f64);
         for it in 0..opts.max_iterations {
-            // A window entirely off the image has nothing left to match.
-            if qx < -(r as f64) - 0.5
-                || qy < -(r as f64) - 0.5
-                || qx > lw - 0.5 + r as f64
-                || qy > lh - 0.5 + r as f64
-            {
-                return None;
-            }
+            // Normal equations over the pixels inside both images.
             let (mut bx, mut by) = (0.0f64, 0.0f64);
+            let (mut hxx, mut hxy, mut hyy) = (0.0f64, 0.0f64, 0.0f64);
+            let mut used = 0usize;
             let mut k = 0;
             for dy in -r..=r {
                 for dx in -r..=r {
                     let t = &window[k];
                     k += 1;
-                    let j = sample_clamped(&lj.image, qx + dx as f64, qy + dy as f64);
+                    if t[0].is_nan() {
+                        continue;
+                    }
+                    let (u, v) = (qx + dx as f64, qy + dy as f64);
+                    if !in_level(lj, u, v) {
+                        continue;
+                    }
+                    let j = color_at(lj, u, v);
+                    used += 1;
                     for c in 0..3 {
-                        let e = (t.value[c] - j[c]) as f64;
-                        bx += e * t.gx[c] as f64;
-                        by += e * t.gy[c] as f64;
+                        let (a, b) = (t[3 + c] as f64, t[6 + c] as f64);
+                        let e = (t[c] - j[c]) as f64;
+                        bx += e * a;
+                        by += e * b;
+                        hxx += a * a;
+                        hxy += a * b;
+                        hyy += b * b;
                     }
                 }
             }
+            let det = hxx * hyy - hxy * hxy;
+            // The window has slid off the second image, or what is left of it is flat.
+            if 2 * used < valid || det.is_nan() || det <= f64::EPSILON * (hxx + hyy).powi(2) {
+                return None;
+            }
+            let (gxx, gxy, gyy) = (hxx, hxy, hyy);
             let sx = (gyy * bx - gxy * by) / det;
             let sy = (gxx * by - gxy * bx) / det;
             // Oscillating between two positions: settle in the middle (as OpenCV does).
@@ -240,7 +228,7 @@ fn track_one(
         }
         q = Point2::new(up(qx), up(qy));
     }
-    (q.x.is_finite() && q.y.is_finite() && inside(q, next.width(), next.height())).then_some(q)
+    (q.x.is_finite() && q.y.is_finite() && inside(q, w0, h0)).then_some(q)
 }
 
 /// Tracks each point of `points` from the image of `prev` to the image of `next`, starting the
@@ -270,7 +258,7 @@ pub fn track_with_guesses(
         .map_init(Vec::new, |window, (&p, &g)| {
             let q = track_one(prev, next, p, g, opts, window)?;
             if let Some(max_fb) = opts.forward_backward {
-                let back = track_one(next, prev, q, p, opts, window)?;
+                let back = track_one(next, prev, q, q, opts, window)?;
                 if (back - p).norm() > max_fb {
                     return None;
                 }
@@ -318,8 +306,8 @@ mod tests {
 
     fn check_translation(dx: f64, dy: f64, tol: f64) {
         let opts = LkOptions::default();
-        let a = Pyramid::for_tracking(&shifted(200, 160, 0.0, 0.0), &opts);
-        let b = Pyramid::for_tracking(&shifted(200, 160, dx, dy), &opts);
+        let a = pyramid(&shifted(200, 160, 0.0, 0.0), &opts);
+        let b = pyramid(&shifted(200, 160, dx, dy), &opts);
         let pts = grid_points();
         let out = track(&a, &b, &pts, &opts);
         for (p, q) in pts.iter().zip(&out) {
@@ -343,8 +331,8 @@ mod tests {
             levels: 1,
             ..LkOptions::default()
         };
-        let a = Pyramid::for_tracking(&shifted(200, 160, 0.0, 0.0), &opts);
-        let b = Pyramid::for_tracking(&shifted(200, 160, -13.4, 9.7), &opts);
+        let a = pyramid(&shifted(200, 160, 0.0, 0.0), &opts);
+        let b = pyramid(&shifted(200, 160, -13.4, 9.7), &opts);
         let pts = grid_points();
         let good = track(&a, &b, &pts, &opts)
             .iter()
@@ -361,19 +349,18 @@ mod tests {
     }
 
     #[test]
-    fn pyramid_levels_follow_pixel_centre_convention() {
-        // A ramp in u keeps value = u at every level: level L pixel i sits at 2^L (i + 0.5) - 0.5.
-        let img = RgbImage::from_fn(64, 32, |x, _| [x as f32, 0.0, 0.0]);
-        let p = Pyramid::new(&img, 3, 0.0, 4);
-        assert_eq!(p.len(), 3);
-        assert_eq!(p.level(2).get(3, 1)[0], 4.0 * 3.5 - 0.5);
+    fn pyramid_stops_before_levels_smaller_than_a_window() {
+        let opts = LkOptions::default();
+        // 200×160: levels of 200, 100, 50, 25 px wide but 160, 80, 40, 20 high: 20 < 21.
+        assert_eq!(pyramid(&shifted(200, 160, 0.0, 0.0), &opts).levels.len(), 3);
+        assert_eq!(pyramid(&shifted(320, 240, 0.0, 0.0), &opts).levels.len(), 4);
     }
 
     #[test]
     fn track_leaving_the_image_is_rejected() {
         let opts = LkOptions::default();
-        let a = Pyramid::for_tracking(&shifted(200, 160, 0.0, 0.0), &opts);
-        let b = Pyramid::for_tracking(&shifted(200, 160, -9.0, 0.0), &opts);
+        let a = pyramid(&shifted(200, 160, 0.0, 0.0), &opts);
+        let b = pyramid(&shifted(200, 160, -9.0, 0.0), &opts);
         let pts = [Point2::new(5.0, 80.0), Point2::new(100.0, 80.0)];
         let out = track(&a, &b, &pts, &opts);
         assert!(
@@ -398,7 +385,7 @@ mod tests {
                 texture(x as f64, y as f64)
             }
         });
-        let a = Pyramid::for_tracking(&flat, &opts);
+        let a = pyramid(&flat, &opts);
         let out = track(
             &a,
             &a,
@@ -406,7 +393,8 @@ mod tests {
             &opts,
         );
         assert!(out[0].is_none(), "a flat window has no flow");
-        assert_eq!(out[1], Some(Point2::new(95.0, 60.0)));
+        let q = out[1].expect("textured window tracked");
+        assert!((q - Point2::new(95.0, 60.0)).norm() < 1e-3, "{q:?}");
     }
 
     #[test]
@@ -424,10 +412,7 @@ mod tests {
                 texture(fx, fy)
             }
         });
-        let (pa, pb) = (
-            Pyramid::for_tracking(&a, &opts),
-            Pyramid::for_tracking(&b, &opts),
-        );
+        let (pa, pb) = (pyramid(&a, &opts), pyramid(&b, &opts));
         let p = [Point2::new(80.0, 80.0)];
         let with = track(&pa, &pb, &p, &opts);
         let without = track(
@@ -448,8 +433,8 @@ mod tests {
     #[test]
     fn result_does_not_depend_on_thread_count() {
         let opts = LkOptions::default();
-        let a = Pyramid::for_tracking(&shifted(200, 160, 0.0, 0.0), &opts);
-        let b = Pyramid::for_tracking(&shifted(200, 160, 2.4, -1.1), &opts);
+        let a = pyramid(&shifted(200, 160, 0.0, 0.0), &opts);
+        let b = pyramid(&shifted(200, 160, 2.4, -1.1), &opts);
         let pts = grid_points();
         let one = rayon::ThreadPoolBuilder::new()
             .num_threads(1)

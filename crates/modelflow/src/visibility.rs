@@ -1,12 +1,10 @@
 //! Which mesh vertices a camera sees: in front of it, inside its image and not hidden by another
-//! part of the mesh. A small z-buffer of the mesh's triangles (depth only, perspective-correct,
-//! pixel centres at integer coordinates as in `camera`) decides the last point. The optical-flow
-//! baseline (`baseline`) uses it to choose which vertices each camera tracks.
-//!
-//! Written for the baseline while the tracker's own rasterizer (`raster`) was not yet available;
-//! it is deliberately small: no shading, no triangle ids beyond what the vertex test needs.
+//! part of the mesh. The last point is decided by the z-buffered index buffer of `raster` (the
+//! one the Model Flow tracker uses), looked up at the pixel centre nearest to each vertex. The
+//! optical-flow baseline (`baseline`) uses it to choose which vertices each camera tracks.
 
 use crate::camera::Projection;
+use crate::raster::{rasterize, NONE};
 use nalgebra::Point3;
 
 /// Relative depth tolerance of the vertex test: a vertex counts as visible if it is no more than
@@ -38,43 +36,7 @@ pub fn visible_vertices(
             }
         })
         .collect();
-    let mut depth = vec![f64::INFINITY; w * h];
-    let mut owner = vec![u32::MAX; w * h];
-    for (ti, tri) in triangles.iter().enumerate() {
-        let [a, b, c] = tri.map(|i| projected[i as usize]);
-        if a[2] <= 0.0 || b[2] <= 0.0 || c[2] <= 0.0 {
-            continue; // crosses or lies behind the camera plane: not drawn
-        }
-        let area = (b[0] - a[0]) * (c[1] - a[1]) - (b[1] - a[1]) * (c[0] - a[0]);
-        if area.abs() < 1e-12 {
-            continue;
-        }
-        let x0 = a[0].min(b[0]).min(c[0]).ceil().max(0.0);
-        let x1 = a[0].max(b[0]).max(c[0]).floor().min(w as f64 - 1.0);
-        let y0 = a[1].min(b[1]).min(c[1]).ceil().max(0.0);
-        let y1 = a[1].max(b[1]).max(c[1]).floor().min(h as f64 - 1.0);
-        if x0 > x1 || y0 > y1 {
-            continue;
-        }
-        let (inv_a, inv_b, inv_c) = (1.0 / a[2], 1.0 / b[2], 1.0 / c[2]);
-        for y in y0 as usize..=y1 as usize {
-            for x in x0 as usize..=x1 as usize {
-                let (px, py) = (x as f64, y as f64);
-                let wa = ((b[0] - px) * (c[1] - py) - (b[1] - py) * (c[0] - px)) / area;
-                let wb = ((c[0] - px) * (a[1] - py) - (c[1] - py) * (a[0] - px)) / area;
-                let wc = 1.0 - wa - wb;
-                if wa < -1e-9 || wb < -1e-9 || wc < -1e-9 {
-                    continue;
-                }
-                let z = 1.0 / (wa * inv_a + wb * inv_b + wc * inv_c);
-                let k = y * w + x;
-                if z < depth[k] {
-                    depth[k] = z;
-                    owner[k] = ti as u32;
-                }
-            }
-        }
-    }
+    let ib = rasterize(positions, triangles, proj, w, h);
     projected
         .iter()
         .enumerate()
@@ -85,9 +47,9 @@ pub fn visible_vertices(
             let x = (u.round().max(0.0) as usize).min(w - 1);
             let y = (v.round().max(0.0) as usize).min(h - 1);
             let k = y * w + x;
-            owner[k] == u32::MAX
-                || triangles[owner[k] as usize].contains(&(vi as u32))
-                || z <= depth[k] * (1.0 + DEPTH_TOLERANCE)
+            ib.owner[k] == NONE
+                || triangles[ib.owner[k] as usize].contains(&(vi as u32))
+                || z <= ib.depth[k] as f64 * (1.0 + DEPTH_TOLERANCE)
         })
         .collect()
 }
