@@ -5,6 +5,7 @@
 use clap::{Parser, Subcommand};
 
 mod baseline;
+mod eval;
 
 #[derive(Parser)]
 #[command(
@@ -21,12 +22,15 @@ struct Cli {
 enum Command {
     /// Optical flow per camera then triangulation (the Universal Capture baseline).
     Baseline(baseline::Args),
+    /// Score a run folder against the scene's ground truth.
+    Eval(eval::Args),
 }
 
 fn main() -> std::process::ExitCode {
     let cli = Cli::parse();
     let result: anyhow::Result<()> = match cli.command {
         Command::Baseline(args) => baseline::run(args),
+        Command::Eval(a) => eval::run(a),
     };
     match result {
         Ok(()) => std::process::ExitCode::SUCCESS,

@@ -4,6 +4,7 @@
 pub mod baseline;
 pub mod camera;
 pub mod error;
+pub mod eval;
 pub mod fsutil;
 pub mod image;
 pub mod imageio;

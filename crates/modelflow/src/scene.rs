@@ -203,7 +203,11 @@ impl SceneFile {
             Error::invalid(
                 path,
                 format!("line {} column {}", e.line(), e.column()),
-                format!("invalid JSON: {e}"),
+                if e.to_string().starts_with("number out of range") {
+                    format!("invalid JSON: {e} (numbers must be finite)")
+                } else {
+                    format!("invalid JSON: {e}")
+                },
             )
         })?;
         let obj = value
@@ -476,6 +480,19 @@ impl Scene {
     pub fn load(path: &Path) -> Result<Scene> {
         let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
         let file = SceneFile::parse(path, &text)?;
+        Scene::from_file(path, &file)
+    }
+
+    /// Validates a scene file already in memory as if it had been read from `path` (relative
+    /// paths are resolved against `path`'s folder; errors name `path`).
+    pub fn from_file(path: &Path, file: &SceneFile) -> Result<Scene> {
+        if file.format != FORMAT {
+            return Err(Error::invalid(
+                path,
+                "format",
+                format!("expected \"{FORMAT}\", found {:?}", file.format),
+            ));
+        }
         let base = path.parent().unwrap_or(Path::new("")).to_path_buf();
         let (first, last) = (file.frames.first, file.frames.last);
         if first > last {

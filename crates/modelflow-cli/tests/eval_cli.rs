@@ -1,0 +1,128 @@
+//! `modelflow eval` as a user runs it: exit codes, the table, `--json`, and errors on stderr.
+
+use modelflow::meshio::{read_mesh, write_obj};
+use nalgebra::Vector3;
+use std::path::PathBuf;
+use std::process::{Command, Output};
+
+fn sample() -> PathBuf {
+    PathBuf::from(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../../../shared/footage/blender-cloth-sample"
+    ))
+}
+
+fn modelflow(args: &[&std::ffi::OsStr]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_modelflow"))
+        .args(args)
+        .output()
+        .unwrap()
+}
+
+fn eval(scene: &std::path::Path, track: &std::path::Path, json: bool) -> Output {
+    let mut a = vec![
+        "eval".as_ref(),
+        "--scene".as_ref(),
+        scene.as_os_str(),
+        "--track".as_ref(),
+        track.as_os_str(),
+    ];
+    if json {
+        a.push("--json".as_ref());
+    }
+    modelflow(&a)
+}
+
+fn text(b: &[u8]) -> String {
+    String::from_utf8_lossy(b).into_owned()
+}
+
+#[test]
+fn ground_truth_against_itself_scores_zero() {
+    let out = eval(&sample().join("scene.json"), &sample().join("truth"), true);
+    assert!(out.status.success(), "{}", text(&out.stderr));
+    let stdout = text(&out.stdout);
+    assert_eq!(
+        stdout.trim().lines().count(),
+        1,
+        "one JSON object: {stdout}"
+    );
+    let v: serde_json::Value = serde_json::from_str(&stdout).unwrap();
+    assert_eq!(v["frames"], 12);
+    assert_eq!(v["rms_mean"], 0.0);
+    assert_eq!(v["rms_final"], 0.0);
+    assert_eq!(v["per_frame"].as_array().unwrap().len(), 12);
+}
+
+#[test]
+fn shifted_run_scores_the_shift_in_a_table() {
+    let dir = tempfile::tempdir().unwrap();
+    for f in 0..12 {
+        let name = format!("{f:04}.obj");
+        let m = read_mesh(&sample().join("truth").join(&name)).unwrap();
+        let moved = m
+            .positions
+            .iter()
+            .map(|p| p + Vector3::new(0.0, 0.006, 0.008))
+            .collect();
+        write_obj(&dir.path().join(&name), &m.with_positions(moved)).unwrap();
+    }
+    let out = eval(&sample().join("scene.json"), dir.path(), false);
+    assert!(out.status.success(), "{}", text(&out.stderr));
+    let table = text(&out.stdout);
+    assert!(table.starts_with(" frame"), "{table}");
+    assert_eq!(table.matches("0.010000").count(), 2 * 12 + 2, "{table}");
+    assert!(table.contains("12 frames"), "{table}");
+
+    let out = eval(&sample().join("scene.json"), dir.path(), true);
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert!((v["rms_final"].as_f64().unwrap() - 0.01).abs() < 1e-9);
+    // 100 * 0.01 / (2 * sqrt 2), the cloth's 2 m square bounding-box diagonal.
+    assert!((v["rms_final_pct"].as_f64().unwrap() - 1.0 / 8f64.sqrt()).abs() < 1e-6);
+}
+
+#[test]
+fn missing_frame_fails_with_a_message() {
+    let dir = tempfile::tempdir().unwrap();
+    for f in [0, 1, 2, 4, 5, 6, 7, 8, 9, 10, 11] {
+        let name = format!("{f:04}.obj");
+        std::fs::copy(sample().join("truth").join(&name), dir.path().join(&name)).unwrap();
+    }
+    let out = eval(&sample().join("scene.json"), dir.path(), false);
+    assert_eq!(out.status.code(), Some(1));
+    let err = text(&out.stderr);
+    assert!(err.starts_with("error: "), "{err}");
+    assert!(err.contains("frame(s) 3"), "{err}");
+    assert!(!err.contains("panicked"), "{err}");
+}
+
+#[test]
+fn bad_scene_fails_with_a_message_not_a_panic() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = dir.path().join("scene.json");
+    std::fs::write(
+        &scene,
+        "{\"format\": \"modelflow-scene/1\", \"frames\": {\"first\": 0,,}}",
+    )
+    .unwrap();
+    let out = eval(&scene, dir.path(), true);
+    assert_eq!(out.status.code(), Some(1));
+    let err = text(&out.stderr);
+    assert!(
+        err.contains("scene.json") && err.contains("line 1 column"),
+        "{err}"
+    );
+    assert!(!err.contains("panicked"), "{err}");
+    assert!(out.stdout.is_empty());
+
+    let out = eval(&dir.path().join("absent.json"), dir.path(), false);
+    assert_eq!(out.status.code(), Some(1));
+    assert!(text(&out.stderr).contains("absent.json"));
+}
+
+#[test]
+fn missing_argument_is_a_usage_error() {
+    let out = modelflow(&["eval".as_ref(), "--scene".as_ref(), "x.json".as_ref()]);
+    assert_eq!(out.status.code(), Some(2));
+    assert!(text(&out.stderr).contains("--track"));
+}

@@ -1,0 +1,142 @@
+//! Evaluation against ground truth: exact zero for the truth itself, the known offset for a
+//! shifted copy, and clear errors for incomplete runs.
+
+mod common;
+
+use common::*;
+use modelflow::eval::{evaluate, frame_number, read_run};
+use modelflow::meshio::write_obj;
+use modelflow::scene::Scene;
+use nalgebra::Vector3;
+
+fn write_run(dir: &std::path::Path, offset: Vector3<f64>) {
+    for f in 0..FRAMES {
+        let t = truth(f);
+        let moved = t.positions.iter().map(|p| p + offset).collect();
+        write_obj(&dir.join(format!("{f:04}.obj")), &t.with_positions(moved)).unwrap();
+    }
+    std::fs::write(dir.join("log.jsonl"), "{\"frame\": 1, \"seconds\": 0.1}\n").unwrap();
+}
+
+#[test]
+fn frame_number_is_the_last_run_of_digits() {
+    assert_eq!(frame_number("0007"), Some(7));
+    assert_eq!(frame_number("take2_frame_0012"), Some(12));
+    assert_eq!(frame_number("mesh12b"), Some(12));
+    assert_eq!(frame_number("mesh"), None);
+}
+
+#[test]
+fn truth_against_itself_is_exactly_zero() {
+    let dir = tempfile::tempdir().unwrap();
+    let (path, _) = write_scene(dir.path());
+    let scene = Scene::load(&path).unwrap();
+    let run = read_run(&dir.path().join("truth")).unwrap();
+    let r = evaluate(&scene, &run).unwrap();
+    assert_eq!(r.frames, FRAMES as usize);
+    assert_eq!(
+        r.per_frame.iter().map(|e| e.frame).collect::<Vec<_>>(),
+        vec![0, 1, 2]
+    );
+    assert!(r
+        .per_frame
+        .iter()
+        .all(|e| e.rms == 0.0 && e.max == 0.0 && e.rms_pct == 0.0));
+    assert_eq!((r.rms_mean, r.rms_final), (0.0, 0.0));
+    assert_eq!(r.scale, 2f64.sqrt());
+}
+
+#[test]
+fn known_offset_is_measured() {
+    let dir = tempfile::tempdir().unwrap();
+    let (path, _) = write_scene(dir.path());
+    let scene = Scene::load(&path).unwrap();
+    let run_dir = dir.path().join("run");
+    write_run(&run_dir, Vector3::new(0.03, 0.0, -0.04));
+    std::fs::write(run_dir.join("notes.txt"), "ignored").unwrap();
+    let r = evaluate(&scene, &read_run(&run_dir).unwrap()).unwrap();
+    for e in &r.per_frame {
+        assert!((e.rms - 0.05).abs() < 1e-12, "{e:?}");
+        assert!((e.max - 0.05).abs() < 1e-12, "{e:?}");
+        assert!((e.rms_pct - 5.0 / 2f64.sqrt()).abs() < 1e-9, "{e:?}");
+    }
+    assert!((r.rms_mean - 0.05).abs() < 1e-12 && (r.rms_final - 0.05).abs() < 1e-12);
+    assert!((r.rms_final_pct - 5.0 / 2f64.sqrt()).abs() < 1e-9);
+    let json = serde_json::to_value(&r).unwrap();
+    for key in [
+        "frames",
+        "per_frame",
+        "rms_mean",
+        "rms_final",
+        "rms_mean_pct",
+        "rms_final_pct",
+        "scale",
+    ] {
+        assert!(json.get(key).is_some(), "{key}");
+    }
+}
+
+#[test]
+fn one_vertex_off_gives_rms_and_max() {
+    let dir = tempfile::tempdir().unwrap();
+    let (path, _) = write_scene(dir.path());
+    let scene = Scene::load(&path).unwrap();
+    let mut run = read_run(&dir.path().join("truth")).unwrap();
+    run[2].1.positions[7].z += 0.5;
+    let r = evaluate(&scene, &run).unwrap();
+    let e = &r.per_frame[2];
+    assert_eq!(e.max, 0.5);
+    assert!((e.rms - (0.25f64 / 25.0).sqrt()).abs() < 1e-15);
+    assert_eq!(r.rms_final, e.rms);
+    assert!((r.rms_mean - e.rms / 3.0).abs() < 1e-15);
+}
+
+#[test]
+fn run_errors() {
+    let dir = tempfile::tempdir().unwrap();
+    let (path, mut file) = write_scene(dir.path());
+    let scene = Scene::load(&path).unwrap();
+    let run_dir = dir.path().join("run");
+    write_run(&run_dir, Vector3::zeros());
+
+    // A duplicate frame.
+    std::fs::copy(run_dir.join("0001.obj"), run_dir.join("frame_1.obj")).unwrap();
+    let msg = read_run(&run_dir).unwrap_err().to_string();
+    assert!(
+        msg.contains("frame 1") && msg.contains("two meshes"),
+        "{msg}"
+    );
+    std::fs::remove_file(run_dir.join("frame_1.obj")).unwrap();
+
+    // A missing frame.
+    std::fs::remove_file(run_dir.join("0001.obj")).unwrap();
+    let msg = evaluate(&scene, &read_run(&run_dir).unwrap())
+        .unwrap_err()
+        .to_string();
+    assert!(msg.contains("no mesh for frame(s) 1"), "{msg}");
+
+    // Vertex count mismatch.
+    let mut run = read_run(&dir.path().join("truth")).unwrap();
+    run[1].1 = modelflow::mesh::grid(2, 2, |u, v| nalgebra::Point3::new(u, v, 0.0));
+    let msg = evaluate(&scene, &run).unwrap_err().to_string();
+    assert!(
+        msg.contains("frame 1") && msg.contains("4 vertices"),
+        "{msg}"
+    );
+
+    // No ground truth.
+    file.ground_truth = None;
+    file.write(&path).unwrap();
+    let scene = Scene::load(&path).unwrap();
+    let msg = evaluate(&scene, &run).unwrap_err().to_string();
+    assert!(
+        msg.contains("scene.json") && msg.contains("ground_truth"),
+        "{msg}"
+    );
+
+    // Not a folder.
+    assert!(read_run(&dir.path().join("nope"))
+        .unwrap_err()
+        .to_string()
+        .contains("nope"));
+}

@@ -1,0 +1,311 @@
+//! Mesh files: OBJ and PLY (ascii and both binary byte orders) read back exactly what was
+//! written, polygons are triangulated, and bad files give errors naming the file and line or
+//! element.
+
+use modelflow::mesh::{grid, Mesh};
+use modelflow::meshio::{read_mesh, write_obj};
+use nalgebra::Point3;
+use std::path::Path;
+
+fn err(path: &Path) -> String {
+    match read_mesh(path) {
+        Ok(m) => panic!("{} read as {m:?}", path.display()),
+        Err(e) => e.to_string(),
+    }
+}
+
+fn assert_names(msg: &str, parts: &[&str]) {
+    for p in parts {
+        assert!(msg.contains(p), "{msg:?} should mention {p:?}");
+    }
+}
+
+fn write(dir: &Path, name: &str, bytes: &[u8]) -> std::path::PathBuf {
+    let p = dir.join(name);
+    std::fs::write(&p, bytes).unwrap();
+    p
+}
+
+#[test]
+fn obj_round_trip_is_exact_with_and_without_uvs() {
+    let dir = tempfile::tempdir().unwrap();
+    // Awkward values: thirds, tiny and huge magnitudes, negative zero.
+    let m = grid(4, 3, |u, v| {
+        Point3::new(u / 3.0 + 1e-17, -v * 1e9 / 7.0, (u * v).sin() * 1e-300)
+    });
+    let p = dir.path().join("a.obj");
+    write_obj(&p, &m).unwrap();
+    assert_eq!(read_mesh(&p).unwrap(), m);
+    let plain = Mesh::new(m.positions.clone(), m.triangles.clone());
+    write_obj(&p, &plain).unwrap();
+    let back = read_mesh(&p).unwrap();
+    assert_eq!(back, plain);
+    assert!(back.uvs.is_none());
+}
+
+#[test]
+fn obj_face_forms_quads_and_negative_indices() {
+    let dir = tempfile::tempdir().unwrap();
+    let text = "# a unit square as one quad, then a triangle with relative indices\n\
+                mtllib x.mtl\no square\nv 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\n\
+                vt 0 0\nvt 1 0\nvt 1 1\nvt 0 1\nvn 0 0 1\ns off\nusemtl m\n\
+                f 1/1/1 2/2/1 3/3/1 4/4/1\n\
+                v 2 0 0.5 # comment after data\n\
+                f 2//1 -1//1 3//1\n";
+    let m = read_mesh(&write(dir.path(), "q.OBJ", text.as_bytes())).unwrap();
+    assert_eq!(m.positions.len(), 5);
+    assert_eq!(m.positions[4], Point3::new(2.0, 0.0, 0.5));
+    assert_eq!(m.triangles, vec![[0, 1, 2], [0, 2, 3], [1, 4, 2]]);
+    // The last face has no vt: per-vertex uvs are not defined.
+    assert!(m.uvs.is_none());
+
+    let text = "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nvt 0.5 0\nvt 1 0\nvt 1 1\nvt 0 1\n\
+                f -4/-4 -3/-3 -2/-2 -1/-1\n";
+    let m = read_mesh(&write(dir.path(), "n.obj", text.as_bytes())).unwrap();
+    assert_eq!(m.triangles, vec![[0, 1, 2], [0, 2, 3]]);
+    assert_eq!(m.uvs.unwrap()[0], [0.5, 0.0]);
+
+    // vt not 1:1 onto v (a seam: vertex 1 has two texture coordinates).
+    let text = "v 0 0 0\nv 1 0 0\nv 1 1 0\nvt 0 0\nvt 1 0\nvt 1 1\nvt 0.2 0\n\
+                f 1/1 2/2 3/3\nf 1/4 3/3 2/2\n";
+    let m = read_mesh(&write(dir.path(), "s.obj", text.as_bytes())).unwrap();
+    assert!(m.uvs.is_none());
+}
+
+#[test]
+fn obj_errors_name_file_and_line() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let base = "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 1 1 0\n";
+    let cases: &[(&str, &[&str])] = &[
+        ("f 1 2 5\n", &["line 5", "\"5\" out of range"]),
+        ("f 1 2 -5\n", &["line 5", "out of range"]),
+        ("f 1 0 2\n", &["line 5", "out of range"]),
+        ("f 1 2 x\n", &["line 5", "not a number"]),
+        ("f 1 2\n", &["line 5", "at least 3"]),
+        ("f 1 2 2\n", &["line 5", "degenerate", "repeated vertex"]),
+        ("v 2 0 0\nf 1 2 5\n", &["line 6", "degenerate", "zero area"]),
+        ("v nan 0 0\nf 1 2 3\n", &["line 5", "non-finite"]),
+        ("v 1 2\n", &["line 5", "expected `v x y z`"]),
+        ("f 1/9 2 3\n", &["line 5", "texture index"]),
+        ("", &["faces", "no triangles"]),
+    ];
+    for (i, (tail, parts)) in cases.iter().enumerate() {
+        let name = format!("bad{i}.obj");
+        let p = write(d, &name, format!("{base}{tail}").as_bytes());
+        let msg = err(&p);
+        assert!(msg.contains(&name), "{msg:?} should name the file");
+        assert_names(&msg, parts);
+    }
+    let msg = err(&d.join("missing.obj"));
+    assert_names(&msg, &["missing.obj"]);
+    let msg = err(&write(d, "m.stl", b"solid"));
+    assert_names(&msg, &["m.stl", "extension", ".obj or .ply"]);
+}
+
+// ---- PLY -------------------------------------------------------------------------------------
+
+/// The test mesh: a unit square (one quad) and a triangle beside it.
+fn square() -> (Vec<[f64; 3]>, Vec<Vec<u32>>) {
+    (
+        vec![
+            [0.0, 0.0, 0.0],
+            [1.0, 0.0, 0.0],
+            [1.0, 1.0, 0.0],
+            [0.0, 1.0, 0.0],
+            [2.0, 0.0, 1.0 / 3.0],
+        ],
+        vec![vec![0, 1, 2, 3], vec![1, 4, 2]],
+    )
+}
+
+fn expected() -> Mesh {
+    let (v, _) = square();
+    Mesh::new(
+        v.iter().map(|p| Point3::new(p[0], p[1], p[2])).collect(),
+        vec![[0, 1, 2], [0, 2, 3], [1, 4, 2]],
+    )
+}
+
+const HEADER_BODY: &str = "comment written by a test\n\
+    element vertex 5\n\
+    property double x\nproperty uchar red\nproperty double y\nproperty double z\n\
+    property list uchar float normals\n\
+    element face 2\n\
+    property short flags\nproperty list uchar int vertex_indices\nproperty list ushort uint extra\n\
+    element material 1\nproperty float shininess\nproperty list int int ids\n\
+    end_header\n";
+
+/// A PLY with properties and elements the reader must skip: a `uchar red` between the
+/// coordinates, a float list per vertex, a scalar and a list around the face indices, and a
+/// trailing `material` element.
+fn ply(format: &str) -> Vec<u8> {
+    let (v, f) = square();
+    let mut out = format!("ply\nformat {format} 1.0\n{HEADER_BODY}").into_bytes();
+    if format == "ascii" {
+        for p in &v {
+            out.extend(format!("{} 200 {} {} 2 0.5 -0.5\n", p[0], p[1], p[2]).bytes());
+        }
+        for face in &f {
+            let idx: Vec<String> = face.iter().map(|i| i.to_string()).collect();
+            out.extend(format!("7 {} {} 1 9\n", face.len(), idx.join(" ")).bytes());
+        }
+        out.extend(b"0.25 3 1 2 3\n");
+        return out;
+    }
+    let be = format == "binary_big_endian";
+    macro_rules! put {
+        ($v:expr) => {
+            if be {
+                out.extend_from_slice(&$v.to_be_bytes())
+            } else {
+                out.extend_from_slice(&$v.to_le_bytes())
+            }
+        };
+    }
+    for p in &v {
+        put!(p[0]);
+        put!(200u8);
+        put!(p[1]);
+        put!(p[2]);
+        put!(2u8);
+        put!(0.5f32);
+        put!(-0.5f32);
+    }
+    for face in &f {
+        put!(7i16);
+        put!(face.len() as u8);
+        for &i in face {
+            put!(i as i32);
+        }
+        put!(1u16);
+        put!(9u32);
+    }
+    put!(0.25f32);
+    put!(3i32);
+    for i in 1..=3i32 {
+        put!(i);
+    }
+    out
+}
+
+#[test]
+fn ply_ascii_and_binary_read_the_same_mesh() {
+    let dir = tempfile::tempdir().unwrap();
+    for format in ["ascii", "binary_little_endian", "binary_big_endian"] {
+        let p = write(dir.path(), &format!("{format}.ply"), &ply(format));
+        let m = read_mesh(&p).unwrap_or_else(|e| panic!("{format}: {e}"));
+        assert_eq!(m, expected(), "{format}");
+    }
+}
+
+#[test]
+fn ply_float_vertices_short_counts_and_vertex_index_name() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut b = b"ply\r\nformat binary_little_endian 1.0\r\nelement vertex 3\r\n\
+        property float32 x\r\nproperty float32 y\r\nproperty float32 z\r\nproperty float32 u\r\nproperty float32 v\r\n\
+        element face 1\r\nproperty list uint16 uint8 vertex_index\r\nend_header\r\n"
+        .to_vec();
+    for (x, y, u) in [(0.5f32, 0.0f32, 0.0f32), (1.5, 0.0, 1.0), (0.5, 1.25, 0.5)] {
+        for v in [x, y, 0.0, u, 1.0 - u] {
+            b.extend_from_slice(&v.to_le_bytes());
+        }
+    }
+    b.extend_from_slice(&3u16.to_le_bytes());
+    b.extend_from_slice(&[0, 1, 2]);
+    let m = read_mesh(&write(dir.path(), "f.ply", &b)).unwrap();
+    assert_eq!(m.positions[2], Point3::new(0.5, 1.25, 0.0));
+    assert_eq!(m.triangles, vec![[0, 1, 2]]);
+    assert_eq!(m.uvs.unwrap()[1], [1.0, 0.0]);
+}
+
+#[test]
+fn ply_errors_name_file_and_element() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let ascii = String::from_utf8(ply("ascii")).unwrap();
+    let cases: Vec<(String, &[&str])> = vec![
+        (
+            ascii.replace("7 3 1 4 2", "7 3 1 5 2"),
+            &["face[1]", "out of range"],
+        ),
+        (
+            ascii.replace("7 3 1 4 2", "7 3 1 1 2"),
+            &["face[1]", "degenerate"],
+        ),
+        (
+            ascii.replace("2 200 0 0.3333333333333333", "1 200 0.5 0"),
+            &["face[1]", "zero area"],
+        ),
+        (
+            ascii.replace("1 200 1 0 2", "1 200 nan 0 2"),
+            &["vertex[2]", "non-finite"],
+        ),
+        (
+            ascii.replace("7 4 0 1 2 3", "7 4 0 1 2.5 3"),
+            &["face[0]", "not an integer"],
+        ),
+        (
+            ascii.replace("7 4 0 1 2 3 1 9", "7 4 0 1 2 3 1 9 9"),
+            &["face[0]", "values on the line"],
+        ),
+        (
+            ascii.replace("0.25 3 1 2 3\n", ""),
+            &["material[0]", "ends early"],
+        ),
+        (
+            ascii.replace("format ascii", "format utf16"),
+            &["header line 2", "unknown format"],
+        ),
+        (
+            ascii.replace("property double z", "property quad z"),
+            &["header line", "unknown type"],
+        ),
+        (
+            ascii.replace("end_header", "end_head"),
+            &["header", "end_header"],
+        ),
+        (
+            ascii.replacen("property double x", "property double w", 1),
+            &["header", "x, y or z"],
+        ),
+    ];
+    for (i, (text, parts)) in cases.iter().enumerate() {
+        let name = format!("bad{i}.ply");
+        let msg = err(&write(d, &name, text.as_bytes()));
+        assert!(msg.contains(&name), "{msg:?} should name the file");
+        assert_names(&msg, parts);
+    }
+    let bin = ply("binary_big_endian");
+    let msg = err(&write(d, "cut.ply", &bin[..bin.len() - 30]));
+    assert_names(&msg, &["cut.ply", "face[1]", "truncated"]);
+}
+
+mod junk {
+    use super::*;
+    use proptest::prelude::*;
+
+    proptest! {
+        #![proptest_config(ProptestConfig { cases: 200, .. ProptestConfig::default() })]
+
+        /// Truncated or corrupted PLY/OBJ files give errors, never panics.
+        #[test]
+        fn damaged_mesh_files_never_panic(which in 0usize..4, cut in 0usize..2000, pos in 0usize..2000, byte in any::<u8>()) {
+            let dir = tempfile::tempdir().unwrap();
+            let (name, mut bytes) = match which {
+                0 => ("a.ply", ply("ascii")),
+                1 => ("b.ply", ply("binary_little_endian")),
+                2 => ("c.ply", ply("binary_big_endian")),
+                _ => {
+                    let p = dir.path().join("x.obj");
+                    write_obj(&p, &grid(3, 3, |u, v| Point3::new(u, v, u * v))).unwrap();
+                    ("d.obj", std::fs::read(&p).unwrap())
+                }
+            };
+            let p = pos % bytes.len();
+            bytes[p] = byte;
+            bytes.truncate(cut.min(bytes.len()));
+            let _ = read_mesh(&write(dir.path(), name, &bytes));
+        }
+    }
+}

@@ -1,0 +1,523 @@
+//! Scene loading: a good synthetic scene loads; every kind of bad input gives an error that
+//! names the file and the field at fault (and never panics).
+
+mod common;
+
+use common::*;
+use modelflow::imageio::write_png;
+use modelflow::scene::{FramePattern, PoseEntry, Scene, SceneFile};
+use nalgebra::Point3;
+use std::path::Path;
+
+fn load_err(path: &Path) -> String {
+    match Scene::load(path) {
+        Ok(_) => panic!("{} loaded but should not", path.display()),
+        Err(e) => e.to_string(),
+    }
+}
+
+/// Writes the synthetic scene, lets `edit` change the scene file, and returns the load error.
+fn broken(edit: impl FnOnce(&mut SceneFile, &Path)) -> String {
+    let dir = tempfile::tempdir().unwrap();
+    let (path, mut file) = write_scene(dir.path());
+    edit(&mut file, dir.path());
+    file.write(&path).unwrap();
+    load_err(&path)
+}
+
+fn assert_names(msg: &str, parts: &[&str]) {
+    for p in parts {
+        assert!(msg.contains(p), "{msg:?} should mention {p:?}");
+    }
+}
+
+#[test]
+fn synthetic_scene_loads_with_images_and_truth() {
+    let dir = tempfile::tempdir().unwrap();
+    let (path, _) = write_scene(dir.path());
+    let scene = Scene::load(&path).unwrap();
+    assert_eq!(scene.frames(), 0..=FRAMES - 1);
+    assert_eq!(scene.mesh, mesh());
+    assert_eq!(scene.cameras.len(), 2);
+    assert_eq!(scene.cameras[1].name, "cam1");
+    let imgs = scene.load_images(1).unwrap();
+    assert_eq!(imgs.len(), 2);
+    assert_eq!(imgs[0].width(), W as usize);
+    // 8-bit round trip: x/64 quantised to 1/255 steps.
+    assert!((imgs[1].get(32, 0)[0] - 0.5).abs() <= 0.5 / 255.0 + 1e-6);
+    let gt = scene.ground_truth(2).unwrap().unwrap();
+    assert_eq!(gt, truth(2));
+    assert!(scene.load_images(FRAMES).is_err(), "frame out of range");
+}
+
+#[test]
+fn frame_pattern_pads_to_any_width() {
+    let p = FramePattern::new("/s", "a/{frame:04}.png").unwrap();
+    assert_eq!(p.path(7), Path::new("/s/a/0007.png"));
+    assert_eq!(p.path(123456), Path::new("/s/a/123456.png"));
+    let p = FramePattern::new("/s", "f{frame}_{frame:012}.exr").unwrap();
+    assert_eq!(p.path(42), Path::new("/s/f42_000000000042.exr"));
+    assert!(FramePattern::new("/s", "a.png").is_err());
+    assert!(FramePattern::new("/s", "{frame:4}.png").is_err());
+    assert!(FramePattern::new("/s", "{frame.png").is_err());
+    assert!(FramePattern::new("/s", "{frames}.png").is_err());
+}
+
+#[test]
+fn scene_file_write_reads_back_equal() {
+    let dir = tempfile::tempdir().unwrap();
+    let (path, file) = write_scene(dir.path());
+    let text = std::fs::read_to_string(&path).unwrap();
+    assert_eq!(SceneFile::parse(&path, &text).unwrap(), file);
+    assert!(text.contains("\n  \"frames\""), "pretty-printed");
+}
+
+#[test]
+fn bad_json_names_line_and_column() {
+    let dir = tempfile::tempdir().unwrap();
+    let (path, _) = write_scene(dir.path());
+    let text = std::fs::read_to_string(&path).unwrap();
+    std::fs::write(&path, text.replacen("\"mesh\":", "\"mesh\" ", 1)).unwrap();
+    let msg = load_err(&path);
+    assert_names(&msg, &["scene.json", "line 7 column", "invalid JSON"]);
+}
+
+#[test]
+fn wrong_format_tag() {
+    let msg = broken(|f, _| f.format = "modelflow-scene/2".into());
+    assert_names(
+        &msg,
+        &[
+            "scene.json",
+            "format",
+            "modelflow-scene/2",
+            "modelflow-scene/1",
+        ],
+    );
+}
+
+#[test]
+fn unknown_field_and_wrong_type_name_the_camera() {
+    let dir = tempfile::tempdir().unwrap();
+    let (path, _) = write_scene(dir.path());
+    let text = std::fs::read_to_string(&path).unwrap();
+    std::fs::write(&path, text.replacen("\"width\": 64", "\"widht\": 64", 2)).unwrap();
+    assert_names(&load_err(&path), &["scene.json", "cameras[0]", "widht"]);
+    std::fs::write(&path, text.replace("\"height\": 48", "\"height\": \"48\"")).unwrap();
+    assert_names(
+        &load_err(&path),
+        &["scene.json", "cameras[0]", "invalid type"],
+    );
+}
+
+#[test]
+fn frames_out_of_order() {
+    let msg = broken(|f, _| {
+        f.frames.first = 2;
+        f.frames.last = 1;
+    });
+    assert_names(
+        &msg,
+        &["scene.json", "frames", "first (2) is after last (1)"],
+    );
+}
+
+#[test]
+fn frames_beyond_the_images() {
+    let msg = broken(|f, _| f.frames.last = FRAMES);
+    assert_names(
+        &msg,
+        &[
+            "scene.json",
+            "cameras[0].images",
+            "frame 3",
+            "not found",
+            "0003.png",
+        ],
+    );
+}
+
+#[test]
+fn missing_image() {
+    let msg = broken(|_, d| std::fs::remove_file(d.join("images/cam1/0001.png")).unwrap());
+    assert_names(
+        &msg,
+        &[
+            "scene.json",
+            "cameras[1].images",
+            "frame 1",
+            "images/cam1/0001.png",
+        ],
+    );
+}
+
+#[test]
+fn wrong_image_size() {
+    let msg = broken(|_, d| {
+        let small = modelflow::image::RgbImage::new(32, 48);
+        write_png(&d.join("images/cam0/0002.png"), &small).unwrap();
+    });
+    assert_names(
+        &msg,
+        &[
+            "scene.json",
+            "cameras[0].images",
+            "frame 2",
+            "32x48",
+            "64x48",
+        ],
+    );
+}
+
+#[test]
+fn wrong_image_size_at_load_images() {
+    // The header check at load time passes; the file is replaced afterwards.
+    let dir = tempfile::tempdir().unwrap();
+    let (path, _) = write_scene(dir.path());
+    let scene = Scene::load(&path).unwrap();
+    write_png(
+        &dir.path().join("images/cam1/0000.png"),
+        &modelflow::image::RgbImage::new(10, 10),
+    )
+    .unwrap();
+    let msg = scene.load_images(0).unwrap_err().to_string();
+    assert_names(&msg, &["images/cam1/0000.png", "size", "10x10", "cam1"]);
+}
+
+#[test]
+fn image_pattern_without_frame() {
+    let msg = broken(|f, _| f.cameras[1].images = "images/cam1/still.png".into());
+    assert_names(&msg, &["scene.json", "cameras[1].images", "{frame}"]);
+}
+
+/// Validates an edited scene file in memory (JSON itself cannot hold NaN or infinity).
+fn broken_in_memory(edit: impl FnOnce(&mut SceneFile)) -> String {
+    let dir = tempfile::tempdir().unwrap();
+    let (path, mut file) = write_scene(dir.path());
+    edit(&mut file);
+    match Scene::from_file(&path, &file) {
+        Ok(_) => panic!("should not validate"),
+        Err(e) => e.to_string(),
+    }
+}
+
+#[test]
+fn non_finite_k() {
+    let msg = broken_in_memory(|f| f.cameras[0].k.as_mut().unwrap()[0][2] = f64::NAN);
+    assert_names(&msg, &["scene.json", "cameras[0].K", "non-finite"]);
+    // In the file, an overflowing literal is caught by the JSON reader, with its position.
+    let dir = tempfile::tempdir().unwrap();
+    let (path, _) = write_scene(dir.path());
+    let text = std::fs::read_to_string(&path).unwrap();
+    std::fs::write(&path, text.replacen("60.0", "1e999", 1)).unwrap();
+    assert_names(
+        &load_err(&path),
+        &["scene.json", "line 15 column", "numbers must be finite"],
+    );
+}
+
+#[test]
+fn singular_k() {
+    let msg = broken(|f, _| f.cameras[1].k.as_mut().unwrap()[1][1] = 0.0);
+    assert_names(&msg, &["scene.json", "cameras[1].K", "singular", "fy = 0"]);
+}
+
+#[test]
+fn k_not_upper_triangular() {
+    let msg = broken(|f, _| f.cameras[0].k.as_mut().unwrap()[2] = [0.0, 0.1, 1.0]);
+    assert_names(&msg, &["scene.json", "cameras[0].K", "[0, 0, 1]"]);
+    let msg = broken(|f, _| f.cameras[0].k.as_mut().unwrap()[1][0] = 3.0);
+    assert_names(&msg, &["scene.json", "cameras[0].K", "upper-triangular"]);
+}
+
+#[test]
+fn r_not_a_rotation() {
+    let msg = broken(|f, _| f.cameras[1].r.as_mut().unwrap()[0][0] += 0.2);
+    assert_names(
+        &msg,
+        &["scene.json", "cameras[1].R", "not a rotation matrix"],
+    );
+    // A mirror is orthonormal but not a rotation.
+    let msg = broken(|f, _| {
+        let r = f.cameras[0].r.as_mut().unwrap();
+        r[0] = r[0].map(|v| -v);
+    });
+    assert_names(&msg, &["scene.json", "cameras[0].R", "det R = -1"]);
+}
+
+#[test]
+fn float32_rotation_is_accepted() {
+    let dir = tempfile::tempdir().unwrap();
+    let (path, mut file) = write_scene(dir.path());
+    for c in &mut file.cameras {
+        let r = c.r.as_mut().unwrap();
+        *r = r.map(|row| row.map(|v| v as f32 as f64));
+    }
+    file.write(&path).unwrap();
+    Scene::load(&path).unwrap();
+}
+
+#[test]
+fn non_finite_t() {
+    let msg = broken_in_memory(|f| f.cameras[1].t.as_mut().unwrap()[2] = f64::INFINITY);
+    assert_names(&msg, &["scene.json", "cameras[1].t", "non-finite"]);
+}
+
+#[test]
+fn non_finite_r_and_p() {
+    let msg = broken_in_memory(|f| f.cameras[1].r.as_mut().unwrap()[1][1] = f64::NAN);
+    assert_names(&msg, &["scene.json", "cameras[1].R", "non-finite"]);
+    let msg = broken_in_memory(|f| {
+        to_p(f, 0, 3);
+        f.cameras[0].p.as_mut().unwrap()[2][0][3] = f64::NAN;
+    });
+    assert_names(&msg, &["scene.json", "cameras[0].P[2]", "non-finite"]);
+}
+
+#[test]
+fn duplicate_camera_name() {
+    let msg = broken(|f, _| f.cameras[1].name = "cam0".into());
+    assert_names(
+        &msg,
+        &["scene.json", "cameras[1].name", "\"cam0\"", "unique"],
+    );
+}
+
+#[test]
+fn zero_width() {
+    let msg = broken(|f, _| f.cameras[0].width = 0);
+    assert_names(&msg, &["scene.json", "cameras[0].width", "positive"]);
+}
+
+#[test]
+fn pose_forms_are_exclusive() {
+    let msg = broken(|f, _| {
+        let c = &f.cameras[0];
+        let p = vec![
+            [
+                [1.0, 0.0, 0.0, 0.0],
+                [0.0, 1.0, 0.0, 0.0],
+                [0.0, 0.0, 1.0, 2.0]
+            ];
+            3
+        ];
+        f.cameras[0] = modelflow::scene::CameraEntry {
+            p: Some(p),
+            ..c.clone()
+        };
+    });
+    assert_names(&msg, &["scene.json", "cameras[0].P", "exactly one of"]);
+    let msg = broken(|f, _| f.cameras[1].k = None);
+    assert_names(&msg, &["scene.json", "cameras[1].K", "missing"]);
+    let msg = broken(|f, _| f.cameras[1].t = None);
+    assert_names(&msg, &["scene.json", "cameras[1].t", "missing"]);
+    let msg = broken(|f, _| {
+        let c = &mut f.cameras[1];
+        c.poses = Some(vec![PoseEntry {
+            frame: 0,
+            r: c.r.unwrap(),
+            t: c.t.unwrap(),
+        }]);
+    });
+    assert_names(&msg, &["scene.json", "cameras[1].poses", "not both"]);
+}
+
+fn to_poses(f: &mut SceneFile, cam: usize, frames: &[u32]) {
+    let c = &mut f.cameras[cam];
+    let (r, t) = (c.r.take().unwrap(), c.t.take().unwrap());
+    c.poses = Some(
+        frames
+            .iter()
+            .map(|&frame| PoseEntry { frame, r, t })
+            .collect(),
+    );
+}
+
+#[test]
+fn moving_camera_poses() {
+    let dir = tempfile::tempdir().unwrap();
+    let (path, mut file) = write_scene(dir.path());
+    to_poses(&mut file, 1, &[2, 0, 1]);
+    file.write(&path).unwrap();
+    let scene = Scene::load(&path).unwrap();
+    assert!(scene.cameras[1].is_moving());
+    assert_eq!(scene.cameras[1].at(2), scene.cameras[1].at(0));
+
+    let msg = broken(|f, _| to_poses(f, 1, &[0, 1]));
+    assert_names(
+        &msg,
+        &["scene.json", "cameras[1].poses", "no pose for frame(s) 2"],
+    );
+    let msg = broken(|f, _| to_poses(f, 0, &[0, 1, 1, 2]));
+    assert_names(
+        &msg,
+        &[
+            "scene.json",
+            "cameras[0].poses[2].frame",
+            "more than one pose",
+        ],
+    );
+    let msg = broken(|f, _| to_poses(f, 0, &[0, 1, 2, 7]));
+    assert_names(
+        &msg,
+        &["scene.json", "cameras[0].poses[3].frame", "frame 7 outside"],
+    );
+    let msg = broken(|f, _| {
+        to_poses(f, 0, &[0, 1, 2]);
+        f.cameras[0].poses.as_mut().unwrap()[1].r[2][2] = 5.0;
+    });
+    assert_names(
+        &msg,
+        &["scene.json", "cameras[0].poses[1].R", "not a rotation"],
+    );
+}
+
+fn to_p(f: &mut SceneFile, cam: usize, n: usize) {
+    let c = &mut f.cameras[cam];
+    let (k, r, t) = (
+        c.k.take().unwrap(),
+        c.r.take().unwrap(),
+        c.t.take().unwrap(),
+    );
+    let mut p = [[0.0; 4]; 3];
+    for i in 0..3 {
+        for j in 0..4 {
+            p[i][j] = (0..3)
+                .map(|m| k[i][m] * if j < 3 { r[m][j] } else { t[m] })
+                .sum();
+        }
+    }
+    c.p = Some(vec![p; n]);
+}
+
+#[test]
+fn projection_matrices_per_frame() {
+    let dir = tempfile::tempdir().unwrap();
+    let (path, mut file) = write_scene(dir.path());
+    let krt = Scene::load(&path).unwrap();
+    to_p(&mut file, 0, FRAMES as usize);
+    file.write(&path).unwrap();
+    let scene = Scene::load(&path).unwrap();
+    let x = Point3::new(0.2, -0.1, 0.05);
+    let a = krt.cameras[0].at(1).project(&x).unwrap();
+    let b = scene.cameras[0].at(1).project(&x).unwrap();
+    assert!((a - b).norm() < 1e-9, "{a} vs {b}");
+
+    let msg = broken(|f, _| to_p(f, 0, 2));
+    assert_names(
+        &msg,
+        &[
+            "scene.json",
+            "cameras[0].P",
+            "one matrix per frame",
+            "found 2",
+        ],
+    );
+    let msg = broken(|f, _| {
+        to_p(f, 1, 3);
+        f.cameras[1].p.as_mut().unwrap()[1] = [
+            [1.0, 2.0, 3.0, 0.0],
+            [2.0, 4.0, 6.0, 0.0],
+            [0.0, 0.0, 1.0, 1.0],
+        ];
+    });
+    assert_names(&msg, &["scene.json", "cameras[1].P[1]", "singular"]);
+}
+
+#[test]
+fn missing_mesh_file() {
+    let msg = broken(|f, _| f.mesh = "mesh/nope.obj".into());
+    assert_names(&msg, &["scene.json", "mesh", "not found", "mesh/nope.obj"]);
+}
+
+#[test]
+fn mesh_index_out_of_range() {
+    let msg = broken(|_, d| {
+        let p = d.join("mesh/initial.obj");
+        let mut text = std::fs::read_to_string(&p).unwrap();
+        text.push_str("f 1 2 99\n");
+        std::fs::write(&p, text).unwrap();
+    });
+    // Header line + 25 v + 25 vt + 32 f lines, then the bad face.
+    assert_names(&msg, &["initial.obj", "line 84", "99", "out of range"]);
+}
+
+#[test]
+fn mesh_degenerate_triangle() {
+    let msg = broken(|_, d| {
+        let p = d.join("mesh/initial.obj");
+        let mut text = std::fs::read_to_string(&p).unwrap();
+        // Three collinear grid vertices (first row).
+        text.push_str("f 1 2 3\n");
+        std::fs::write(&p, text).unwrap();
+    });
+    assert_names(&msg, &["initial.obj", "line 84", "degenerate", "zero area"]);
+}
+
+#[test]
+fn ground_truth_missing_and_mismatched() {
+    let msg = broken(|_, d| std::fs::remove_file(d.join("truth/0002.obj")).unwrap());
+    assert_names(
+        &msg,
+        &["scene.json", "ground_truth", "frame 2", "truth/0002.obj"],
+    );
+
+    let dir = tempfile::tempdir().unwrap();
+    let (path, _) = write_scene(dir.path());
+    let scene = Scene::load(&path).unwrap();
+    let small = modelflow::mesh::grid(2, 2, |u, v| Point3::new(u, v, 0.0));
+    modelflow::meshio::write_obj(&dir.path().join("truth/0001.obj"), &small).unwrap();
+    let msg = scene.ground_truth(1).unwrap().unwrap_err().to_string();
+    assert_names(&msg, &["truth/0001.obj", "4 vertices", "25"]);
+}
+
+#[test]
+fn mesh_seen_by_fewer_than_two_cameras() {
+    // cam1 turned around: it looks away from the mesh.
+    let msg = broken(|f, _| {
+        let eye = Point3::new(0.4, 0.3, 2.0);
+        let (r, t) =
+            modelflow::camera::look_at(&eye, &Point3::new(0.8, 0.6, 4.0), &nalgebra::Vector3::y());
+        f.cameras[1].r = Some([0, 1, 2].map(|i| [0, 1, 2].map(|j| r[(i, j)])));
+        f.cameras[1].t = Some([t.x, t.y, t.z]);
+    });
+    assert_names(
+        &msg,
+        &[
+            "scene.json",
+            "cameras",
+            "fewer than two cameras",
+            "cam0 sees 100%",
+            "cam1 sees 0%",
+        ],
+    );
+}
+
+#[test]
+fn missing_scene_file() {
+    let msg = load_err(Path::new("/nonexistent/scene.json"));
+    assert_names(&msg, &["/nonexistent/scene.json"]);
+}
+
+mod junk {
+    use super::*;
+    use proptest::prelude::*;
+
+    proptest! {
+        #![proptest_config(ProptestConfig { cases: 64, .. ProptestConfig::default() })]
+
+        /// Cutting the scene file anywhere, or flipping one byte, gives an error or a scene,
+        /// never a panic.
+        #[test]
+        fn damaged_scene_file_never_panics(cut in 0usize..4000, pos in 0usize..4000, byte in any::<u8>()) {
+            let dir = tempfile::tempdir().unwrap();
+            let (path, _) = write_scene(dir.path());
+            let mut text = std::fs::read(&path).unwrap();
+            let p = pos % text.len();
+            text[p] = byte;
+            text.truncate(cut.min(text.len()));
+            std::fs::write(&path, &text).unwrap();
+            let _ = Scene::load(&path);
+        }
+    }
+}
