@@ -56,7 +56,7 @@ impl Default for LkOptions {
             epsilon: 0.01,
             min_eigenvalue: 5e-6,
             forward_backward: Some(1.0),
-            pyramid_sigma: 0.0,
+            pyramid_sigma: 0.5,
         }
     }
 }
