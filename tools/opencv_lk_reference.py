@@ -13,6 +13,7 @@ mesh, same faces) and log.jsonl are written like `modelflow baseline`, so `model
     pip install opencv-python-headless numpy
     python3 tools/opencv_lk_reference.py --scene S/scene.json --out DIR [--chained] [--no-fb]
     python3 tools/opencv_lk_reference.py --score DIR --scene S/scene.json   # RMS vs ground truth
+                                        (same figures as `modelflow eval --scene S --track DIR`)
 
 It reads the scene format modelflow-scene/1 (K/R/t, "poses" or "P" cameras; {frame:04} patterns).
 """
@@ -242,8 +243,8 @@ def score(args):
         if diag is None:
             diag = np.linalg.norm(t.max(0) - t.min(0))
         rms.append(float(np.sqrt(np.mean(np.sum((r - t) ** 2, axis=1)))))
-    solved = rms[1:]
-    mean = float(np.mean(solved)) if solved else 0.0
+    # Like `modelflow eval`: the mean runs over every frame, the first (error 0) included.
+    mean = float(np.mean(rms))
     print(json.dumps({"frames": len(rms), "rms": rms, "mean_rms": mean, "final_rms": rms[-1],
                       "bbox_diagonal": diag, "mean_pct_diag": 100 * mean / diag,
                       "final_pct_diag": 100 * rms[-1] / diag}))

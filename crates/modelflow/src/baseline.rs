@@ -11,8 +11,9 @@
 //! track each frame at the reprojection of the triangulated vertex. The default is `Reprojected`:
 //! it feeds the multi-view consistency of the triangulation back into the 2D tracks (two cameras'
 //! independent drifts are pulled onto one epipolar-consistent point every frame) and resumes
-//! lost tracks for free; on the Blender sample the two agree to 1e-6 scene units (with two
-//! cameras the triangulated point reprojects almost onto the 2D tracks), see `docs/baseline.md`.
+//! lost tracks for free; on the Blender sample the two give the same RMS error to 1e-6 scene
+//! units (with two cameras the triangulated point reprojects almost onto the 2D tracks), see
+//! `docs/baseline.md`.
 //! The baseline is meant as the strongest form of the approach we know, so that the comparison
 //! with Model Flow is fair: colour Lucas–Kanade with a forward–backward check, z-buffered
 //! visibility, DLT refined on the reprojection error, outlier cameras dropped.
