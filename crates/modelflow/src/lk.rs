@@ -180,28 +180,63 @@ fn track_one(
             let (mut bx, mut by) = (0.0f64, 0.0f64);
             let (mut hxx, mut hxy, mut hyy) = (0.0f64, 0.0f64, 0.0f64);
             let mut used = 0usize;
-            let mut k = 0;
-            for dy in -r..=r {
-                for dx in -r..=r {
-                    let t = &window[k];
-                    k += 1;
-                    if t[0].is_nan() {
-                        continue;
+            let mut accumulate = |t: &[f32; 9], j: [f32; 3]| {
+                used += 1;
+                for c in 0..3 {
+                    let (a, b) = (t[3 + c] as f64, t[6 + c] as f64);
+                    let e = (t[c] - j[c]) as f64;
+                    bx += e * a;
+                    by += e * b;
+                    hxx += a * a;
+                    hxy += a * b;
+                    hyy += b * b;
+                }
+            };
+            let (lw, lh) = (lj.width(), lj.height());
+            let side = 2 * r as usize + 1;
+            if qx - r as f64 >= 0.0
+                && qy - r as f64 >= 0.0
+                && qx + (r as f64) < (lw - 1) as f64
+                && qy + (r as f64) < (lh - 1) as f64
+            {
+                // The whole window is inside: every sample shares one set of bilinear weights.
+                let (ox, oy) = (qx - r as f64, qy - r as f64);
+                let (x0, y0) = (ox.floor() as usize, oy.floor() as usize);
+                let (fx, fy) = ((ox - x0 as f64) as f32, (oy - y0 as f64) as f32);
+                let w = [
+                    (1.0 - fx) * (1.0 - fy),
+                    fx * (1.0 - fy),
+                    (1.0 - fx) * fy,
+                    fx * fy,
+                ];
+                for (j, row) in window.chunks_exact(side).enumerate() {
+                    for (i, t) in row.iter().enumerate() {
+                        if t[0].is_nan() {
+                            continue;
+                        }
+                        let (x, y) = (x0 + i, y0 + j);
+                        let (a, b) = (lj.color(x, y), lj.color(x + 1, y));
+                        let (c, d) = (lj.color(x, y + 1), lj.color(x + 1, y + 1));
+                        let mut s = [0.0f32; 3];
+                        for k in 0..3 {
+                            s[k] = w[0] * a[k] + w[1] * b[k] + w[2] * c[k] + w[3] * d[k];
+                        }
+                        accumulate(t, s);
                     }
-                    let (u, v) = (qx + dx as f64, qy + dy as f64);
-                    if !in_level(lj, u, v) {
-                        continue;
-                    }
-                    let j = color_at(lj, u, v);
-                    used += 1;
-                    for c in 0..3 {
-                        let (a, b) = (t[3 + c] as f64, t[6 + c] as f64);
-                        let e = (t[c] - j[c]) as f64;
-                        bx += e * a;
-                        by += e * b;
-                        hxx += a * a;
-                        hxy += a * b;
-                        hyy += b * b;
+                }
+            } else {
+                let mut k = 0;
+                for dy in -r..=r {
+                    for dx in -r..=r {
+                        let t = &window[k];
+                        k += 1;
+                        if t[0].is_nan() {
+                            continue;
+                        }
+                        let (u, v) = (qx + dx as f64, qy + dy as f64);
+                        if in_level(lj, u, v) {
+                            accumulate(t, color_at(lj, u, v));
+                        }
                     }
                 }
             }
