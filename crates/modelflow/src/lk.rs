@@ -11,9 +11,9 @@
 //! levels are stored as the Model Flow tracker's `pyramid::Pyramid`. Samples are bilinear.
 //! Window pixels off either image are left out of the sums (a replicated or mirrored border
 //! would be structure that does not move). A track fails when its window has too little texture
-//! (smallest eigenvalue of the gradient matrix), when it leaves the image, or when tracking it back does not return to its start
-//! (forward–backward check). Points are tracked in parallel; each result depends on its own point
-//! only, so the output does not depend on the thread count.
+//! (smallest eigenvalue of the gradient matrix), when it leaves the image, or when tracking it
+//! back does not return to its start (forward–backward check). Points are tracked in parallel;
+//! each result depends on its own point only, so the output does not depend on the thread count.
 
 use crate::image::RgbImage;
 use crate::pyramid::{GradientImage, Pyramid};
