@@ -4,6 +4,7 @@
 
 use clap::{Parser, Subcommand};
 
+mod baseline;
 mod eval;
 mod progress;
 mod report;
@@ -23,6 +24,8 @@ struct Cli {
 
 #[derive(Subcommand)]
 enum Command {
+    /// Optical flow per camera then triangulation (the Universal Capture baseline).
+    Baseline(baseline::Args),
     /// Score a run folder against the scene's ground truth.
     Eval(eval::Args),
     /// Write an HTML report comparing runs: error plot, overlays, oblique and error views.
@@ -36,6 +39,7 @@ enum Command {
 fn main() -> std::process::ExitCode {
     let cli = Cli::parse();
     let result: anyhow::Result<()> = match cli.command {
+        Command::Baseline(args) => baseline::run(args),
         Command::Eval(a) => eval::run(a),
         Command::Report(a) => report::run(a),
         Command::Track(a) => track::run(a),

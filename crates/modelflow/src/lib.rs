@@ -1,6 +1,7 @@
 //! modelflow: markerless capture of deforming geometry from calibrated, synchronised multi-view
 //! footage, after "Model Flowing" (Reuterswärd, 2005). See `ARCHITECTURE.md` for the map.
 
+pub mod baseline;
 pub mod camera;
 pub mod colormap;
 pub mod draw;
@@ -9,6 +10,7 @@ pub mod eval;
 pub mod fsutil;
 pub mod image;
 pub mod imageio;
+pub mod lk;
 pub mod mesh;
 pub mod meshio;
 pub mod overlay;
@@ -25,6 +27,8 @@ pub mod springs;
 pub mod synth;
 pub mod texture;
 pub mod track;
+pub mod triangulate;
+pub mod visibility;
 pub mod warp;
 
 pub use error::{Error, Result};
