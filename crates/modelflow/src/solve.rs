@@ -179,7 +179,6 @@ impl Problem<'_> {
         scratch: &mut Vec<Warped>,
     ) -> TriAccum {
         let huber = opts.huber;
-        huber: f64,
         let tri = self.triangles[t as usize];
         let xs = tri.map(|v| x[v as usize]);
         let mut acc = TriAccum {
@@ -212,7 +211,6 @@ impl Problem<'_> {
             let mut gr = Vector3::<f64>::zeros();
             let pixels = &self.pixels[patch.start as usize..patch.end as usize];
             for (i, px) in pixels.iter().enumerate() {
-            for px in &self.pixels[patch.start as usize..patch.end as usize] {
                 let l = [
                     px.lambda[0] as f64,
                     px.lambda[1] as f64,
@@ -458,10 +456,6 @@ impl Problem<'_> {
             (0..nv).map(|i| a.diagonal(i).trace()).sum::<f64>() / (3 * nv.max(1)) as f64;
         let mean_diag = mean_diag.max(1e-30);
         let mut ad = vec![Vector3::zeros(); nv];
-        // Tiny absolute damping keeps vertices without any data (hidden, no springs) well posed.
-        let eps = 1e-9 * mean_diag.max(1e-30);
-        let mut system_fresh = true;
-        let mut a_base = a.clone();
         for it in 0..opts.max_iterations {
             let t0 = Instant::now();
             let mut damped = a.clone();

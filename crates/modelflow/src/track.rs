@@ -153,7 +153,6 @@ impl Tracker {
         if opts.anchor_weight > 0.0 {
             t.anchor = (0..levels)
                 .map(|l| t.template_patches(&t.prev, l, 2.0 * opts.anchor_weight as f32, true))
-                .map(|l| t.template_patches(&t.prev, l, opts.anchor_weight as f32))
                 .collect();
         }
         Ok(t)
