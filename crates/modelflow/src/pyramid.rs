@@ -77,6 +77,38 @@ impl GradientImage {
     }
 }
 
+impl GradientImage {
+    /// Bilinear sample of the colour with the *exact* derivatives of that bilinear interpolant
+    /// (same layout as [`GradientImage::sample`]). The tracker uses this: its Jacobian is then the
+    /// true derivative of the cost it evaluates, so Gauss–Newton's fixed point is the cost's own
+    /// stationary point rather than one shifted by a gradient approximation.
+    #[inline]
+    pub fn sample_exact(&self, u: f64, v: f64) -> Option<[f32; 9]> {
+        if !(u >= 0.0 && v >= 0.0 && u <= (self.width - 1) as f64 && v <= (self.height - 1) as f64) {
+            return None;
+        }
+        let x0 = (u as usize).min(self.width.saturating_sub(2));
+        let y0 = (v as usize).min(self.height.saturating_sub(2));
+        let x1 = (x0 + 1).min(self.width - 1);
+        let y1 = (y0 + 1).min(self.height - 1);
+        let fx = (u - x0 as f64) as f32;
+        let fy = (v - y0 as f64) as f32;
+        let a = &self.data[y0 * self.width + x0];
+        let b = &self.data[y0 * self.width + x1];
+        let c = &self.data[y1 * self.width + x0];
+        let d = &self.data[y1 * self.width + x1];
+        let mut out = [0.0f32; 9];
+        for k in 0..3 {
+            let top = a[k] + (b[k] - a[k]) * fx;
+            let bottom = c[k] + (d[k] - c[k]) * fx;
+            out[k] = top + (bottom - top) * fy;
+            out[3 + k] = (1.0 - fy) * (b[k] - a[k]) + fy * (d[k] - c[k]);
+            out[6 + k] = bottom - top;
+        }
+        Some(out)
+    }
+}
+
 /// Pyramid of one camera's image at one frame.
 #[derive(Clone, Debug)]
 pub struct Pyramid {

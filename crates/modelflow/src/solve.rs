@@ -69,7 +69,7 @@ impl Default for SolverOptions {
             springs: SpringParams {
                 k: 1.0,
                 t: 0.1,
-                membrane: 0.03,
+                membrane: 0.02,
             },
             damping: 1e-4,
             max_rejections: 4,
@@ -222,7 +222,7 @@ impl Problem<'_> {
                 }
                 let inv = 1.0 / h.z;
                 let (u, v) = (h.x * inv, h.y * inv);
-                let Some(s) = img.sample(u, v) else {
+                let Some(s) = img.sample_exact(u, v) else {
                     continue;
                 };
                 let mut sc = 0.0f64;

@@ -48,7 +48,7 @@ impl Default for TrackOptions {
             solver: SolverOptions::default(),
             levels: 2,
             blur: 1.0,
-            anchor_weight: 0.5,
+            anchor_weight: 2.0,
             margin: 1,
             min_cos: 0.1,
             predict: true,
@@ -156,6 +156,21 @@ impl Tracker {
                 .collect();
         }
         Ok(t)
+    }
+
+    /// Replaces the current frame's vertex positions (e.g. a corrected shape from an artist, or
+    /// ground truth in an experiment); the next step starts from them, with no velocity.
+    pub fn set_positions(&mut self, positions: Vec<Point3<f64>>) -> Result<()> {
+        if positions.len() != self.prev.positions.len() {
+            return Err(Error::Usage(format!(
+                "{} positions given for a mesh of {} vertices",
+                positions.len(),
+                self.prev.positions.len()
+            )));
+        }
+        self.prev.positions = positions;
+        self.before_prev = None;
+        Ok(())
     }
 
     /// Current vertex positions (the last solved frame).

@@ -182,12 +182,12 @@ fn assembled_gradient_matches_finite_differences_of_the_cost() {
     let src: Vec<Pyramid> = rig
         .images(&plane0)
         .iter()
-        .map(|i| Pyramid::new(i, 1, 5.0))
+        .map(|i| Pyramid::new(i, 1, 1.0))
         .collect();
     let dst: Vec<Pyramid> = rig
         .images(&plane1)
         .iter()
-        .map(|i| Pyramid::new(i, 1, 5.0))
+        .map(|i| Pyramid::new(i, 1, 1.0))
         .collect();
     let popts = PatchOptions {
         margin: 1,
@@ -231,7 +231,8 @@ fn assembled_gradient_matches_finite_differences_of_the_cost() {
     x[5].x += 0.02;
     x[6].z -= 0.01;
     let (_, _, b) = problem.linearize(&x, &opts);
-    let eps = 1e-6;
+    // Image values are f32: a step of 0.1 mm keeps the difference well above their rounding.
+    let eps = 1e-4;
     let mut checked = 0;
     for v in [5usize, 6, 9, 10] {
         for k in 0..3 {
@@ -241,9 +242,8 @@ fn assembled_gradient_matches_finite_differences_of_the_cost() {
             xm[v][k] -= eps;
             let fd = (problem.cost(&xp, &opts) - problem.cost(&xm, &opts)) / (2.0 * eps);
             let analytic = -2.0 * b[v][k];
-            // Bilinear interpolation makes the cost piecewise smooth: allow a few percent.
             assert!(
-                (fd - analytic).abs() <= 0.05 * fd.abs().max(analytic.abs()) + 1e-6,
+                (fd - analytic).abs() <= 1e-2 * fd.abs().max(analytic.abs()) + 1e-9,
                 "vertex {v} axis {k}: fd {fd} vs analytic {analytic}"
             );
             checked += 1;
