@@ -2,7 +2,7 @@
 //! scene, written like `track`'s output so that `eval` can score it.
 
 use anyhow::Context;
-use indicatif::{ProgressBar, ProgressStyle};
+use crate::progress::Progress;
 use modelflow::baseline::{self, BaselineOptions, Seeding};
 use modelflow::lk::LkOptions;
 use modelflow::scene::Scene;
@@ -61,17 +61,12 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         max_reprojection_error: args.max_reprojection,
         ..defaults
     };
-    let bar = ProgressBar::new((scene.last - scene.first + 1) as u64);
-    bar.set_style(
-        ProgressStyle::with_template("{bar:40} {pos}/{len} frames {elapsed} (eta {eta}) {msg}")
-            .expect("valid template"),
-    );
+    let progress = Progress::new("baseline", (scene.last - scene.first) as u64);
     let summary = baseline::run(&scene, &opts, &args.out, &|frame| {
-        bar.inc(1);
-        bar.set_message(format!("frame {frame}"));
+        progress.tick(&format!("frame {frame}"));
     })
     .with_context(|| format!("baseline on {}", args.scene.display()))?;
-    bar.finish_and_clear();
+    progress.finish();
     let n = summary.seconds.len().max(1) as f64;
     eprintln!(
         "wrote {} frames to {} ({:.3} s per frame)",

@@ -5,6 +5,8 @@
 use clap::{Parser, Subcommand};
 
 mod baseline;
+mod bench;
+mod demo;
 mod eval;
 mod progress;
 mod report;
@@ -24,6 +26,10 @@ struct Cli {
 
 #[derive(Subcommand)]
 enum Command {
+    /// Run the whole pipeline on embedded synthetic footage: synth, track, baseline, report.
+    Demo(demo::Args),
+    /// Time the tracker on the default 640x480 two-camera cloth (or a given scene).
+    Bench(bench::Args),
     /// Optical flow per camera then triangulation (the Universal Capture baseline).
     Baseline(baseline::Args),
     /// Score a run folder against the scene's ground truth.
@@ -40,6 +46,8 @@ fn main() -> std::process::ExitCode {
     let cli = Cli::parse();
     let result: anyhow::Result<()> = match cli.command {
         Command::Baseline(args) => baseline::run(args),
+        Command::Bench(a) => bench::run(a),
+        Command::Demo(a) => demo::run(a),
         Command::Eval(a) => eval::run(a),
         Command::Report(a) => report::run(a),
         Command::Track(a) => track::run(a),

@@ -2,12 +2,15 @@
 
 use indicatif::{ProgressBar, ProgressStyle};
 use std::io::IsTerminal;
+use std::sync::atomic::{AtomicU64, Ordering};
 
 pub struct Progress {
     bar: Option<ProgressBar>,
     label: String,
-    total: u64,
-    done: std::sync::atomic::AtomicU64,
+    total: AtomicU64,
+    done: AtomicU64,
+    /// Last tenth reported in plain mode (for `set`).
+    tenth: AtomicU64,
 }
 
 impl Progress {
@@ -15,9 +18,11 @@ impl Progress {
         let bar = std::io::stderr().is_terminal().then(|| {
             let b = ProgressBar::new(total);
             b.set_style(
-                ProgressStyle::with_template("{prefix:>8} [{bar:32.cyan/blue}] {pos}/{len} {elapsed_precise} ETA {eta} {msg}")
-                    .expect("valid template")
-                    .progress_chars("=> "),
+                ProgressStyle::with_template(
+                    "{prefix:>9} [{bar:32.cyan/blue}] {pos}/{len} {elapsed_precise} ETA {eta} {msg}",
+                )
+                .expect("valid template")
+                .progress_chars("=> "),
             );
             b.set_prefix(label.to_string());
             b
@@ -25,20 +30,44 @@ impl Progress {
         Progress {
             bar,
             label: label.to_string(),
-            total,
+            total: total.into(),
             done: 0.into(),
+            tenth: 0.into(),
         }
     }
 
-    /// One more item done, with a message.
+    /// One more item done, with a message (a line per item when not on a terminal).
     pub fn tick(&self, msg: &str) {
-        let n = self.done.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1;
+        let n = self.done.fetch_add(1, Ordering::Relaxed) + 1;
         match &self.bar {
             Some(b) => {
                 b.set_message(msg.to_string());
                 b.inc(1);
             }
-            None => eprintln!("{} {}/{}: {}", self.label, n, self.total, msg),
+            None => eprintln!(
+                "{} {}/{}: {}",
+                self.label,
+                n,
+                self.total.load(Ordering::Relaxed),
+                msg
+            ),
+        }
+    }
+
+    /// `done` of `total` items (a line per tenth when not on a terminal).
+    pub fn set(&self, done: u64, total: u64) {
+        self.total.store(total, Ordering::Relaxed);
+        match &self.bar {
+            Some(b) => {
+                b.set_length(total);
+                b.set_position(done);
+            }
+            None => {
+                let t = done * 10 / total.max(1);
+                if self.tenth.fetch_max(t, Ordering::Relaxed) < t {
+                    eprintln!("{} {done}/{total}", self.label);
+                }
+            }
         }
     }
 
