@@ -1,8 +1,8 @@
 //! `modelflow baseline`: the optical-flow-then-triangulation baseline ("Universal Capture") over a
 //! scene, written like `track`'s output so that `eval` can score it.
 
-use anyhow::Context;
 use crate::progress::Progress;
+use anyhow::Context;
 use modelflow::baseline::{self, BaselineOptions, Seeding};
 use modelflow::lk::LkOptions;
 use modelflow::scene::Scene;

@@ -69,13 +69,25 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let mut logs: Vec<FrameLog> = Vec::new();
     let p = Progress::new("bench", (scene.last - scene.first) as u64);
     track_scene(&scene, &TrackOptions::default(), &out, &mut |f| {
-        p.tick(&format!("frame {} {:.0} ms", f.report.frame, f.wall_seconds * 1e3));
+        p.tick(&format!(
+            "frame {} {:.0} ms",
+            f.report.frame,
+            f.wall_seconds * 1e3
+        ));
         logs.push(f.clone());
     })?;
     p.finish();
     let per = |f: &dyn Fn(&FrameLog) -> f64| median(&logs.iter().map(f).collect::<Vec<_>>());
-    let solve_secs: f64 = logs.iter().flat_map(|l| &l.report.levels).map(|s| s.seconds).sum();
-    let evaluations: u64 = logs.iter().flat_map(|l| &l.report.levels).map(|s| s.pixel_evaluations).sum();
+    let solve_secs: f64 = logs
+        .iter()
+        .flat_map(|l| &l.report.levels)
+        .map(|s| s.seconds)
+        .sum();
+    let evaluations: u64 = logs
+        .iter()
+        .flat_map(|l| &l.report.levels)
+        .map(|s| s.pixel_evaluations)
+        .sum();
     let report = BenchReport {
         scene: scene_path,
         frames: logs.len(),
@@ -84,7 +96,13 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         ms_load: per(&|l| l.load_seconds) * 1e3,
         ms_solve: per(&|l| l.report.seconds) * 1e3,
         ms_per_iteration: per(&|l| {
-            let it = l.report.levels.iter().map(|s| s.iterations.len()).sum::<usize>().max(1);
+            let it = l
+                .report
+                .levels
+                .iter()
+                .map(|s| s.iterations.len())
+                .sum::<usize>()
+                .max(1);
             l.report.levels.iter().map(|s| s.seconds).sum::<f64>() / it as f64
         }) * 1e3,
         iterations: per(&|l| l.report.iterations as f64),
@@ -94,12 +112,30 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         println!("{}", serde_json::to_string(&report)?);
     } else {
         println!("scene                {}", report.scene.display());
-        println!("frames solved        {} ({} threads)", report.frames, report.threads);
-        println!("per frame, end to end {:8.1} ms  (median; image loading included)", report.ms_per_frame);
-        println!("  image loading       {:8.1} ms  (median; overlapped with the previous solve)", report.ms_load);
-        println!("  solve               {:8.1} ms  (median; pyramids, patches, Gauss-Newton)", report.ms_solve);
-        println!("per solver iteration  {:8.2} ms  (median; {} iterations per frame)", report.ms_per_iteration, report.iterations);
-        println!("residuals per second  {:8.1} M", report.residuals_per_second / 1e6);
+        println!(
+            "frames solved        {} ({} threads)",
+            report.frames, report.threads
+        );
+        println!(
+            "per frame, end to end {:8.1} ms  (median; image loading included)",
+            report.ms_per_frame
+        );
+        println!(
+            "  image loading       {:8.1} ms  (median; overlapped with the previous solve)",
+            report.ms_load
+        );
+        println!(
+            "  solve               {:8.1} ms  (median; pyramids, patches, Gauss-Newton)",
+            report.ms_solve
+        );
+        println!(
+            "per solver iteration  {:8.2} ms  (median; {} iterations per frame)",
+            report.ms_per_iteration, report.iterations
+        );
+        println!(
+            "residuals per second  {:8.1} M",
+            report.residuals_per_second / 1e6
+        );
     }
     Ok(())
 }

@@ -34,33 +34,51 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         synth.frames = f;
     }
     let footage = args.out.join("footage");
-    eprintln!("1/4 synthesising the '{}' preset into {}", args.preset, footage.display());
+    eprintln!(
+        "1/4 synthesising the '{}' preset into {}",
+        args.preset,
+        footage.display()
+    );
     let p = Progress::new("synth", 0);
-    let scene_path = write_dataset(&synth, &footage, &|done, total| p.set(done as u64, total as u64))?;
+    let scene_path = write_dataset(&synth, &footage, &|done, total| {
+        p.set(done as u64, total as u64)
+    })?;
     p.finish();
     let scene = Scene::load(&scene_path)?;
 
     eprintln!("2/4 tracking with Model Flow");
     let mf_dir = args.out.join("runs").join("modelflow");
     let mf = crate::track::run_scene(&scene, &TrackOptions::default(), &mf_dir)?;
-    let mut runs = vec![("Model Flow".to_string(), mf_dir.clone(), mf.median_frame_seconds)];
+    let mut runs = vec![(
+        "Model Flow".to_string(),
+        mf_dir.clone(),
+        mf.median_frame_seconds,
+    )];
 
     if !args.no_baseline {
         eprintln!("3/4 tracking with the optical-flow baseline (Lucas-Kanade + triangulation)");
         let bl_dir = args.out.join("runs").join("baseline");
         let p = Progress::new("baseline", (scene.last - scene.first) as u64);
-        let bl = baseline::run(&scene, &BaselineOptions::default(), &bl_dir, &|f| p.tick(&format!("frame {f}")))
-            .context("running the baseline")?;
+        let bl = baseline::run(&scene, &BaselineOptions::default(), &bl_dir, &|f| {
+            p.tick(&format!("frame {f}"))
+        })
+        .context("running the baseline")?;
         p.finish();
         runs.push(("LK baseline".to_string(), bl_dir, median(&bl.seconds)));
     }
 
     eprintln!("4/4 scoring and writing the report");
     let report_dir = args.out.join("report");
-    let named: Vec<(String, PathBuf)> = runs.iter().map(|(n, d, _)| (n.clone(), d.clone())).collect();
+    let named: Vec<(String, PathBuf)> = runs
+        .iter()
+        .map(|(n, d, _)| (n.clone(), d.clone()))
+        .collect();
     let summary = write_report(&scene, &named, &ReportOptions::default(), &report_dir)?;
 
-    println!("{:<12} {:>14} {:>14} {:>16}", "run", "mean error", "final error", "time per frame");
+    println!(
+        "{:<12} {:>14} {:>14} {:>16}",
+        "run", "mean error", "final error", "time per frame"
+    );
     for (name, dir, secs) in &runs {
         let e = score(&scene, dir)?;
         println!(

@@ -84,7 +84,8 @@ impl GradientImage {
     /// stationary point rather than one shifted by a gradient approximation.
     #[inline]
     pub fn sample_exact(&self, u: f64, v: f64) -> Option<[f32; 9]> {
-        if !(u >= 0.0 && v >= 0.0 && u <= (self.width - 1) as f64 && v <= (self.height - 1) as f64) {
+        if !(u >= 0.0 && v >= 0.0 && u <= (self.width - 1) as f64 && v <= (self.height - 1) as f64)
+        {
             return None;
         }
         let x0 = (u as usize).min(self.width.saturating_sub(2));

@@ -234,7 +234,13 @@ impl Problem<'_> {
                 let lv = Vector3::from(l);
                 gm += lv * lv.transpose() * cc;
                 gr += lv * sc;
-                scratch.push(Warped { index: i as u32, u, v, inv, s });
+                scratch.push(Warped {
+                    index: i as u32,
+                    u,
+                    v,
+                    inv,
+                    s,
+                });
             }
             // Shading changes as the surface turns: compare up to a brightness gain per
             // (triangle, camera), fitted by least squares to the warped pixels — constant, or
@@ -261,7 +267,8 @@ impl Problem<'_> {
                     px.lambda[2] as f64,
                 ];
                 let (u, v, inv, s) = (wp.u, wp.v, wp.inv, wp.s);
-                let gain = px.lambda[0] * gains[0] + px.lambda[1] * gains[1] + px.lambda[2] * gains[2];
+                let gain =
+                    px.lambda[0] * gains[0] + px.lambda[1] * gains[1] + px.lambda[2] * gains[2];
                 let r = [
                     (s[0] - gain * px.color[0]) as f64,
                     (s[1] - gain * px.color[1]) as f64,
@@ -357,7 +364,9 @@ impl Problem<'_> {
             .by_triangle
             .par_iter()
             .with_min_len(16)
-            .map_init(Vec::new, |scratch, (t, r)| self.triangle(*t, r, x, opts, want, scratch))
+            .map_init(Vec::new, |scratch, (t, r)| {
+                self.triangle(*t, r, x, opts, want, scratch)
+            })
             .collect();
         let n = self.weighted_pixels().max(1.0);
         let inv_n = 1.0 / n;
@@ -464,7 +473,12 @@ impl Problem<'_> {
             let step = delta.iter().map(|d| d.norm()).fold(0.0, f64::max);
             // Decrease predicted by the Gauss–Newton model: 2·δᵀ(−Jᵀr) − δᵀ·JᵀJ·δ.
             a.mul(&delta, &mut ad);
-            let predicted: f64 = delta.iter().zip(&b).zip(&ad).map(|((d, b), ad)| 2.0 * d.dot(b) - d.dot(ad)).sum();
+            let predicted: f64 = delta
+                .iter()
+                .zip(&b)
+                .zip(&ad)
+                .map(|((d, b), ad)| 2.0 * d.dot(b) - d.dot(ad))
+                .sum();
             if predicted <= opts.min_relative_decrease * cost {
                 iterations.push(IterationSummary {
                     iteration: it + 1,

@@ -140,11 +140,11 @@ mod tests {
         let grads = warp_gradients(&s_inv, &next);
         let sp = Vector3::new(u, v, 1.0);
         let eps = 1e-6;
-        for ik in 0..9 {
+        for (ik, grad) in grads.iter().enumerate() {
             let (i, k) = (ik / 3, ik % 3);
             // Eq. 5.13 with the precomputed matrix: d(W·s)/dq = G·s; then the quotient rule (5.11).
             let hw = warp_matrix(&s, &next, &xn).unwrap() * sp;
-            let dh = grads[ik] * sp;
+            let dh = grad * sp;
             let du_g = (dh.x * hw.z - hw.x * dh.z) / (hw.z * hw.z);
             let dv_g = (dh.y * hw.z - hw.y * dh.z) / (hw.z * hw.z);
             // Finite differences of the full warp.

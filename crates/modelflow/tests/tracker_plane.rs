@@ -10,7 +10,9 @@ use nalgebra::{Matrix3, Point3, Vector3};
 
 /// A smooth, colourful, non-periodic texture on the unit square.
 fn texture(s: f64, t: f64) -> [f32; 3] {
-    let f = |a: f64, b: f64, c: f64, d: f64| (a * s * 6.28 + b * t * 6.28 + c).sin() * d;
+    let f = |a: f64, b: f64, c: f64, d: f64| {
+        (a * s * std::f64::consts::TAU + b * t * std::f64::consts::TAU + c).sin() * d
+    };
     let r = 0.5 + f(7.3, 2.1, 0.3, 0.2) + f(3.1, 11.7, 1.1, 0.15) + f(17.0, 5.3, 2.0, 0.1);
     let g = 0.5 + f(2.9, 8.3, 0.7, 0.2) + f(13.1, 3.7, 2.1, 0.15) + f(6.0, 19.3, 0.4, 0.1);
     let b = 0.5 + f(9.7, 6.1, 1.7, 0.2) + f(4.3, 15.1, 0.2, 0.15) + f(21.0, 9.0, 1.3, 0.1);
@@ -422,8 +424,8 @@ fn results_do_not_depend_on_the_thread_count() {
         pool.install(|| {
             let mut tr =
                 Tracker::new(&mesh, rig.cameras(), 0, &frames[0], TrackOptions::default()).unwrap();
-            for f in 1..3 {
-                tr.step(f as u32, &frames[f]).unwrap();
+            for (f, images) in frames.iter().enumerate().skip(1) {
+                tr.step(f as u32, images).unwrap();
             }
             tr.positions().to_vec()
         })
