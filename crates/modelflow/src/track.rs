@@ -431,12 +431,18 @@ pub fn track_scene(
         });
     }
     let t_load = Instant::now();
-    let mut pending = scene
-        .load_images(scene.first + 1)
-        .map(|imgs| (imgs, t_load.elapsed().as_secs_f64()));
+    // The images of the frame to solve next (read while the previous frame was being solved).
+    let mut pending = Some(
+        scene
+            .load_images(scene.first + 1)
+            .map(|imgs| (imgs, t_load.elapsed().as_secs_f64())),
+    );
     let mut t_frame = Instant::now();
     for frame in scene.first + 1..=scene.last {
-        let (images, load_seconds) = pending?;
+        let Some(loaded) = pending.take() else {
+            break;
+        };
+        let (images, load_seconds) = loaded?;
         let has_next = frame < scene.last;
         let (report, next) = rayon::join(
             || tracker.step(frame, &images),
@@ -467,10 +473,7 @@ pub fn track_scene(
         log.push('\n');
         write_atomic(&log_path, log.as_bytes())?;
         on_frame(&entry);
-        pending = match next {
-            Some(r) => r,
-            None => Err(Error::Usage(String::new())),
-        };
+        pending = next;
     }
     Ok(TrackSummary {
         frames: (scene.last - scene.first + 1) as usize,
