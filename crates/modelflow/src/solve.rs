@@ -67,9 +67,9 @@ impl Default for SolverOptions {
             min_relative_decrease: 1e-3,
             huber: 0.1,
             springs: SpringParams {
-                k: 5.0,
+                k: 1.0,
                 t: 0.1,
-                membrane: 0.01,
+                membrane: 0.02,
             },
             damping: 1e-4,
             max_rejections: 4,

@@ -17,7 +17,7 @@ fn rms(a: &[Point3<f64>], b: &[Point3<f64>]) -> f64 {
 }
 
 #[test]
-fn small_synthetic_cloth_is_tracked_to_ground_truth() {
+fn first_frames_of_the_default_cloth_are_tracked_to_ground_truth() {
     // 320×240, 2 cameras with the default narrow baseline, the default cloth's first frames
     // (diffuse lighting on, so shading changes as it moves).
     let opts = SynthOptions {
@@ -41,14 +41,16 @@ fn small_synthetic_cloth_is_tracked_to_ground_truth() {
     )
     .unwrap();
     let diag = syn.mesh.bbox_diagonal();
+    let mut sum = 0.0;
     for f in 1..opts.frames {
         tr.step(f, &images(f)).unwrap();
         let truth = &syn.truth[f as usize];
         let err = 100.0 * rms(tr.positions(), truth) / diag;
         let still = 100.0 * rms(&syn.truth[0], truth) / diag;
-        // The accuracy bound (0.3 % of the cloth's size; a pixel here is ~0.4 %), and far
-        // better than not moving once the cloth has moved.
-        assert!(err < 0.3, "frame {f}: error {err:.3} % of the cloth's size");
+        // The shot's accuracy bounds (mean 0.3 % of the cloth's size, about 4 mm, most of it depth
+        // along the narrow baseline; no frame above 0.4 %), and far better than not moving.
+        assert!(err < 0.4, "frame {f}: error {err:.3} % of the cloth's size");
+        sum += err;
         assert!(
             f < 2 || err < 0.5 * still,
             "frame {f}: error {err:.3} % vs {still:.3} % standing still"
