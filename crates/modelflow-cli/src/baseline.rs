@@ -61,7 +61,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         max_reprojection_error: args.max_reprojection,
         ..defaults
     };
-    let progress = Progress::new("baseline", (scene.last - scene.first) as u64);
+    let progress = Progress::new("baseline", (scene.last - scene.first + 1) as u64);
     let summary = baseline::run(&scene, &opts, &args.out, &|frame| {
         progress.tick(&format!("frame {frame}"));
     })

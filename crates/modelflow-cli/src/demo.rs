@@ -58,7 +58,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     if !args.no_baseline {
         eprintln!("3/4 tracking with the optical-flow baseline (Lucas-Kanade + triangulation)");
         let bl_dir = args.out.join("runs").join("baseline");
-        let p = Progress::new("baseline", (scene.last - scene.first) as u64);
+        let p = Progress::new("baseline", (scene.last - scene.first + 1) as u64);
         let bl = baseline::run(&scene, &BaselineOptions::default(), &bl_dir, &|f| {
             p.tick(&format!("frame {f}"))
         })

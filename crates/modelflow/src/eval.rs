@@ -21,6 +21,30 @@ pub fn frame_number(stem: &str) -> Option<u32> {
     stem[start..end].parse().ok()
 }
 
+/// Removes, from a run folder about to be written, frame meshes left by an earlier run that lie
+/// outside `first..=last` (files named as a run names them: digits only, `.obj`), so that the
+/// folder ends up holding exactly one run. Other files are left alone. Returns how many went.
+pub fn remove_stale_frames(dir: &Path, first: u32, last: u32) -> Result<usize> {
+    let Ok(entries) = std::fs::read_dir(dir) else {
+        return Ok(0);
+    };
+    let mut removed = 0;
+    for entry in entries {
+        let p = entry.map_err(|e| Error::io(dir, e))?.path();
+        let stem = p.file_stem().and_then(|s| s.to_str()).unwrap_or("");
+        let is_frame_file = p.extension().is_some_and(|e| e == "obj")
+            && !stem.is_empty()
+            && stem.bytes().all(|c| c.is_ascii_digit());
+        if let (true, Some(f)) = (is_frame_file, frame_number(stem)) {
+            if f < first || f > last {
+                std::fs::remove_file(&p).map_err(|e| Error::io(&p, e))?;
+                removed += 1;
+            }
+        }
+    }
+    Ok(removed)
+}
+
 /// Reads a run folder: every `.obj` file whose stem holds a number (the frame: the last run of
 /// digits) is read; other files are ignored. Sorted by frame; two files for one frame is an
 /// error. Degenerate triangles are allowed (a failing run may collapse some).

@@ -407,6 +407,7 @@ pub fn track_scene(
     use crate::meshio::write_obj;
     let t_start = Instant::now();
     std::fs::create_dir_all(out_dir).map_err(|e| Error::io(out_dir, e))?;
+    crate::eval::remove_stale_frames(out_dir, scene.first, scene.last)?;
     write_obj(&out_dir.join(frame_file(scene.first)), &scene.mesh)?;
     let first_images = scene.load_images(scene.first)?;
     let mut tracker = Tracker::new(

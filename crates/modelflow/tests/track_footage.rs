@@ -115,3 +115,22 @@ fn blender_cloth_is_tracked_with_default_settings() {
         assert!(l["cost_after"].as_f64().unwrap() <= l["cost_before"].as_f64().unwrap());
     }
 }
+
+#[test]
+fn tracking_into_a_used_folder_leaves_exactly_one_run() {
+    let scene = blender_scene();
+    let dir = tempfile::tempdir().unwrap();
+    // Left from an earlier, longer run: a frame past the scene's end; and a user's own file.
+    std::fs::write(dir.path().join("0042.obj"), "v 0 0 0\n").unwrap();
+    std::fs::write(dir.path().join("notes.obj"), "keep me").unwrap();
+    let short = Scene { last: 2, ..scene };
+    track_scene(&short, &TrackOptions::default(), dir.path(), &mut |_| {}).unwrap();
+    assert!(!dir.path().join("0042.obj").exists());
+    assert!(dir.path().join("notes.obj").exists());
+    let run = modelflow::eval::read_run(dir.path()).unwrap();
+    assert_eq!(
+        run.iter().map(|(f, _)| *f).collect::<Vec<_>>(),
+        vec![0, 1, 2]
+    );
+    modelflow::eval::evaluate(&short, &run).unwrap();
+}
