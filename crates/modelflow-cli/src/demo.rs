@@ -91,7 +91,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             secs * 1e3
         );
     }
-    println!("(errors: RMS vertex distance to ground truth, mean over frames and last frame; % of the cloth's bounding-box diagonal; time: median per frame, image loading included)");
+    println!("(errors: RMS vertex distance to ground truth, mean over frames and last frame; % of the first mesh's bounding-box diagonal; time: median per frame, image loading included)");
     println!("report: {}", summary.index.display());
     Ok(())
 }
