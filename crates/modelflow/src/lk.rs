@@ -89,25 +89,11 @@ fn in_level(img: &GradientImage, u: f64, v: f64) -> bool {
     u >= 0.0 && v >= 0.0 && u <= (img.width() - 1) as f64 && v <= (img.height() - 1) as f64
 }
 
-/// Bilinear sample of colour only at a position inside `[0, w-1] × [0, h-1]`: the inner loop's
-/// fetch (the tracker's `GradientImage::sample` would also interpolate the six gradients).
+/// Bilinear sample of colour only at a position inside `[0, w-1] × [0, h-1]` (the inner loop's
+/// fetch; callers check `in_level` first).
 #[inline]
 fn color_at(img: &GradientImage, u: f64, v: f64) -> [f32; 3] {
-    let (w, h) = (img.width(), img.height());
-    let x0 = (u as usize).min(w.saturating_sub(2));
-    let y0 = (v as usize).min(h.saturating_sub(2));
-    let (x1, y1) = ((x0 + 1).min(w - 1), (y0 + 1).min(h - 1));
-    let fx = (u - x0 as f64) as f32;
-    let fy = (v - y0 as f64) as f32;
-    let (a, b) = (img.color(x0, y0), img.color(x1, y0));
-    let (c, d) = (img.color(x0, y1), img.color(x1, y1));
-    let mut out = [0.0f32; 3];
-    for k in 0..3 {
-        let top = a[k] + (b[k] - a[k]) * fx;
-        let bottom = c[k] + (d[k] - c[k]) * fx;
-        out[k] = top + (bottom - top) * fy;
-    }
-    out
+    img.sample_color(u, v).unwrap_or([0.0; 3])
 }
 
 /// Whether a full-resolution position is inside an image of this size (pixel centres at integers).

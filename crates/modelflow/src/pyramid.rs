@@ -47,10 +47,10 @@ impl GradientImage {
         [p[0], p[1], p[2]]
     }
 
-    /// Bilinear sample of colour and gradients, or `None` unless `(u, v)` lies in
-    /// `[0, w-1] × [0, h-1]`.
+    /// The four pixels around `(u, v)` and the fractional position between them, or `None`
+    /// unless `(u, v)` lies in `[0, w-1] × [0, h-1]`.
     #[inline]
-    pub fn sample(&self, u: f64, v: f64) -> Option<[f32; 9]> {
+    fn taps(&self, u: f64, v: f64) -> Option<([&[f32; 9]; 4], f32, f32)> {
         if !(u >= 0.0 && v >= 0.0 && u <= (self.width - 1) as f64 && v <= (self.height - 1) as f64)
         {
             return None;
@@ -61,43 +61,55 @@ impl GradientImage {
         let y1 = (y0 + 1).min(self.height - 1);
         let fx = (u - x0 as f64) as f32;
         let fy = (v - y0 as f64) as f32;
-        let w00 = (1.0 - fx) * (1.0 - fy);
-        let w10 = fx * (1.0 - fy);
-        let w01 = (1.0 - fx) * fy;
-        let w11 = fx * fy;
-        let a = &self.data[y0 * self.width + x0];
-        let b = &self.data[y0 * self.width + x1];
-        let c = &self.data[y1 * self.width + x0];
-        let d = &self.data[y1 * self.width + x1];
+        let row0 = y0 * self.width;
+        let row1 = y1 * self.width;
+        let t = [
+            &self.data[row0 + x0],
+            &self.data[row0 + x1],
+            &self.data[row1 + x0],
+            &self.data[row1 + x1],
+        ];
+        Some((t, fx, fy))
+    }
+
+    /// Bilinear sample of colour and of the stored (central-difference) gradients, or `None`
+    /// unless `(u, v)` lies in `[0, w-1] × [0, h-1]`.
+    #[inline]
+    pub fn sample(&self, u: f64, v: f64) -> Option<[f32; 9]> {
+        let ([a, b, c, d], fx, fy) = self.taps(u, v)?;
+        let w = [
+            (1.0 - fx) * (1.0 - fy),
+            fx * (1.0 - fy),
+            (1.0 - fx) * fy,
+            fx * fy,
+        ];
         let mut out = [0.0f32; 9];
         for k in 0..9 {
-            out[k] = w00 * a[k] + w10 * b[k] + w01 * c[k] + w11 * d[k];
+            out[k] = w[0] * a[k] + w[1] * b[k] + w[2] * c[k] + w[3] * d[k];
         }
         Some(out)
     }
-}
 
-impl GradientImage {
+    /// Bilinear sample of the colour alone.
+    #[inline]
+    pub fn sample_color(&self, u: f64, v: f64) -> Option<[f32; 3]> {
+        let ([a, b, c, d], fx, fy) = self.taps(u, v)?;
+        let mut out = [0.0f32; 3];
+        for k in 0..3 {
+            let top = a[k] + (b[k] - a[k]) * fx;
+            let bottom = c[k] + (d[k] - c[k]) * fx;
+            out[k] = top + (bottom - top) * fy;
+        }
+        Some(out)
+    }
+
     /// Bilinear sample of the colour with the *exact* derivatives of that bilinear interpolant
     /// (same layout as [`GradientImage::sample`]). The tracker uses this: its Jacobian is then the
     /// true derivative of the cost it evaluates, so Gauss–Newton's fixed point is the cost's own
     /// stationary point rather than one shifted by a gradient approximation.
     #[inline]
     pub fn sample_exact(&self, u: f64, v: f64) -> Option<[f32; 9]> {
-        if !(u >= 0.0 && v >= 0.0 && u <= (self.width - 1) as f64 && v <= (self.height - 1) as f64)
-        {
-            return None;
-        }
-        let x0 = (u as usize).min(self.width.saturating_sub(2));
-        let y0 = (v as usize).min(self.height.saturating_sub(2));
-        let x1 = (x0 + 1).min(self.width - 1);
-        let y1 = (y0 + 1).min(self.height - 1);
-        let fx = (u - x0 as f64) as f32;
-        let fy = (v - y0 as f64) as f32;
-        let a = &self.data[y0 * self.width + x0];
-        let b = &self.data[y0 * self.width + x1];
-        let c = &self.data[y1 * self.width + x0];
-        let d = &self.data[y1 * self.width + x1];
+        let ([a, b, c, d], fx, fy) = self.taps(u, v)?;
         let mut out = [0.0f32; 9];
         for k in 0..3 {
             let top = a[k] + (b[k] - a[k]) * fx;
