@@ -1,41 +1,44 @@
+//! Measures how much of a run's error is accumulation: tracks a scene with ground truth twice —
+//! normally, and restarting every frame from the true previous shape (`--oracle`) — and prints
+//! the error per frame. Used to diagnose drift (see the closing notes of issue #3).
+//!
+//! `cargo run --release --example oracle -- SCENE.json [--oracle]`
+
 use modelflow::scene::Scene;
 use modelflow::track::{TrackOptions, Tracker};
-fn main() {
-    let args: Vec<String> = std::env::args().collect();
-    let scene = Scene::load(std::path::Path::new(&args[1])).unwrap();
-    let oracle = args.get(2).is_some_and(|a| a == "oracle");
-    let mut opts = TrackOptions::default();
-    if let Ok(v) = std::env::var("MEMB") {
-        opts.solver.springs.membrane = v.parse().unwrap();
-    }
-    if let Ok(v) = std::env::var("ANCH") {
-        opts.anchor_weight = v.parse().unwrap();
-    }
-    if let Ok(v) = std::env::var("BLUR") {
-        opts.blur = v.parse().unwrap();
-    }
-    if let Ok(v) = std::env::var("MARGIN") {
-        opts.margin = v.parse().unwrap();
-    }
-    let mut tr = Tracker::new(
+use std::path::PathBuf;
+
+fn main() -> Result<(), Box<dyn std::error::Error>> {
+    let mut args = std::env::args().skip(1);
+    let path: PathBuf = args
+        .next()
+        .ok_or("usage: oracle SCENE.json [--oracle]")?
+        .into();
+    let oracle = args.next().is_some_and(|a| a == "--oracle");
+    let scene = Scene::load(&path)?;
+    let truth = |f: u32| -> Result<_, Box<dyn std::error::Error>> {
+        Ok(scene
+            .ground_truth(f)
+            .ok_or("the scene has no ground truth")??
+            .positions)
+    };
+    let first = scene.load_images(scene.first)?;
+    let mut tracker = Tracker::new(
         &scene.mesh,
         scene.cameras.clone(),
         scene.first,
-        &scene.load_images(scene.first).unwrap(),
-        opts,
-    )
-    .unwrap();
+        &first,
+        TrackOptions::default(),
+    )?;
     let diag = scene.mesh.bbox_diagonal();
     let mut sum = 0.0;
-    let mut n = 0;
     for f in scene.first + 1..=scene.last {
         if oracle {
-            tr.set_positions(scene.ground_truth(f - 1).unwrap().unwrap().positions)
-                .unwrap();
+            tracker.set_positions(truth(f - 1)?)?;
         }
-        tr.step(f, &scene.load_images(f).unwrap()).unwrap();
-        let t = scene.ground_truth(f).unwrap().unwrap().positions;
-        let e = (tr
+        tracker.step(f, &scene.load_images(f)?)?;
+        let t = truth(f)?;
+        let rms = (tracker
             .positions()
             .iter()
             .zip(&t)
@@ -43,12 +46,16 @@ fn main() {
             .sum::<f64>()
             / t.len() as f64)
             .sqrt();
-        sum += e;
-        n += 1;
-        println!("frame {f}: {:.4}% ({:.2} mm)", 100.0 * e / diag, e * 1e3);
+        sum += rms;
+        println!(
+            "frame {f}: {:.4} % ({:.2} mm)",
+            100.0 * rms / diag,
+            rms * 1e3
+        );
     }
     println!(
-        "mean over solved frames {:.4}%",
-        100.0 * sum / n as f64 / diag
+        "mean over solved frames {:.4} %",
+        100.0 * sum / (scene.last - scene.first).max(1) as f64 / diag
     );
+    Ok(())
 }
