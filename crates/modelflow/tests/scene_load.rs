@@ -73,6 +73,21 @@ fn scene_file_write_reads_back_equal() {
 }
 
 #[test]
+fn scene_file_write_refuses_non_finite_numbers() {
+    let dir = tempfile::tempdir().unwrap();
+    let (path, mut file) = write_scene(dir.path());
+    let before = std::fs::read(&path).unwrap();
+    file.cameras[1].t.as_mut().unwrap()[0] = f64::NAN;
+    let msg = file.write(&path).unwrap_err().to_string();
+    assert_names(&msg, &["scene.json", "cameras[1].t", "non-finite"]);
+    assert_eq!(
+        std::fs::read(&path).unwrap(),
+        before,
+        "the old file is kept"
+    );
+}
+
+#[test]
 fn bad_json_names_line_and_column() {
     let dir = tempfile::tempdir().unwrap();
     let (path, _) = write_scene(dir.path());
