@@ -188,8 +188,35 @@ pub const ROTATION_TOLERANCE: f64 = 1e-4;
 pub const MIN_VISIBLE_SHARE: f64 = 0.25;
 
 impl SceneFile {
-    /// Writes the scene file as pretty-printed JSON, atomically.
+    /// Writes the scene file as pretty-printed JSON, atomically. Refuses non-finite numbers
+    /// (JSON cannot hold them; serde would write `null`).
     pub fn write(&self, path: &Path) -> Result<()> {
+        for (i, c) in self.cameras.iter().enumerate() {
+            let finite = |v: &[f64]| v.iter().all(|x| x.is_finite());
+            let bad = [
+                ("K", c.k.is_some_and(|k| !finite(k.as_flattened()))),
+                ("R", c.r.is_some_and(|r| !finite(r.as_flattened()))),
+                ("t", c.t.is_some_and(|t| !finite(&t))),
+                (
+                    "poses",
+                    c.poses.as_ref().is_some_and(|ps| {
+                        ps.iter()
+                            .any(|p| !finite(p.r.as_flattened()) || !finite(&p.t))
+                    }),
+                ),
+                (
+                    "P",
+                    c.p.as_ref()
+                        .is_some_and(|ps| ps.iter().any(|p| !finite(p.as_flattened()))),
+                ),
+            ];
+            if let Some((field, _)) = bad.iter().find(|(_, b)| *b) {
+                return Err(Error::Usage(format!(
+                    "{}: cannot write cameras[{i}].{field}: it has a non-finite number",
+                    path.display()
+                )));
+            }
+        }
         let mut text = serde_json::to_string_pretty(self)
             .map_err(|e| Error::Usage(format!("{}: cannot serialise: {e}", path.display())))?;
         text.push('\n');
