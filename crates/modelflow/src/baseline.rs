@@ -272,7 +272,7 @@ pub fn run(
 ) -> Result<RunSummary> {
     std::fs::create_dir_all(out_dir).map_err(|e| Error::io(out_dir, e))?;
     crate::eval::remove_stale_frames(out_dir, scene.first, scene.last)?;
-    let obj = |frame: u32| out_dir.join(format!("{frame:04}.obj"));
+    let obj = |frame: u32| out_dir.join(crate::eval::frame_file(frame));
     write_obj(&obj(scene.first), &scene.mesh)?;
     progress(scene.first);
     let images = scene.load_images(scene.first)?;

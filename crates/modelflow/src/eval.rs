@@ -21,6 +21,11 @@ pub fn frame_number(stem: &str) -> Option<u32> {
     stem[start..end].parse().ok()
 }
 
+/// Name of a frame's mesh in a run folder (`{frame:04}.obj`): the one place the layout is spelt.
+pub fn frame_file(frame: u32) -> String {
+    format!("{frame:04}.obj")
+}
+
 /// Removes, from a run folder about to be written, frame meshes left by an earlier run that lie
 /// outside `first..=last` (files named as a run names them: digits only, `.obj`), so that the
 /// folder ends up holding exactly one run. Other files are left alone. Returns how many went.

@@ -141,14 +141,6 @@ impl PatchSet {
         out
     }
 
-    /// Total weighted pixel count.
-    pub fn weighted_pixels(&self) -> f64 {
-        self.patches
-            .iter()
-            .map(|p| p.weight as f64 * (p.end - p.start) as f64)
-            .sum()
-    }
-
     /// `covered[triangle * cameras + camera]`: whether that pair has a patch.
     pub fn coverage(&self, triangles: usize, cameras: usize) -> Vec<bool> {
         let mut c = vec![false; triangles * cameras];

@@ -295,7 +295,7 @@ fn load_run(scene: &Scene, name: &str, dir: &Path) -> Result<Run> {
     let missing: Vec<String> = scene
         .frames()
         .filter(|f| got.binary_search_by_key(f, |(g, _)| *g).is_err())
-        .map(|f| format!("{f:04}.obj"))
+        .map(eval::frame_file)
         .collect();
     if !missing.is_empty() {
         let shown: Vec<&str> = missing.iter().take(5).map(String::as_str).collect();
@@ -313,7 +313,7 @@ fn load_run(scene: &Scene, name: &str, dir: &Path) -> Result<Run> {
     for (f, m) in &got {
         if m.positions.len() != scene.mesh.positions.len() || m.triangles != scene.mesh.triangles {
             return Err(Error::invalid(
-                dir.join(format!("{f:04}.obj")),
+                dir.join(eval::frame_file(*f)),
                 "faces",
                 format!(
                     "run {name}: {} vertices / {} triangles, but the scene mesh has {} / {} (a run keeps the mesh's topology)",

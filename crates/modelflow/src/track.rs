@@ -387,11 +387,6 @@ pub struct TrackSummary {
     pub median_iterations: f64,
 }
 
-/// Name of a frame's mesh file in a run folder.
-pub fn frame_file(frame: u32) -> String {
-    format!("{frame:04}.obj")
-}
-
 /// Tracks a whole scene: writes `out_dir/{frame:04}.obj` for every frame (the first one is the
 /// input mesh) and `out_dir/log.jsonl`, calling `on_frame` after each solved frame. Every file is
 /// written atomically; the log is rewritten after each frame so an interrupted run keeps a
@@ -403,6 +398,7 @@ pub fn track_scene(
     out_dir: &std::path::Path,
     on_frame: &mut dyn FnMut(&FrameLog),
 ) -> Result<TrackSummary> {
+    use crate::eval::frame_file;
     use crate::fsutil::write_atomic;
     use crate::meshio::write_obj;
     let t_start = Instant::now();
