@@ -1,11 +1,9 @@
 //! `modelflow synth`: writes a synthetic multi-view data set with ground truth (a scene file,
 //! images, initial mesh and true mesh per frame) from a preset, with a progress bar.
 
-use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
+use crate::progress::Progress;
 use modelflow::synth::{SynthOptions, Synthetic};
-use std::io::IsTerminal;
 use std::path::PathBuf;
-use std::sync::Mutex;
 
 #[derive(clap::Args)]
 pub struct Args {
@@ -53,31 +51,11 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     };
     let start = std::time::Instant::now();
     let synth = Synthetic::generate(&opts)?;
-    let scene = if std::io::stderr().is_terminal() {
-        let bar = ProgressBar::with_draw_target(Some(0), ProgressDrawTarget::stderr());
-        bar.set_style(
-            ProgressStyle::with_template("{msg} [{bar:40}] {pos}/{len} files, eta {eta}")?
-                .progress_chars("=> "),
-        );
-        bar.set_message(format!("synth {}", opts.preset));
-        let scene = synth.write(&args.out, &|done, total| {
-            bar.set_length(total as u64);
-            bar.set_position(done as u64);
-        });
-        bar.finish_and_clear();
-        scene?
-    } else {
-        // Not a terminal: a plain line every 10 %.
-        let last = Mutex::new(0usize);
-        synth.write(&args.out, &|done, total| {
-            let decile = done * 10 / total.max(1);
-            let mut l = last.lock().unwrap_or_else(|e| e.into_inner());
-            if decile > *l {
-                *l = decile;
-                eprintln!("synth {}: {done}/{total} files", opts.preset);
-            }
-        })?
-    };
+    let progress = Progress::new(&format!("synth {}", opts.preset), 0);
+    let scene = synth.write(&args.out, &|done, total| {
+        progress.set(done as u64, total as u64)
+    })?;
+    progress.finish();
     let motion = synth.motion_stats();
     eprintln!(
         "wrote {} ({} frames, {} cameras) in {:.1} s; per-frame vertex motion: max {:.2} px, median {:.2} px",

@@ -465,6 +465,9 @@ impl Problem<'_> {
             (0..nv).map(|i| a.diagonal(i).trace()).sum::<f64>() / (3 * nv.max(1)) as f64;
         let mean_diag = mean_diag.max(1e-30);
         let mut ad = vec![Vector3::zeros(); nv];
+        // The trial point's system is built here and swapped in when the step is accepted.
+        let mut a_new = a.clone();
+        let mut b_new = vec![Vector3::zeros(); nv];
         for it in 0..opts.max_iterations {
             let t0 = Instant::now();
             let mut damped = a.clone();
@@ -494,8 +497,6 @@ impl Problem<'_> {
                 break;
             }
             let trial: Vec<Point3<f64>> = x.iter().zip(&delta).map(|(p, d)| p + d).collect();
-            let mut a_new = a.clone();
-            let mut b_new = vec![Vector3::zeros(); nv];
             let (new_cost, new_pixels) =
                 self.evaluate(&trial, opts, Some((&mut a_new, &mut b_new)));
             pixel_evaluations += new_pixels as u64;
@@ -504,8 +505,8 @@ impl Problem<'_> {
             let prev_cost = cost;
             if accepted {
                 x = trial;
-                a = a_new;
-                b = b_new;
+                std::mem::swap(&mut a, &mut a_new);
+                std::mem::swap(&mut b, &mut b_new);
                 pixels = new_pixels;
                 cost = new_cost;
                 rejections = 0;
