@@ -25,6 +25,10 @@ pub struct TrackArgs {
     /// Weight of the frame-to-frame membrane term (0 = off).
     #[arg(long, default_value_t = TrackOptions::default().solver.springs.membrane)]
     pub membrane: f64,
+    /// Weight of the bending term that keeps the mesh's local shape close to its rest shape up to
+    /// rotation (0 = off).
+    #[arg(long, default_value_t = TrackOptions::default().solver.springs.bending)]
+    pub bending: f64,
     /// Gauss-Newton iterations at most per frame and level.
     #[arg(long, default_value_t = TrackOptions::default().solver.max_iterations)]
     pub max_iterations: usize,
@@ -51,6 +55,7 @@ impl TrackArgs {
                     k: self.spring_k,
                     t: self.spring_t,
                     membrane: self.membrane,
+                    bending: self.bending,
                 },
                 max_iterations: self.max_iterations,
                 min_relative_decrease: self.min_decrease,

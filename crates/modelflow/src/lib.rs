@@ -2,6 +2,7 @@
 //! footage, after "Model Flowing" (Reuterswärd, 2005). See `ARCHITECTURE.md` for the map.
 
 pub mod baseline;
+pub mod bending;
 pub mod camera;
 pub mod colormap;
 pub mod draw;

@@ -1,8 +1,10 @@
 //! The per-frame solver (thesis §5.2, §6.4, §6.6): given template patches, the next frame's
 //! images and cameras, and a starting guess, find the vertex positions that minimise
 //!
-//! `E(X) = Σ_patches w·Σ_pixels ρ(|I_next(W(X)·s) − I_template(s)|²) / N  +  Σ_edges springs / N_e`
+//! `E(X) = Σ_patches w·Σ_pixels ρ(|I_next(W(X)·s) − I_template(s)|²) / N  +  Σ_edges springs / N_e
+//!        + β·Σ_stencils |δ_i(X) − R_i·δ⁰_i|² / (L̄²·N_s)`
 //!
+//! (the last term is `bending`'s, against the rest shape)
 //! by Gauss–Newton with Levenberg–Marquardt damping: the normal equations are accumulated
 //! straight into the block-sparse matrix (J is never stored), solved by preconditioned conjugate
 //! gradients, and a step is accepted only if the cost falls; otherwise the positions roll back and
@@ -16,6 +18,7 @@
 // pairs) by position on purpose: it reads like the equations.
 #![allow(clippy::needless_range_loop)]
 
+use crate::bending::Bending;
 use crate::camera::Projection;
 use crate::patch::{Patch, PixelSample};
 use crate::pyramid::GradientImage;
@@ -64,12 +67,13 @@ impl Default for SolverOptions {
     fn default() -> Self {
         SolverOptions {
             max_iterations: 10,
-            min_relative_decrease: 1e-3,
+            min_relative_decrease: 5e-3,
             huber: 0.1,
             springs: SpringParams {
                 k: 1.0,
                 t: 0.1,
-                membrane: 0.02,
+                membrane: 0.002,
+                bending: 0.01,
             },
             damping: 1e-4,
             max_rejections: 4,
@@ -93,6 +97,9 @@ pub struct Problem<'a> {
     pub edges: &'a EdgeSet,
     /// Positions solved for the previous frame (the membrane's reference).
     pub previous: &'a [Point3<f64>],
+    /// The bending regulariser's stencils and their target Laplacian coordinates; used when
+    /// `springs.bending > 0`.
+    pub bending: Option<(&'a Bending, &'a [Vector3<f64>])>,
 }
 
 /// Why the solver stopped.
@@ -404,7 +411,28 @@ impl Problem<'_> {
                 b[i] += term.g_b;
             }
         }
+        if let Some((bend, targets)) = self.bending {
+            if opts.springs.bending > 0.0 && !bend.is_empty() {
+                let w = opts.springs.bending / bend.len() as f64;
+                cost += match sys.as_mut() {
+                    Some((a, b)) => bend.accumulate(x, targets, w, Some((&mut **a, &mut b[..]))),
+                    None => bend.accumulate(x, targets, w, None),
+                };
+            }
+        }
         (cost, pixels)
+    }
+
+    /// The block pattern of the normal equations: mesh edges, and vertex pairs that share a
+    /// bending stencil when that term is on.
+    fn pattern(&self, opts: &SolverOptions) -> Vec<[u32; 2]> {
+        let mut p = self.edges.edges.clone();
+        if let Some((bend, _)) = self.bending {
+            if opts.springs.bending > 0.0 {
+                p.extend(bend.pairs());
+            }
+        }
+        p
     }
 
     /// Cost at `x` and the normal equations there: `(cost, JᵀJ, −Jᵀr)`. The cost's gradient is
@@ -414,7 +442,7 @@ impl Problem<'_> {
         x: &[Point3<f64>],
         opts: &SolverOptions,
     ) -> (f64, BlockSparse, Vec<Vector3<f64>>) {
-        let mut a = BlockSparse::new(x.len(), &self.edges.edges);
+        let mut a = BlockSparse::new(x.len(), &self.pattern(opts));
         let mut b = vec![Vector3::zeros(); x.len()];
         let (cost, _) = self.evaluate(x, opts, Some((&mut a, &mut b)));
         (cost, a, b)
@@ -432,7 +460,7 @@ impl Problem<'_> {
         opts: &SolverOptions,
     ) -> (Vec<Point3<f64>>, SolveSummary) {
         let nv = start.len();
-        let mut a = BlockSparse::new(nv, &self.edges.edges);
+        let mut a = BlockSparse::new(nv, &self.pattern(opts));
         let mut b = vec![Vector3::zeros(); nv];
         let mut x = start.to_vec();
         let t_solve = Instant::now();

@@ -21,7 +21,8 @@ pub struct BlockSparse {
 }
 
 impl BlockSparse {
-    /// The pattern of a mesh: a block for every vertex with itself and with every edge neighbour.
+    /// The pattern of a mesh: a block for every vertex with itself and with every pair in
+    /// `edges` (the mesh's edges, and any further coupled pairs such as bending stencils').
     pub fn new(vertex_count: usize, edges: &[[u32; 2]]) -> Self {
         let mut nb: Vec<Vec<u32>> = (0..vertex_count).map(|i| vec![i as u32]).collect();
         for &[a, b] in edges {

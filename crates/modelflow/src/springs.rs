@@ -43,6 +43,8 @@ pub struct SpringParams {
     pub t: f64,
     /// Weight `μ` of the frame-to-frame membrane (0 turns it off).
     pub membrane: f64,
+    /// Weight `β` of the bending term against the rest shape (see `bending`; 0 turns it off).
+    pub bending: f64,
 }
 
 /// The edges of a mesh with their rest lengths (taken from the first frame).

@@ -11,6 +11,7 @@
 //! [`Tracker`] works in memory (images in, positions out); [`track_scene`] drives it over a scene
 //! on disk and writes one OBJ per frame and a JSON-lines log.
 
+use crate::bending::Bending;
 use crate::camera::{Camera, Projection};
 use crate::error::{Error, Result};
 use crate::image::RgbImage;
@@ -100,6 +101,7 @@ pub struct Tracker {
     cameras: Vec<Camera>,
     opts: TrackOptions,
     edges: EdgeSet,
+    bending: Bending,
     two_sided: bool,
     /// Anchor patches per level (built once from the first frame).
     anchor: Vec<PatchSet>,
@@ -139,6 +141,7 @@ impl Tracker {
             cameras,
             opts,
             edges,
+            bending: Bending::new(&mesh.triangles, &mesh.positions),
             two_sided: !mesh.is_closed(),
             anchor: Vec::new(),
             prev: Template {
@@ -258,6 +261,16 @@ impl Tracker {
                 .collect(),
             None => self.prev.positions.clone(),
         };
+        // The bending term's targets: the rest shape's Laplacian coordinates, turned by per-vertex
+        // rotations taken from the previous shape (they change little in a frame; not needed
+        // when the rest shape is flat).
+        let bend_targets = if self.opts.solver.springs.bending > 0.0 {
+            let rotations = (!self.bending.rest_is_flat())
+                .then(|| self.bending.rotations(&self.prev.positions));
+            self.bending.rest_targets(rotations.as_deref())
+        } else {
+            Vec::new()
+        };
         for level in (0..levels).rev() {
             let tp = Instant::now();
             let mut set = self.template_patches(&self.prev, level, 1.0, false);
@@ -294,6 +307,7 @@ impl Tracker {
                     .collect(),
                 edges: &self.edges,
                 previous: &reference,
+                bending: Some((&self.bending, &bend_targets)),
             };
             if level == levels - 1 && self.opts.predict {
                 if let Some(pp) = &self.before_prev {

@@ -221,6 +221,7 @@ fn assembled_gradient_matches_finite_differences_of_the_cost() {
         projections: cams.iter().map(|c| c.at(1).clone()).collect(),
         edges: &edges,
         previous: &mesh.positions,
+        bending: None,
     };
     // Huber off (huge threshold) so the cost is the plain sum of squares whose gradient is 2·Jᵀr;
     // a stretched spring and a membrane term are included too.
@@ -272,6 +273,7 @@ fn springs_alone_relax_a_stretched_mesh() {
         projections: vec![],
         edges: &edges,
         previous: &stretched,
+        bending: None,
     };
     let mut opts = SolverOptions {
         max_iterations: 60,

@@ -1,0 +1,337 @@
+//! Bending regulariser: keeps the mesh's local shape close to its rest shape (the scene's mesh,
+//! which lines up with the first frame), up to a rotation per vertex — the rotation-invariant
+//! Laplacian coordinates of Sorkine et al., "Laplacian Surface Editing" (2004).
+//!
+//! For every vertex `i` whose one-ring is closed (not on an open boundary) the uniform Laplacian
+//! `δ_i(X) = X_i − mean_{j∈N(i)} X_j` is compared with the rest shape's `δ⁰_i`, turned by the
+//! rotation `R_i` that best aligns the rest one-ring with the current one (Procrustes). The
+//! residual `√β·(δ_i(X) − R_i·δ⁰_i)/L̄` (L̄: mean rest edge length, so β has no units) is linear in
+//! the positions once `R_i` is fixed, and `R_i` is re-estimated from the starting guess of each
+//! solve. A flat sheet's rest Laplacians are zero and the term is plain bending energy; a rigid
+//! motion costs nothing.
+//!
+//! Why the tracker needs it: the images pin each vertex's *projection* well, but depth along a
+//! narrow baseline and vertices on the mesh's border (few pixels, one-sided) are weakly seen.
+//! The frame-to-frame membrane only refers to the tracker's own previous output, so what it gets
+//! wrong it keeps; this term refers to the given rest shape, so such errors do not accumulate.
+//! Open-boundary vertices get no residual of their own but enter their neighbours' residuals,
+//! which extrapolate the border smoothly from the inside.
+
+use nalgebra::{Matrix3, Point3, Vector3};
+
+/// The Laplacian stencils of a mesh and its rest shape's Laplacian coordinates.
+#[derive(Clone, Debug)]
+pub struct Bending {
+    /// Centre vertex of each stencil.
+    centre: Vec<u32>,
+    /// `ring[start[k]..start[k + 1]]` are the neighbours of stencil `k`.
+    start: Vec<usize>,
+    ring: Vec<u32>,
+    /// `δ⁰` of each stencil.
+    rest_delta: Vec<Vector3<f64>>,
+    /// Rest positions (for the per-vertex rotations).
+    rest: Vec<Point3<f64>>,
+    mean_length: f64,
+}
+
+impl Bending {
+    /// Stencils for every vertex with a closed one-ring of `triangles`, rest shape `rest`.
+    pub fn new(triangles: &[[u32; 3]], rest: &[Point3<f64>]) -> Self {
+        let n = rest.len();
+        let mut nb: Vec<Vec<u32>> = vec![Vec::new(); n];
+        // An edge used by one triangle only lies on an open boundary.
+        let mut edge_use: std::collections::HashMap<(u32, u32), u32> =
+            std::collections::HashMap::new();
+        for t in triangles {
+            for k in 0..3 {
+                let (a, b) = (t[k], t[(k + 1) % 3]);
+                nb[a as usize].push(b);
+                nb[b as usize].push(a);
+                *edge_use.entry((a.min(b), a.max(b))).or_default() += 1;
+            }
+        }
+        let mut on_boundary = vec![false; n];
+        for (&(a, b), &uses) in &edge_use {
+            if uses == 1 {
+                on_boundary[a as usize] = true;
+                on_boundary[b as usize] = true;
+            }
+        }
+        let mut centre = Vec::new();
+        let mut start = vec![0];
+        let mut ring = Vec::new();
+        let mut rest_delta = Vec::new();
+        let mut length_sum = 0.0;
+        let mut length_count = 0usize;
+        for (i, mut r) in nb.into_iter().enumerate() {
+            r.sort_unstable();
+            r.dedup();
+            for &j in &r {
+                length_sum += (rest[j as usize] - rest[i]).norm();
+                length_count += 1;
+            }
+            if on_boundary[i] || r.len() < 3 {
+                continue;
+            }
+            let mean = r
+                .iter()
+                .fold(Vector3::zeros(), |s, &j| s + rest[j as usize].coords)
+                / r.len() as f64;
+            centre.push(i as u32);
+            rest_delta.push(rest[i].coords - mean);
+            ring.extend(r);
+            start.push(ring.len());
+        }
+        Bending {
+            centre,
+            start,
+            ring,
+            rest_delta,
+            rest: rest.to_vec(),
+            mean_length: if length_count > 0 {
+                length_sum / length_count as f64
+            } else {
+                1.0
+            },
+        }
+    }
+
+    /// Number of stencils (vertices with a closed one-ring).
+    pub fn len(&self) -> usize {
+        self.centre.len()
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.centre.is_empty()
+    }
+
+    fn stencil(&self, k: usize) -> (usize, &[u32]) {
+        (
+            self.centre[k] as usize,
+            &self.ring[self.start[k]..self.start[k + 1]],
+        )
+    }
+
+    /// Vertex pairs that share a stencil (the centre with each neighbour and every two
+    /// neighbours): the blocks the term adds to the normal equations.
+    pub fn pairs(&self) -> Vec<[u32; 2]> {
+        let mut out = Vec::new();
+        for k in 0..self.len() {
+            let (c, r) = self.stencil(k);
+            for (a, &j) in r.iter().enumerate() {
+                out.push([c as u32, j]);
+                for &l in &r[a + 1..] {
+                    out.push([j, l]);
+                }
+            }
+        }
+        out
+    }
+
+    /// The rotation of each stencil that best turns its rest one-ring into the one at `x`
+    /// (orthogonal Procrustes on the centred ring, reflections excluded).
+    pub fn rotations(&self, x: &[Point3<f64>]) -> Vec<Matrix3<f64>> {
+        (0..self.len())
+            .map(|k| {
+                let (c, r) = self.stencil(k);
+                let mut m = Matrix3::zeros();
+                for &j in r {
+                    let j = j as usize;
+                    m += (x[j] - x[c]) * (self.rest[j] - self.rest[c]).transpose();
+                }
+                procrustes(&m)
+            })
+            .collect()
+    }
+
+    /// Whether every rest Laplacian is (numerically) zero, i.e. the rest shape is flat and the
+    /// rotations do not matter.
+    pub fn rest_is_flat(&self) -> bool {
+        let tol = 1e-9 * self.mean_length;
+        self.rest_delta.iter().all(|d| d.norm() <= tol)
+    }
+
+    /// The Laplacian coordinates of every stencil at `x`.
+    pub fn deltas(&self, x: &[Point3<f64>]) -> Vec<Vector3<f64>> {
+        (0..self.len())
+            .map(|k| {
+                let (c, r) = self.stencil(k);
+                let mean = r
+                    .iter()
+                    .fold(Vector3::zeros(), |acc, &j| acc + x[j as usize].coords)
+                    / r.len() as f64;
+                x[c].coords - mean
+            })
+            .collect()
+    }
+
+    /// The rest shape's Laplacian coordinates turned by `rotations` (one per stencil, from
+    /// [`Bending::rotations`]), or as they are.
+    pub fn rest_targets(&self, rotations: Option<&[Matrix3<f64>]>) -> Vec<Vector3<f64>> {
+        match rotations {
+            Some(rot) => rot
+                .iter()
+                .zip(&self.rest_delta)
+                .map(|(r, d)| r * d)
+                .collect(),
+            None => self.rest_delta.clone(),
+        }
+    }
+
+    /// Adds the term's cost (returned) and, with `system`, its normal-equation blocks and
+    /// right-hand side `−Jᵀr` at `x`, for target Laplacian coordinates `targets` (one per
+    /// stencil); `weight` is β divided by whatever the caller normalises by.
+    pub fn accumulate(
+        &self,
+        x: &[Point3<f64>],
+        targets: &[Vector3<f64>],
+        weight: f64,
+        mut system: Option<(&mut crate::sparse::BlockSparse, &mut [Vector3<f64>])>,
+    ) -> f64 {
+        debug_assert_eq!(targets.len(), self.len(), "one target per stencil");
+        let s = weight / (self.mean_length * self.mean_length);
+        let mut cost = 0.0;
+        for (k, target) in targets.iter().enumerate().take(self.len()) {
+            let (c, r) = self.stencil(k);
+            let inv = 1.0 / r.len() as f64;
+            let mean = r
+                .iter()
+                .fold(Vector3::zeros(), |acc, &j| acc + x[j as usize].coords)
+                * inv;
+            let res = x[c].coords - mean - target;
+            cost += s * res.norm_squared();
+            if let Some((a, b)) = system.as_mut() {
+                // J = s^½·[1 at c, −1/n at each neighbour] ⊗ I₃.
+                let id = Matrix3::identity();
+                a.add_pair(c, c, &(id * s));
+                b[c] -= res * s;
+                for (p, &j) in r.iter().enumerate() {
+                    let j = j as usize;
+                    a.add_pair(c, j, &(id * (-s * inv)));
+                    a.add_pair(j, j, &(id * (s * inv * inv)));
+                    b[j] += res * (s * inv);
+                    for &l in &r[p + 1..] {
+                        a.add_pair(j, l as usize, &(id * (s * inv * inv)));
+                    }
+                }
+            }
+        }
+        cost
+    }
+}
+
+/// The rotation closest to `m` (polar decomposition via SVD), with `det = +1`.
+fn procrustes(m: &Matrix3<f64>) -> Matrix3<f64> {
+    let svd = m.svd(true, true);
+    let (Some(u), Some(vt)) = (svd.u, svd.v_t) else {
+        return Matrix3::identity();
+    };
+    let mut d = Matrix3::identity();
+    if (u * vt).determinant() < 0.0 {
+        d[(2, 2)] = -1.0;
+    }
+    let r = u * d * vt;
+    if r.iter().all(|v| v.is_finite()) {
+        r
+    } else {
+        Matrix3::identity()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::mesh::grid;
+    use crate::sparse::BlockSparse;
+    use nalgebra::{Rotation3, Vector3};
+
+    /// A 5×5 grid bent into a bump (a curved rest shape).
+    fn bumpy() -> crate::mesh::Mesh {
+        grid(5, 5, |u, v| {
+            Point3::new(u, v, 0.3 * (u * 2.0).sin() * (v * 3.0).cos())
+        })
+    }
+
+    fn system_of(
+        b: &Bending,
+        x: &[Point3<f64>],
+        targets: &[Vector3<f64>],
+    ) -> (f64, BlockSparse, Vec<Vector3<f64>>) {
+        let mut a = BlockSparse::new(x.len(), &b.pairs());
+        let mut rhs = vec![Vector3::zeros(); x.len()];
+        let cost = b.accumulate(x, targets, 0.7, Some((&mut a, &mut rhs[..])));
+        (cost, a, rhs)
+    }
+
+    #[test]
+    fn only_vertices_with_a_closed_ring_get_a_stencil() {
+        let m = bumpy();
+        let b = Bending::new(&m.triangles, &m.positions);
+        // The 3×3 inner vertices of a 5×5 grid.
+        assert_eq!(b.len(), 9);
+        assert!(!b.rest_is_flat());
+        let flat = grid(4, 3, |u, v| Point3::new(u, v, 0.0));
+        assert!(Bending::new(&flat.triangles, &flat.positions).rest_is_flat());
+    }
+
+    #[test]
+    fn rigid_motion_costs_nothing_and_bending_does() {
+        let m = bumpy();
+        let b = Bending::new(&m.triangles, &m.positions);
+        let r = Rotation3::from_euler_angles(0.4, -0.7, 1.1);
+        let t = Vector3::new(3.0, -2.0, 0.5);
+        let moved: Vec<Point3<f64>> = m.positions.iter().map(|p| r * p + t).collect();
+        let rot = b.rotations(&moved);
+        for q in &rot {
+            assert!(
+                (q - r.matrix()).norm() < 1e-9,
+                "Procrustes recovers the rotation"
+            );
+        }
+        let targets = b.rest_targets(Some(&rot));
+        assert!(b.accumulate(&moved, &targets, 1.0, None) < 1e-20);
+        // Without the rotations the turned rest shape is penalised...
+        assert!(b.accumulate(&moved, &b.rest_targets(None), 1.0, None) > 1e-3);
+        // ...and so is a real change of shape, even with them.
+        let mut dented = moved.clone();
+        dented[12] += r * Vector3::new(0.0, 0.0, 0.05);
+        let rot = b.rotations(&dented);
+        assert!(b.accumulate(&dented, &b.rest_targets(Some(&rot)), 1.0, None) > 1e-6);
+    }
+
+    #[test]
+    fn normal_equations_are_exact_for_the_quadratic_term() {
+        // The residuals are linear in the positions, so cost(x + d) = cost(x) − 2·bᵀd + dᵀ·A·d
+        // holds exactly for any step d: this checks the blocks and the right-hand side at once.
+        let m = bumpy();
+        let b = Bending::new(&m.triangles, &m.positions);
+        let x: Vec<Point3<f64>> = m
+            .positions
+            .iter()
+            .enumerate()
+            .map(|(i, p)| {
+                p + Vector3::new(
+                    0.01 * (i as f64).sin(),
+                    0.02 * (i as f64 * 1.3).cos(),
+                    0.015,
+                )
+            })
+            .collect();
+        let targets = b.rest_targets(None);
+        let (c0, a, rhs) = system_of(&b, &x, &targets);
+        let d: Vec<Vector3<f64>> = (0..x.len())
+            .map(|i| Vector3::new((i as f64 * 0.7).cos(), (i as f64 * 1.9).sin(), 0.3) * 0.05)
+            .collect();
+        let moved: Vec<Point3<f64>> = x.iter().zip(&d).map(|(p, d)| p + d).collect();
+        let c1 = b.accumulate(&moved, &targets, 0.7, None);
+        let mut ad = vec![Vector3::zeros(); x.len()];
+        a.mul(&d, &mut ad);
+        let predicted = c0 - 2.0 * rhs.iter().zip(&d).map(|(b, d)| b.dot(d)).sum::<f64>()
+            + d.iter().zip(&ad).map(|(d, ad)| d.dot(ad)).sum::<f64>();
+        assert!(
+            (c1 - predicted).abs() < 1e-12 * (1.0 + c1.abs()),
+            "{c1} vs {predicted}"
+        );
+        assert!(c1 > 0.0 && c0 > 0.0);
+    }
+}
