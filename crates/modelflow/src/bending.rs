@@ -32,6 +32,8 @@ pub struct Bending {
     /// Rest positions (for the per-vertex rotations).
     rest: Vec<Point3<f64>>,
     mean_length: f64,
+    /// Vertex pairs that share a stencil (computed once; see [`Bending::pairs`]).
+    pairs: Vec<[u32; 2]>,
 }
 
 impl Bending {
@@ -82,7 +84,7 @@ impl Bending {
             ring.extend(r);
             start.push(ring.len());
         }
-        Bending {
+        let mut b = Bending {
             centre,
             start,
             ring,
@@ -93,7 +95,20 @@ impl Bending {
             } else {
                 1.0
             },
+            pairs: Vec::new(),
+        };
+        let mut pairs = Vec::new();
+        for k in 0..b.len() {
+            let (c, r) = b.stencil(k);
+            for (i, &j) in r.iter().enumerate() {
+                pairs.push([c as u32, j]);
+                for &l in &r[i + 1..] {
+                    pairs.push([j, l]);
+                }
+            }
         }
+        b.pairs = pairs;
+        b
     }
 
     /// Number of stencils (vertices with a closed one-ring).
@@ -114,18 +129,8 @@ impl Bending {
 
     /// Vertex pairs that share a stencil (the centre with each neighbour and every two
     /// neighbours): the blocks the term adds to the normal equations.
-    pub fn pairs(&self) -> Vec<[u32; 2]> {
-        let mut out = Vec::new();
-        for k in 0..self.len() {
-            let (c, r) = self.stencil(k);
-            for (a, &j) in r.iter().enumerate() {
-                out.push([c as u32, j]);
-                for &l in &r[a + 1..] {
-                    out.push([j, l]);
-                }
-            }
-        }
-        out
+    pub fn pairs(&self) -> &[[u32; 2]] {
+        &self.pairs
     }
 
     /// The rotation of each stencil that best turns its rest one-ring into the one at `x`
@@ -149,20 +154,6 @@ impl Bending {
     pub fn rest_is_flat(&self) -> bool {
         let tol = 1e-9 * self.mean_length;
         self.rest_delta.iter().all(|d| d.norm() <= tol)
-    }
-
-    /// The Laplacian coordinates of every stencil at `x`.
-    pub fn deltas(&self, x: &[Point3<f64>]) -> Vec<Vector3<f64>> {
-        (0..self.len())
-            .map(|k| {
-                let (c, r) = self.stencil(k);
-                let mean = r
-                    .iter()
-                    .fold(Vector3::zeros(), |acc, &j| acc + x[j as usize].coords)
-                    / r.len() as f64;
-                x[c].coords - mean
-            })
-            .collect()
     }
 
     /// The rest shape's Laplacian coordinates turned by `rotations` (one per stencil, from
@@ -257,7 +248,7 @@ mod tests {
         x: &[Point3<f64>],
         targets: &[Vector3<f64>],
     ) -> (f64, BlockSparse, Vec<Vector3<f64>>) {
-        let mut a = BlockSparse::new(x.len(), &b.pairs());
+        let mut a = BlockSparse::new(x.len(), b.pairs());
         let mut rhs = vec![Vector3::zeros(); x.len()];
         let cost = b.accumulate(x, targets, 0.7, Some((&mut a, &mut rhs[..])));
         (cost, a, rhs)

@@ -429,7 +429,7 @@ impl Problem<'_> {
         let mut p = self.edges.edges.clone();
         if let Some((bend, _)) = self.bending {
             if opts.springs.bending > 0.0 {
-                p.extend(bend.pairs());
+                p.extend_from_slice(bend.pairs());
             }
         }
         p
