@@ -25,7 +25,7 @@ use crate::image::RgbImage;
 use crate::lk::{self, LkOptions};
 use crate::mesh::Mesh;
 use crate::meshio::write_obj;
-use crate::pyramid::Pyramid;
+use crate::pyramid::GradientPyramid;
 use crate::scene::Scene;
 use crate::triangulate::triangulate;
 use crate::visibility::visible_vertices;
@@ -86,7 +86,7 @@ pub struct Baseline {
     triangles: Vec<[u32; 3]>,
     positions: Vec<Point3<f64>>,
     frame: u32,
-    pyramids: Vec<Pyramid>,
+    pyramids: Vec<GradientPyramid>,
     /// Per camera, per vertex: the 2D track position at `frame` (`None` if lost or not seen).
     tracks: Vec<Vec<Option<Point2<f64>>>>,
 }
@@ -154,7 +154,7 @@ impl Baseline {
     pub fn step(&mut self, images: &[RgbImage]) -> Result<StepStats> {
         let next_frame = self.frame + 1;
         check_images(&self.cameras, images, next_frame)?;
-        let next_pyramids: Vec<Pyramid> = images
+        let next_pyramids: Vec<GradientPyramid> = images
             .par_iter()
             .map(|img| lk::pyramid(img, &self.opts.lk))
             .collect();

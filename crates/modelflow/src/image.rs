@@ -92,16 +92,7 @@ impl RgbImage {
     /// Bilinear sample at a point known to be inside (see [`RgbImage::inside`]).
     #[inline]
     pub fn sample_unchecked(&self, u: f64, v: f64) -> [f32; 3] {
-        let x0 = (u.floor() as usize).min(self.width.saturating_sub(2));
-        let y0 = (v.floor() as usize).min(self.height.saturating_sub(2));
-        let fx = (u - x0 as f64) as f32;
-        let fy = (v - y0 as f64) as f32;
-        let x1 = (x0 + 1).min(self.width - 1);
-        let y1 = (y0 + 1).min(self.height - 1);
-        let a = self.data[y0 * self.width + x0];
-        let b = self.data[y0 * self.width + x1];
-        let c = self.data[y1 * self.width + x0];
-        let d = self.data[y1 * self.width + x1];
+        let ([a, b, c, d], fx, fy) = self.taps(u, v);
         let mut out = [0.0f32; 3];
         for ch in 0..3 {
             let top = a[ch] + (b[ch] - a[ch]) * fx;
@@ -109,6 +100,51 @@ impl RgbImage {
             out[ch] = top + (bot - top) * fy;
         }
         out
+    }
+
+    /// Bilinear sample of the colour with the *exact* derivatives of that bilinear interpolant,
+    /// `[r, g, b, ∂r/∂u, ∂g/∂u, ∂b/∂u, ∂r/∂v, ∂g/∂v, ∂b/∂v]`, or `None` outside
+    /// `[0, w-1] × [0, h-1]`. The tracker uses this: its Jacobian is then the true derivative of
+    /// the cost it evaluates, so Gauss–Newton's fixed point is the cost's own stationary point
+    /// rather than one shifted by a gradient approximation. It reads only the four colours around
+    /// `(u, v)`, so the tracker's images need no stored gradients.
+    #[inline]
+    pub fn sample_exact(&self, u: f64, v: f64) -> Option<[f32; 9]> {
+        if !self.inside(u, v) {
+            return None;
+        }
+        let ([a, b, c, d], fx, fy) = self.taps(u, v);
+        let mut out = [0.0f32; 9];
+        for k in 0..3 {
+            let top = a[k] + (b[k] - a[k]) * fx;
+            let bottom = c[k] + (d[k] - c[k]) * fx;
+            out[k] = top + (bottom - top) * fy;
+            out[3 + k] = (1.0 - fy) * (b[k] - a[k]) + fy * (d[k] - c[k]);
+            out[6 + k] = bottom - top;
+        }
+        Some(out)
+    }
+
+    /// The four pixels around a point inside the image and the fractional position between them.
+    #[inline]
+    fn taps(&self, u: f64, v: f64) -> ([[f32; 3]; 4], f32, f32) {
+        let x0 = (u as usize).min(self.width.saturating_sub(2));
+        let y0 = (v as usize).min(self.height.saturating_sub(2));
+        let fx = (u - x0 as f64) as f32;
+        let fy = (v - y0 as f64) as f32;
+        let x1 = (x0 + 1).min(self.width - 1);
+        let y1 = (y0 + 1).min(self.height - 1);
+        let (r0, r1) = (y0 * self.width, y1 * self.width);
+        (
+            [
+                self.data[r0 + x0],
+                self.data[r0 + x1],
+                self.data[r1 + x0],
+                self.data[r1 + x1],
+            ],
+            fx,
+            fy,
+        )
     }
 
     /// Central-difference gradients `(∂I/∂u, ∂I/∂v)` per channel (one-sided at the border).
@@ -162,6 +198,10 @@ impl RgbImage {
     }
 
     /// Separable Gaussian blur with standard deviation `sigma` pixels (clamped borders).
+    ///
+    /// Written as row operations on contiguous memory (the vertical pass adds whole rows), which
+    /// the compiler vectorises; every output value is summed over the taps in the same order as a
+    /// per-pixel loop would, so the result does not depend on this layout.
     pub fn blurred(&self, sigma: f64) -> RgbImage {
         if sigma <= 0.0 {
             return self.clone();
@@ -172,26 +212,39 @@ impl RgbImage {
             .collect();
         let sum: f32 = kernel.iter().sum();
         kernel.iter_mut().for_each(|k| *k /= sum);
-        let (w, h) = (self.width as isize, self.height as isize);
-        let pass = |src: &RgbImage, horizontal: bool| {
-            RgbImage::from_fn(src.width, src.height, |x, y| {
+        let (w, h) = (self.width, self.height);
+        let clamp = |i: isize, n: usize| i.clamp(0, n as isize - 1) as usize;
+        // Horizontal pass, one row at a time.
+        let mut tmp = vec![[0.0f32; 3]; w * h];
+        for (src, dst) in self.data.chunks_exact(w).zip(tmp.chunks_exact_mut(w)) {
+            for (x, out) in dst.iter_mut().enumerate() {
                 let mut acc = [0.0f32; 3];
                 for (k, &kv) in kernel.iter().enumerate() {
-                    let o = k as isize - radius;
-                    let (sx, sy) = if horizontal {
-                        ((x as isize + o).clamp(0, w - 1), y as isize)
-                    } else {
-                        (x as isize, (y as isize + o).clamp(0, h - 1))
-                    };
-                    let p = src.get(sx as usize, sy as usize);
+                    let p = src[clamp(x as isize + k as isize - radius, w)];
                     acc[0] += kv * p[0];
                     acc[1] += kv * p[1];
                     acc[2] += kv * p[2];
                 }
-                acc
-            })
-        };
-        pass(&pass(self, true), false)
+                *out = acc;
+            }
+        }
+        // Vertical pass: each output row accumulates whole source rows.
+        let mut out = vec![[0.0f32; 3]; w * h];
+        for (y, dst) in out.chunks_exact_mut(w).enumerate() {
+            let dst = dst.as_flattened_mut();
+            for (k, &kv) in kernel.iter().enumerate() {
+                let sy = clamp(y as isize + k as isize - radius, h);
+                let src = tmp[sy * w..(sy + 1) * w].as_flattened();
+                for (d, s) in dst.iter_mut().zip(src) {
+                    *d += kv * s;
+                }
+            }
+        }
+        RgbImage {
+            width: w,
+            height: h,
+            data: out,
+        }
     }
 }
 
@@ -238,6 +291,63 @@ mod tests {
         let b = img.blurred(1.5);
         for p in b.pixels() {
             assert!((p[0] - 0.25).abs() < 1e-6 && (p[2] - 0.75).abs() < 1e-6);
+        }
+    }
+
+    #[test]
+    fn sample_exact_gives_the_bilinear_value_and_its_derivatives() {
+        let img = RgbImage::from_fn(8, 6, |x, y| {
+            [
+                (x * x) as f32 * 0.1,
+                (x * y) as f32,
+                ((x + 2 * y) % 5) as f32,
+            ]
+        });
+        let h = 1e-3;
+        for &(u, v) in &[(2.3, 1.6), (0.1, 4.7), (6.5, 0.2)] {
+            let s = img.sample_exact(u, v).unwrap();
+            let c = img.sample(u, v).unwrap();
+            let (du0, du1) = (img.sample(u - h, v).unwrap(), img.sample(u + h, v).unwrap());
+            let (dv0, dv1) = (img.sample(u, v - h).unwrap(), img.sample(u, v + h).unwrap());
+            for k in 0..3 {
+                assert!((s[k] - c[k]).abs() < 1e-6);
+                // Bilinear is linear in u (and in v) inside a cell: central differences are exact.
+                let gu = (du1[k] - du0[k]) / (2.0 * h as f32);
+                let gv = (dv1[k] - dv0[k]) / (2.0 * h as f32);
+                assert!(
+                    (s[3 + k] - gu).abs() < 2e-3,
+                    "du {k} at ({u}, {v}): {} vs {gu}",
+                    s[3 + k]
+                );
+                assert!(
+                    (s[6 + k] - gv).abs() < 2e-3,
+                    "dv {k} at ({u}, {v}): {} vs {gv}",
+                    s[6 + k]
+                );
+            }
+        }
+        assert!(img.sample_exact(7.01, 1.0).is_none() && img.sample_exact(1.0, -0.01).is_none());
+    }
+
+    #[test]
+    fn blur_of_an_impulse_is_the_separable_gaussian() {
+        let mut img = RgbImage::new(15, 11);
+        img.set(7, 5, [1.0, 2.0, 0.0]);
+        let b = img.blurred(1.0);
+        let g = |d: f64| (-d * d / 2.0).exp();
+        let norm: f64 = (-3..=3).map(|i| g(i as f64)).sum();
+        for y in 0..11 {
+            for x in 0..15 {
+                let (dx, dy) = (x as f64 - 7.0, y as f64 - 5.0);
+                let want = if dx.abs() <= 3.0 && dy.abs() <= 3.0 {
+                    g(dx) * g(dy) / (norm * norm)
+                } else {
+                    0.0
+                };
+                let p = b.get(x, y);
+                assert!((p[0] as f64 - want).abs() < 1e-7, "({x}, {y})");
+                assert!((p[1] as f64 - 2.0 * want).abs() < 2e-7 && p[2] == 0.0);
+            }
         }
     }
 }

@@ -8,7 +8,7 @@
 //! track all three colour channels, and stay pure Rust (no OpenCV build on CI). Per level `L` a
 //! full-resolution position `u` sits at `(u + 0.5) / 2^L - 0.5`, the rule the levels of
 //! [`pyramid`] follow (Gaussian low-pass, then 2×2 averaging by [`RgbImage::downsample2`]); the
-//! levels are stored as the Model Flow tracker's `pyramid::Pyramid`. Samples are bilinear.
+//! levels are stored with their gradients (`pyramid::GradientPyramid`). Samples are bilinear.
 //! Window pixels off either image are left out of the sums (a replicated or mirrored border
 //! would be structure that does not move). A track fails when its window has too little texture
 //! (smallest eigenvalue of the gradient matrix), when it leaves the image, or when tracking it
@@ -16,7 +16,7 @@
 //! each result depends on its own point only, so the output does not depend on the thread count.
 
 use crate::image::RgbImage;
-use crate::pyramid::{GradientImage, Pyramid};
+use crate::pyramid::{GradientImage, GradientPyramid};
 use nalgebra::Point2;
 use rayon::prelude::*;
 
@@ -61,12 +61,12 @@ impl Default for LkOptions {
     }
 }
 
-/// The image pyramid the tracker with `opts` needs, as the tracker's own `pyramid::Pyramid`
-/// type: `opts.levels` levels, fewer when a level would be smaller than a window. As in Bouguet's
+/// The image pyramid the tracker with `opts` needs, colour and gradients per level:
+/// `opts.levels` levels, fewer when a level would be smaller than a window. As in Bouguet's
 /// (and OpenCV's) pyramid, each level is low-passed before the 2× reduction (Gaussian of σ = 1
 /// pixel, then 2×2 averaging, [`RgbImage::downsample2`]) so coarse levels do not alias; each
 /// level is then smoothed by `opts.pyramid_sigma` before its gradients are taken.
-pub fn pyramid(image: &RgbImage, opts: &LkOptions) -> Pyramid {
+pub fn pyramid(image: &RgbImage, opts: &LkOptions) -> GradientPyramid {
     let min_side = 2 * opts.window_radius + 1;
     let mut levels = vec![GradientImage::new(&image.blurred(opts.pyramid_sigma))];
     let mut cur = image.clone();
@@ -77,7 +77,7 @@ pub fn pyramid(image: &RgbImage, opts: &LkOptions) -> Pyramid {
         cur = cur.blurred(ANTI_ALIAS_SIGMA).downsample2();
         levels.push(GradientImage::new(&cur.blurred(opts.pyramid_sigma)));
     }
-    Pyramid { levels }
+    GradientPyramid { levels }
 }
 
 /// Low-pass applied to a level before it is halved (pixels of that level).
@@ -104,8 +104,8 @@ fn inside(p: Point2<f64>, w: usize, h: usize) -> bool {
 
 /// Tracks `start` (in `prev`) into `next`, beginning the search at `guess`. `None` if it fails.
 fn track_one(
-    prev: &Pyramid,
-    next: &Pyramid,
+    prev: &GradientPyramid,
+    next: &GradientPyramid,
     start: Point2<f64>,
     guess: Point2<f64>,
     opts: &LkOptions,
@@ -256,8 +256,8 @@ fn track_one(
 /// search at the same position (zero initial flow). Returns the new positions, `None` for tracks
 /// that failed (flat window, left the image, forward–backward mismatch).
 pub fn track(
-    prev: &Pyramid,
-    next: &Pyramid,
+    prev: &GradientPyramid,
+    next: &GradientPyramid,
     points: &[Point2<f64>],
     opts: &LkOptions,
 ) -> Vec<Option<Point2<f64>>> {
@@ -266,8 +266,8 @@ pub fn track(
 
 /// Like [`track`], starting the search of point `i` at `guesses[i]` (a predicted position).
 pub fn track_with_guesses(
-    prev: &Pyramid,
-    next: &Pyramid,
+    prev: &GradientPyramid,
+    next: &GradientPyramid,
     points: &[Point2<f64>],
     guesses: &[Point2<f64>],
     opts: &LkOptions,

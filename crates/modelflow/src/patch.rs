@@ -7,7 +7,7 @@
 //! "current" frame) and, to stop drift, the first frame of the shot.
 
 use crate::camera::Projection;
-use crate::pyramid::GradientImage;
+use crate::image::RgbImage;
 use crate::raster::{rasterize, trackable_mask, usable_triangles, NONE};
 use crate::warp::{barycentric, source_matrix};
 use nalgebra::Point3;
@@ -60,7 +60,7 @@ impl PatchSet {
         positions: &[Point3<f64>],
         triangles: &[[u32; 3]],
         proj: &Projection,
-        image: &GradientImage,
+        image: &RgbImage,
         camera: u16,
         weight: f32,
         opts: &PatchOptions,
@@ -110,7 +110,7 @@ impl PatchSet {
                 let l = barycentric(&s_inv, px as f64, py as f64);
                 self.pixels.push(PixelSample {
                     lambda: [l[0] as f32, l[1] as f32, l[2] as f32],
-                    color: image.color(px, py),
+                    color: image.get(px, py),
                 });
             }
             self.patches.push(Patch {

@@ -1,6 +1,8 @@
-//! Per-frame image data prepared for the tracker: a Gaussian-smoothed image pyramid whose levels
-//! hold, per pixel and interleaved, the RGB value and its u and v derivatives (nine floats), so
-//! that one bilinear fetch gives the tracker everything it needs at a warped position.
+//! Per-frame image pyramids. The Model Flow tracker's [`Pyramid`] holds Gaussian-smoothed RGB
+//! levels only: it differentiates the bilinear interpolant itself (`RgbImage::sample_exact`), so
+//! stored gradients would be dead weight in its cache-bound inner loop. The Lucas–Kanade
+//! baseline's [`GradientPyramid`] holds, per pixel and interleaved, the RGB value and its u and v
+//! derivatives (nine floats), so that one bilinear fetch gives it everything at a position.
 //!
 //! Level 0 is full resolution; level `l` is reduced `2^l` times, following the pixel-centre
 //! convention of `camera` (`Projection::downscaled`).
@@ -102,46 +104,34 @@ impl GradientImage {
         }
         Some(out)
     }
-
-    /// Bilinear sample of the colour with the *exact* derivatives of that bilinear interpolant
-    /// (same layout as [`GradientImage::sample`]). The tracker uses this: its Jacobian is then the
-    /// true derivative of the cost it evaluates, so Gauss–Newton's fixed point is the cost's own
-    /// stationary point rather than one shifted by a gradient approximation.
-    #[inline]
-    pub fn sample_exact(&self, u: f64, v: f64) -> Option<[f32; 9]> {
-        let ([a, b, c, d], fx, fy) = self.taps(u, v)?;
-        let mut out = [0.0f32; 9];
-        for k in 0..3 {
-            let top = a[k] + (b[k] - a[k]) * fx;
-            let bottom = c[k] + (d[k] - c[k]) * fx;
-            out[k] = top + (bottom - top) * fy;
-            out[3 + k] = (1.0 - fy) * (b[k] - a[k]) + fy * (d[k] - c[k]);
-            out[6 + k] = bottom - top;
-        }
-        Some(out)
-    }
 }
 
-/// Pyramid of one camera's image at one frame.
+/// The tracker's pyramid of one camera's image at one frame: smoothed colour per level.
 #[derive(Clone, Debug)]
 pub struct Pyramid {
-    pub levels: Vec<GradientImage>,
+    pub levels: Vec<RgbImage>,
 }
 
 impl Pyramid {
-    /// `levels` levels (at least one); each is smoothed with `sigma` pixels (at its own scale)
-    /// before its gradients are taken.
+    /// `levels` levels (at least one): level `l` is level `l−1` reduced by 2×2 averaging
+    /// (before smoothing), then smoothed with `sigma` pixels at its own scale.
     pub fn new(img: &RgbImage, levels: usize, sigma: f64) -> Self {
         let mut out = Vec::with_capacity(levels.max(1));
-        let mut cur = img.clone();
+        let mut cur = std::borrow::Cow::Borrowed(img);
         for l in 0..levels.max(1) {
             if l > 0 {
-                cur = cur.downsample2();
+                cur = std::borrow::Cow::Owned(cur.downsample2());
             }
-            out.push(GradientImage::new(&cur.blurred(sigma)));
+            out.push(cur.blurred(sigma));
         }
         Pyramid { levels: out }
     }
+}
+
+/// The Lucas–Kanade baseline's pyramid: colour and gradients per level (built by `lk::pyramid`).
+#[derive(Clone, Debug)]
+pub struct GradientPyramid {
+    pub levels: Vec<GradientImage>,
 }
 
 #[cfg(test)]
@@ -159,7 +149,7 @@ mod tests {
         let p = Pyramid::new(&img, 3, 0.0);
         assert_eq!((p.levels[2].width(), p.levels[2].height()), (4, 3));
         // Level 1 pixel (2, 3) is centred at (4.5, 6.5) of level 0.
-        let c = p.levels[1].color(2, 3);
+        let c = p.levels[1].get(2, 3);
         assert!((c[0] - 0.045).abs() < 1e-6 && (c[1] - 0.13).abs() < 1e-6);
     }
 }

@@ -20,8 +20,8 @@
 
 use crate::bending::Bending;
 use crate::camera::Projection;
+use crate::image::RgbImage;
 use crate::patch::{Patch, PixelSample};
-use crate::pyramid::GradientImage;
 use crate::sparse::{solve_pcg, BlockSparse};
 use crate::springs::{edge_term, EdgeSet, SpringParams};
 use crate::warp::warp_h;
@@ -92,7 +92,7 @@ pub struct Problem<'a> {
     pub pixels: &'a [PixelSample],
     pub by_triangle: &'a [(u32, std::ops::Range<usize>)],
     /// Next-frame image and projection of each camera, at this level.
-    pub targets: Vec<&'a GradientImage>,
+    pub targets: Vec<&'a RgbImage>,
     pub projections: Vec<Projection>,
     pub edges: &'a EdgeSet,
     /// Positions solved for the previous frame (the membrane's reference).

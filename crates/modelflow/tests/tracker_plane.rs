@@ -374,9 +374,7 @@ fn a_hidden_triangle_contributes_no_pixels() {
     let mut positions = quad(2.0, 0.3); // back
     positions.extend(quad(1.0, 0.2)); // front, covering the back one entirely in this view
     let triangles = vec![[0, 1, 2], [0, 2, 3], [4, 5, 6], [4, 6, 7]];
-    let img = modelflow::pyramid::GradientImage::new(&RgbImage::from_fn(160, 120, |x, y| {
-        texture(x as f64 / 160.0, y as f64 / 120.0)
-    }));
+    let img = RgbImage::from_fn(160, 120, |x, y| texture(x as f64 / 160.0, y as f64 / 120.0));
     let popts = PatchOptions {
         margin: 1,
         min_cos: 0.1,
