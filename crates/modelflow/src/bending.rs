@@ -17,7 +17,9 @@
 //! Open-boundary vertices get no residual of their own but enter their neighbours' residuals,
 //! which extrapolate the border smoothly from the inside.
 
+use crate::sparse::{BlockSparse, ScalarSparse};
 use nalgebra::{Matrix3, Point3, Vector3};
+use std::sync::Arc;
 
 /// The Laplacian stencils of a mesh and its rest shape's Laplacian coordinates.
 #[derive(Clone, Debug)]
@@ -32,8 +34,9 @@ pub struct Bending {
     /// Rest positions (for the per-vertex rotations).
     rest: Vec<Point3<f64>>,
     mean_length: f64,
-    /// Vertex pairs that share a stencil (computed once; see [`Bending::pairs`]).
-    pairs: Vec<[u32; 2]>,
+    /// `LᵀL` of the stencils' Laplacian `L` (rows: `1` at the centre, `−1/n` at each
+    /// neighbour): the term's constant normal-equation matrix, up to its weight.
+    gram: Arc<ScalarSparse>,
 }
 
 impl Bending {
@@ -95,19 +98,18 @@ impl Bending {
             } else {
                 1.0
             },
-            pairs: Vec::new(),
+            gram: Arc::new(ScalarSparse::gram(n, [])),
         };
-        let mut pairs = Vec::new();
-        for k in 0..b.len() {
-            let (c, r) = b.stencil(k);
-            for (i, &j) in r.iter().enumerate() {
-                pairs.push([c as u32, j]);
-                for &l in &r[i + 1..] {
-                    pairs.push([j, l]);
-                }
-            }
-        }
-        b.pairs = pairs;
+        let rows: Vec<Vec<(u32, f64)>> = (0..b.len())
+            .map(|k| {
+                let (c, r) = b.stencil(k);
+                let inv = 1.0 / r.len() as f64;
+                std::iter::once((c as u32, 1.0))
+                    .chain(r.iter().map(|&j| (j, -inv)))
+                    .collect()
+            })
+            .collect();
+        b.gram = Arc::new(ScalarSparse::gram(n, rows.iter().map(|r| &r[..])));
         b
     }
 
@@ -125,12 +127,6 @@ impl Bending {
             self.centre[k] as usize,
             &self.ring[self.start[k]..self.start[k + 1]],
         )
-    }
-
-    /// Vertex pairs that share a stencil (the centre with each neighbour and every two
-    /// neighbours): the blocks the term adds to the normal equations.
-    pub fn pairs(&self) -> &[[u32; 2]] {
-        &self.pairs
     }
 
     /// The rotation of each stencil that best turns its rest one-ring into the one at `x`
@@ -169,18 +165,22 @@ impl Bending {
         }
     }
 
-    /// Adds the term's cost (returned) and, with `system`, its normal-equation blocks and
-    /// right-hand side `−Jᵀr` at `x`, for target Laplacian coordinates `targets` (one per
-    /// stencil); `weight` is β divided by whatever the caller normalises by.
+    /// Adds the term's cost (returned) and, with `system`, its normal-equation matrix (as the
+    /// shared scalar part `s·LᵀL ⊗ I₃`, see `sparse`) and right-hand side `−Jᵀr` at `x`, for
+    /// target Laplacian coordinates `targets` (one per stencil); `weight` is β divided by
+    /// whatever the caller normalises by.
     pub fn accumulate(
         &self,
         x: &[Point3<f64>],
         targets: &[Vector3<f64>],
         weight: f64,
-        mut system: Option<(&mut crate::sparse::BlockSparse, &mut [Vector3<f64>])>,
+        mut system: Option<(&mut BlockSparse, &mut [Vector3<f64>])>,
     ) -> f64 {
         debug_assert_eq!(targets.len(), self.len(), "one target per stencil");
         let s = weight / (self.mean_length * self.mean_length);
+        if let Some((a, _)) = system.as_mut() {
+            a.add_scalar(&self.gram, s);
+        }
         let mut cost = 0.0;
         for (k, target) in targets.iter().enumerate().take(self.len()) {
             let (c, r) = self.stencil(k);
@@ -191,19 +191,11 @@ impl Bending {
                 * inv;
             let res = x[c].coords - mean - target;
             cost += s * res.norm_squared();
-            if let Some((a, b)) = system.as_mut() {
+            if let Some((_, b)) = system.as_mut() {
                 // J = s^½·[1 at c, −1/n at each neighbour] ⊗ I₃.
-                let id = Matrix3::identity();
-                a.add_pair(c, c, &(id * s));
                 b[c] -= res * s;
-                for (p, &j) in r.iter().enumerate() {
-                    let j = j as usize;
-                    a.add_pair(c, j, &(id * (-s * inv)));
-                    a.add_pair(j, j, &(id * (s * inv * inv)));
-                    b[j] += res * (s * inv);
-                    for &l in &r[p + 1..] {
-                        a.add_pair(j, l as usize, &(id * (s * inv * inv)));
-                    }
+                for &j in r {
+                    b[j as usize] += res * (s * inv);
                 }
             }
         }
@@ -233,7 +225,6 @@ fn procrustes(m: &Matrix3<f64>) -> Matrix3<f64> {
 mod tests {
     use super::*;
     use crate::mesh::grid;
-    use crate::sparse::BlockSparse;
     use nalgebra::{Rotation3, Vector3};
 
     /// A 5×5 grid bent into a bump (a curved rest shape).
@@ -248,7 +239,7 @@ mod tests {
         x: &[Point3<f64>],
         targets: &[Vector3<f64>],
     ) -> (f64, BlockSparse, Vec<Vector3<f64>>) {
-        let mut a = BlockSparse::new(x.len(), b.pairs());
+        let mut a = BlockSparse::new(x.len(), &[]);
         let mut rhs = vec![Vector3::zeros(); x.len()];
         let cost = b.accumulate(x, targets, 0.7, Some((&mut a, &mut rhs[..])));
         (cost, a, rhs)

@@ -423,18 +423,6 @@ impl Problem<'_> {
         (cost, pixels)
     }
 
-    /// The block pattern of the normal equations: mesh edges, and vertex pairs that share a
-    /// bending stencil when that term is on.
-    fn pattern(&self, opts: &SolverOptions) -> Vec<[u32; 2]> {
-        let mut p = self.edges.edges.clone();
-        if let Some((bend, _)) = self.bending {
-            if opts.springs.bending > 0.0 {
-                p.extend_from_slice(bend.pairs());
-            }
-        }
-        p
-    }
-
     /// Cost at `x` and the normal equations there: `(cost, JᵀJ, −Jᵀr)`. The cost's gradient is
     /// `2·Jᵀr`.
     pub fn linearize(
@@ -442,7 +430,7 @@ impl Problem<'_> {
         x: &[Point3<f64>],
         opts: &SolverOptions,
     ) -> (f64, BlockSparse, Vec<Vector3<f64>>) {
-        let mut a = BlockSparse::new(x.len(), &self.pattern(opts));
+        let mut a = BlockSparse::new(x.len(), &self.edges.edges);
         let mut b = vec![Vector3::zeros(); x.len()];
         let (cost, _) = self.evaluate(x, opts, Some((&mut a, &mut b)));
         (cost, a, b)
@@ -460,7 +448,7 @@ impl Problem<'_> {
         opts: &SolverOptions,
     ) -> (Vec<Point3<f64>>, SolveSummary) {
         let nv = start.len();
-        let mut a = BlockSparse::new(nv, &self.pattern(opts));
+        let mut a = BlockSparse::new(nv, &self.edges.edges);
         let mut b = vec![Vector3::zeros(); nv];
         let mut x = start.to_vec();
         let t_solve = Instant::now();

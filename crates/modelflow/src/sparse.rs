@@ -2,6 +2,12 @@
 //! pair of mesh-adjacent vertices (thesis §6.4, Fig. 6.2), and a preconditioned conjugate-gradient
 //! solver for it.
 //!
+//! A term whose Jacobian is the same for x, y and z and does not depend on the positions (the
+//! bending term's Laplacian `L`) contributes `s·K ⊗ I₃` with a constant scalar matrix `K = LᵀL`.
+//! That part is kept as one shared [`ScalarSparse`] and a weight instead of being accumulated
+//! into 3×3 blocks: `K` couples vertices two rings apart, and storing it as blocks would triple
+//! the matrix and the cost of every CG step.
+//!
 //! Hand-written rather than taken from `faer`: the structure is fixed by the mesh once, blocks are
 //! accumulated in place every iteration and the solve is a few dozen block-Jacobi-preconditioned CG
 //! steps; a general sparse format would cost a conversion per iteration for nothing. Matrix–vector
@@ -10,14 +16,94 @@
 
 use nalgebra::{Matrix3, Vector3};
 use rayon::prelude::*;
+use std::sync::Arc;
 
-/// Symmetric block-sparse matrix, both triangles stored (CSR over 3×3 blocks).
+/// A symmetric sparse matrix of scalars `K` (CSR, both triangles stored), applied to
+/// 3-vectors per vertex as `K ⊗ I₃`.
+#[derive(Clone, Debug)]
+pub struct ScalarSparse {
+    row_ptr: Vec<usize>,
+    cols: Vec<u32>,
+    vals: Vec<f64>,
+    diag: Vec<f64>,
+}
+
+impl ScalarSparse {
+    /// The Gram matrix `LᵀL` of a sparse `L` with `n` columns, given as its rows (each a list of
+    /// `(column, value)`; a column may appear once per row).
+    pub fn gram<'a>(n: usize, rows: impl IntoIterator<Item = &'a [(u32, f64)]>) -> Self {
+        let mut triplets: Vec<(u32, u32, f64)> = Vec::new();
+        for row in rows {
+            for &(i, a) in row {
+                for &(j, b) in row {
+                    triplets.push((i, j, a * b));
+                }
+            }
+        }
+        // Sum duplicates in a fixed order (sorted by position, stable within a position).
+        triplets.sort_by_key(|&(i, j, _)| (i, j));
+        let mut row_ptr = vec![0usize; n + 1];
+        let mut cols = Vec::new();
+        let mut vals: Vec<f64> = Vec::new();
+        let mut diag = vec![0.0; n];
+        let mut last = None;
+        for (i, j, v) in triplets {
+            if last == Some((i, j)) {
+                *vals.last_mut().expect("a value was pushed") += v;
+            } else {
+                cols.push(j);
+                vals.push(v);
+                row_ptr[i as usize + 1] += 1;
+                last = Some((i, j));
+            }
+        }
+        for i in 0..n {
+            row_ptr[i + 1] += row_ptr[i];
+        }
+        for i in 0..n {
+            for k in row_ptr[i]..row_ptr[i + 1] {
+                if cols[k] as usize == i {
+                    diag[i] = vals[k];
+                }
+            }
+        }
+        ScalarSparse {
+            row_ptr,
+            cols,
+            vals,
+            diag,
+        }
+    }
+
+    pub fn dim(&self) -> usize {
+        self.row_ptr.len() - 1
+    }
+
+    /// `K_ii`.
+    pub fn diagonal(&self, i: usize) -> f64 {
+        self.diag[i]
+    }
+
+    /// `Σ_j K_ij·x_j` for row `i`.
+    #[inline]
+    fn row_times(&self, i: usize, x: &[Vector3<f64>]) -> Vector3<f64> {
+        let mut acc = Vector3::zeros();
+        for k in self.row_ptr[i]..self.row_ptr[i + 1] {
+            acc += x[self.cols[k] as usize] * self.vals[k];
+        }
+        acc
+    }
+}
+
+/// Symmetric block-sparse matrix, both triangles stored (CSR over 3×3 blocks), plus at most one
+/// shared scalar part `s·K ⊗ I₃` (see the module documentation).
 #[derive(Clone, Debug)]
 pub struct BlockSparse {
     row_ptr: Vec<usize>,
     cols: Vec<u32>,
     blocks: Vec<Matrix3<f64>>,
     diag: Vec<usize>,
+    scalar: Option<(Arc<ScalarSparse>, f64)>,
 }
 
 impl BlockSparse {
@@ -47,6 +133,7 @@ impl BlockSparse {
             cols,
             blocks,
             diag,
+            scalar: None,
         }
     }
 
@@ -54,8 +141,28 @@ impl BlockSparse {
         self.row_ptr.len() - 1
     }
 
+    /// Sets every block, and the scalar part, to zero.
     pub fn clear(&mut self) {
         self.blocks.iter_mut().for_each(|b| *b = Matrix3::zeros());
+        self.scalar = None;
+    }
+
+    /// Adds `s·K ⊗ I₃`. Only one `K` can be held: adding another one panics (a programming
+    /// error), adding the same one again adds the weights.
+    pub fn add_scalar(&mut self, k: &Arc<ScalarSparse>, s: f64) {
+        assert_eq!(k.dim(), self.dim(), "scalar part of another size");
+        match &mut self.scalar {
+            None => self.scalar = Some((Arc::clone(k), s)),
+            Some((held, w)) => {
+                assert!(Arc::ptr_eq(held, k), "only one scalar part is supported");
+                *w += s;
+            }
+        }
+    }
+
+    /// The scalar part's diagonal at vertex `i` (`s·K_ii`, 0 without one).
+    fn scalar_diagonal(&self, i: usize) -> f64 {
+        self.scalar.as_ref().map_or(0.0, |(k, s)| s * k.diagonal(i))
     }
 
     fn find(&self, i: usize, j: usize) -> usize {
@@ -80,17 +187,18 @@ impl BlockSparse {
         }
     }
 
-    /// The diagonal block of vertex `i`.
-    pub fn diagonal(&self, i: usize) -> &Matrix3<f64> {
-        &self.blocks[self.diag[i]]
+    /// The diagonal block of vertex `i` (scalar part included).
+    pub fn diagonal(&self, i: usize) -> Matrix3<f64> {
+        self.blocks[self.diag[i]] + Matrix3::identity() * self.scalar_diagonal(i)
     }
 
     /// Adds `d` to every diagonal entry, and `lm·diag(A)` (Levenberg–Marquardt damping).
     pub fn damp(&mut self, d: f64, lm: f64) {
-        for &k in &self.diag {
-            let b = &mut self.blocks[k];
+        for i in 0..self.dim() {
+            let sd = self.scalar_diagonal(i);
+            let b = &mut self.blocks[self.diag[i]];
             for c in 0..3 {
-                b[(c, c)] += d + lm * b[(c, c)];
+                b[(c, c)] += d + lm * (b[(c, c)] + sd);
             }
         }
     }
@@ -104,6 +212,9 @@ impl BlockSparse {
                 let mut acc = Vector3::zeros();
                 for k in self.row_ptr[i]..self.row_ptr[i + 1] {
                     acc += self.blocks[k] * x[self.cols[k] as usize];
+                }
+                if let Some((m, s)) = &self.scalar {
+                    acc += m.row_times(i, x) * *s;
                 }
                 *yi = acc;
             });
@@ -224,5 +335,62 @@ mod tests {
         for i in 0..n {
             assert!((x[i] - truth[i]).norm() < 1e-8);
         }
+    }
+
+    #[test]
+    #[allow(clippy::needless_range_loop)]
+    fn gram_is_lt_l_and_acts_like_the_same_blocks() {
+        // L has rows (1, −½, −½, 0) and (0, 1, 0, −1): LᵀL by hand.
+        let rows: [&[(u32, f64)]; 2] = [&[(0, 1.0), (1, -0.5), (2, -0.5)], &[(1, 1.0), (3, -1.0)]];
+        let k = Arc::new(ScalarSparse::gram(4, rows));
+        let dense = [
+            [1.0, -0.5, -0.5, 0.0],
+            [-0.5, 1.25, 0.25, -1.0],
+            [-0.5, 0.25, 0.25, 0.0],
+            [0.0, -1.0, 0.0, 1.0],
+        ];
+        let x: Vec<Vector3<f64>> = (0..4)
+            .map(|i| Vector3::new(i as f64 + 1.0, (i * i) as f64, -2.0 * i as f64))
+            .collect();
+        for i in 0..4 {
+            assert_eq!(k.diagonal(i), dense[i][i]);
+            let want: Vector3<f64> = (0..4).map(|j| x[j] * dense[i][j]).sum();
+            assert!((k.row_times(i, &x) - want).norm() < 1e-15);
+        }
+        // The same matrix held as 3×3 blocks, and as a scalar part of weight 2 (split 1.5 + 0.5):
+        // products, diagonals and damping agree.
+        let pairs: Vec<[u32; 2]> = vec![[0, 1], [0, 2], [1, 2], [1, 3]];
+        let mut blocks = BlockSparse::new(4, &pairs);
+        for i in 0..4 {
+            blocks.add_pair(i, i, &(Matrix3::identity() * 2.0 * dense[i][i]));
+            for j in i + 1..4 {
+                if dense[i][j] != 0.0 {
+                    blocks.add_pair(i, j, &(Matrix3::identity() * 2.0 * dense[i][j]));
+                }
+            }
+        }
+        let mut scalar = BlockSparse::new(4, &pairs);
+        scalar.add_scalar(&k, 1.5);
+        scalar.add_scalar(&k, 0.5);
+        blocks.damp(0.3, 0.1);
+        scalar.damp(0.3, 0.1);
+        let (mut y1, mut y2) = (vec![Vector3::zeros(); 4], vec![Vector3::zeros(); 4]);
+        blocks.mul(&x, &mut y1);
+        scalar.mul(&x, &mut y2);
+        for i in 0..4 {
+            assert!(
+                (y1[i] - y2[i]).norm() < 1e-12,
+                "{i}: {} vs {}",
+                y1[i],
+                y2[i]
+            );
+            assert!((blocks.diagonal(i) - scalar.diagonal(i)).norm() < 1e-12);
+        }
+        scalar.clear();
+        scalar.mul(&x, &mut y2);
+        assert!(
+            y2.iter().all(|v| *v == Vector3::zeros()),
+            "clear drops the scalar part"
+        );
     }
 }
