@@ -145,6 +145,30 @@ fn zero_motion_stays_put() {
 }
 
 #[test]
+fn images_prepared_ahead_give_the_same_step_and_must_match_the_levels() {
+    // `track_scene` builds the next frame's pyramids while the current one is solved; that must
+    // not change the result.
+    let rig = rig();
+    let plane0 = plane_at(Vector3::zeros());
+    let mesh = mesh_of(&plane0);
+    let imgs0 = rig.images(&plane0);
+    let imgs1 = rig.images(&plane_at(Vector3::new(0.004, 0.0, -0.003)));
+    let opts = TrackOptions::default();
+    let mut a = Tracker::new(&mesh, rig.cameras(), 0, &imgs0, opts).unwrap();
+    let mut b = Tracker::new(&mesh, rig.cameras(), 0, &imgs0, opts).unwrap();
+    a.step(1, &imgs1).unwrap();
+    b.step_prepared(1, modelflow::track::prepare(&imgs1, &opts))
+        .unwrap();
+    assert_eq!(a.positions(), b.positions());
+    let fewer = TrackOptions { levels: 1, ..opts };
+    let err = b
+        .step_prepared(2, modelflow::track::prepare(&imgs1, &fewer))
+        .unwrap_err()
+        .to_string();
+    assert!(err.contains("pyramid levels"), "{err}");
+}
+
+#[test]
 fn rigid_motion_is_recovered() {
     let rig = rig();
     let motion = Vector3::new(0.006, -0.004, 0.005);
