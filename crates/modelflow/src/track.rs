@@ -251,9 +251,13 @@ impl Tracker {
             )));
         }
         let levels = self.opts.levels.max(1);
-        if prepared.pyramids.iter().any(|p| p.levels.len() < levels) {
+        if prepared.pyramids.iter().any(|p| p.levels.len() < levels)
+            || prepared.blur != self.opts.blur
+        {
             return Err(Error::Usage(format!(
-                "images prepared with fewer than the tracker's {levels} pyramid levels"
+                "images prepared for other options than the tracker's ({levels} pyramid levels, \
+                 blur {} px)",
+                self.opts.blur
             )));
         }
         let t0 = Instant::now();
@@ -385,6 +389,8 @@ impl Tracker {
 /// One frame's images made ready for [`Tracker::step_prepared`]: each camera's smoothed pyramid.
 pub struct Prepared {
     pyramids: Vec<Pyramid>,
+    /// The smoothing they were built with (must be the tracker's).
+    blur: f64,
     /// Time it took, seconds (reported as the step's `timing.pyramids`).
     seconds: f64,
 }
@@ -395,6 +401,7 @@ pub fn prepare(images: &[RgbImage], opts: &TrackOptions) -> Prepared {
     let pyramids = build_pyramids(images, opts.levels.max(1), opts.blur);
     Prepared {
         pyramids,
+        blur: opts.blur,
         seconds: t.elapsed().as_secs_f64(),
     }
 }

@@ -166,6 +166,12 @@ fn images_prepared_ahead_give_the_same_step_and_must_match_the_levels() {
         .unwrap_err()
         .to_string();
     assert!(err.contains("pyramid levels"), "{err}");
+    let blurrier = TrackOptions { blur: 2.0, ..opts };
+    let err = b
+        .step_prepared(2, modelflow::track::prepare(&imgs1, &blurrier))
+        .unwrap_err()
+        .to_string();
+    assert!(err.contains("blur"), "{err}");
 }
 
 #[test]
