@@ -342,25 +342,12 @@ impl PlaneTexture {
 }
 
 /// Bilinear sample at `(u, v)` (texel centres at integers), clamped to the border texels. The
-/// renderer's hot path: one clamp, no `Option`, `f32` weights.
+/// renderer's hot path: one clamp, then `RgbImage`'s own unchecked bilinear sample.
 #[inline]
 fn bilinear_clamped(img: &RgbImage, u: f64, v: f64) -> [f32; 3] {
-    let (w, h) = (img.width(), img.height());
-    let u = u.clamp(0.0, (w - 1) as f64);
-    let v = v.clamp(0.0, (h - 1) as f64);
-    let (x0, y0) = (u as usize, v as usize);
-    let (fx, fy) = ((u - x0 as f64) as f32, (v - y0 as f64) as f32);
-    let (x1, y1) = ((x0 + 1).min(w - 1), (y0 + 1).min(h - 1));
-    let px = img.pixels();
-    let (a, b) = (px[y0 * w + x0], px[y0 * w + x1]);
-    let (c, d) = (px[y1 * w + x0], px[y1 * w + x1]);
-    let mut out = [0.0f32; 3];
-    for ch in 0..3 {
-        let top = a[ch] + (b[ch] - a[ch]) * fx;
-        let bot = c[ch] + (d[ch] - c[ch]) * fx;
-        out[ch] = top + (bot - top) * fy;
-    }
-    out
+    let u = u.clamp(0.0, (img.width() - 1) as f64);
+    let v = v.clamp(0.0, (img.height() - 1) as f64);
+    img.sample_unchecked(u, v)
 }
 
 /// Direction for face `f` (+x, -x, +y, -y, +z, -z) at face coordinates `s, t ∈ [-1, 1]`.
