@@ -49,6 +49,20 @@ pub struct SolverOptions {
     /// Brightness gain compensated per (triangle, camera) (diffuse shading changes as the
     /// surface turns).
     pub gain: GainModel,
+    /// How the next frame is sampled at warped positions.
+    pub interpolation: Interpolation,
+}
+
+/// How the next frame's image is sampled between pixel centres (the derivatives used are always
+/// the interpolant's own, so the Jacobian is exact for the cost evaluated).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Interpolation {
+    /// Bilinear, four taps (`RgbImage::sample_exact`).
+    Linear,
+    /// Catmull–Rom bicubic, sixteen taps (`RgbImage::sample_cubic`): 20–40 % more time
+    /// per frame, and a smaller sub-pixel bias.
+    Cubic,
 }
 
 /// How the template's brightness may change in the next frame.
@@ -80,6 +94,7 @@ impl Default for SolverOptions {
             cg_tolerance: 1e-3,
             cg_max_iterations: 100,
             gain: GainModel::Linear,
+            interpolation: Interpolation::Cubic,
         }
     }
 }
@@ -229,7 +244,11 @@ impl Problem<'_> {
                 }
                 let inv = 1.0 / h.z;
                 let (u, v) = (h.x * inv, h.y * inv);
-                let Some(s) = img.sample_exact(u, v) else {
+                let sample = match opts.interpolation {
+                    Interpolation::Linear => img.sample_exact(u, v),
+                    Interpolation::Cubic => img.sample_cubic(u, v),
+                };
+                let Some(s) = sample else {
                     continue;
                 };
                 let mut sc = 0.0f64;

@@ -201,7 +201,7 @@ fn rigid_motion_is_recovered() {
 
 use modelflow::patch::{PatchOptions, PatchSet};
 use modelflow::pyramid::Pyramid;
-use modelflow::solve::{Problem, SolverOptions};
+use modelflow::solve::{Interpolation, Problem, SolverOptions};
 use modelflow::springs::EdgeSet;
 
 #[test]
@@ -255,34 +255,38 @@ fn assembled_gradient_matches_finite_differences_of_the_cost() {
     };
     // Huber off (huge threshold) so the cost is the plain sum of squares whose gradient is 2·Jᵀr;
     // a stretched spring and a membrane term are included too.
-    let mut opts = SolverOptions {
-        huber: 1e3,
-        ..SolverOptions::default()
-    };
-    opts.springs.k = 5.0;
-    let mut x = mesh.positions.clone();
-    x[5].x += 0.02;
-    x[6].z -= 0.01;
-    let (_, _, b) = problem.linearize(&x, &opts);
-    // Image values are f32: a step of 0.1 mm keeps the difference well above their rounding.
-    let eps = 1e-4;
+    // Both ways of sampling the next frame: the Jacobian is each interpolant's own derivative.
     let mut checked = 0;
-    for v in [5usize, 6, 9, 10] {
-        for k in 0..3 {
-            let mut xp = x.clone();
-            xp[v][k] += eps;
-            let mut xm = x.clone();
-            xm[v][k] -= eps;
-            let fd = (problem.cost(&xp, &opts) - problem.cost(&xm, &opts)) / (2.0 * eps);
-            let analytic = -2.0 * b[v][k];
-            assert!(
-                (fd - analytic).abs() <= 1e-2 * fd.abs().max(analytic.abs()) + 1e-9,
-                "vertex {v} axis {k}: fd {fd} vs analytic {analytic}"
-            );
-            checked += 1;
+    for interpolation in [Interpolation::Cubic, Interpolation::Linear] {
+        let mut opts = SolverOptions {
+            huber: 1e3,
+            interpolation,
+            ..SolverOptions::default()
+        };
+        opts.springs.k = 5.0;
+        let mut x = mesh.positions.clone();
+        x[5].x += 0.02;
+        x[6].z -= 0.01;
+        let (_, _, b) = problem.linearize(&x, &opts);
+        // Image values are f32: a step of 0.1 mm keeps the difference well above their rounding.
+        let eps = 1e-4;
+        for v in [5usize, 6, 9, 10] {
+            for k in 0..3 {
+                let mut xp = x.clone();
+                xp[v][k] += eps;
+                let mut xm = x.clone();
+                xm[v][k] -= eps;
+                let fd = (problem.cost(&xp, &opts) - problem.cost(&xm, &opts)) / (2.0 * eps);
+                let analytic = -2.0 * b[v][k];
+                assert!(
+                    (fd - analytic).abs() <= 1e-2 * fd.abs().max(analytic.abs()) + 1e-9,
+                    "{interpolation:?}: vertex {v} axis {k}: fd {fd} vs analytic {analytic}"
+                );
+                checked += 1;
+            }
         }
     }
-    assert_eq!(checked, 12);
+    assert_eq!(checked, 24);
 }
 
 #[test]
