@@ -82,16 +82,20 @@ fn blender_cloth_is_tracked_with_default_settings() {
     let run = modelflow::eval::read_run(dir.path()).unwrap();
     let report = modelflow::eval::evaluate(&scene, &run).unwrap();
     // Standing still scores 0.30 % mean and 0.86 % final on this clip; OpenCV's pyramidal LK plus
-    // triangulation 0.082 % and 0.113 % (tools/opencv_lk_reference.py). Model Flow must stay
-    // clearly below both.
+    // triangulation 0.082 % and 0.113 % (tools/opencv_lk_reference.py). Issue #3 asks for at most
+    // half of OpenCV's, mean and final (we measure 0.036 % and 0.053 %).
+    eprintln!(
+        "Blender sample: mean {:.4} %, final {:.4} %",
+        report.rms_mean_pct, report.rms_final_pct
+    );
     assert!(
-        report.rms_mean_pct < 0.07,
-        "mean {:.4} %",
+        report.rms_mean_pct <= 0.5 * 0.082,
+        "mean {:.4} % is more than half of OpenCV's 0.082 %",
         report.rms_mean_pct
     );
     assert!(
-        report.rms_final_pct < 0.13,
-        "final {:.4} %",
+        report.rms_final_pct <= 0.5 * 0.113,
+        "final {:.4} % is more than half of OpenCV's 0.113 %",
         report.rms_final_pct
     );
     // The log has one line per solved frame with the documented fields.
