@@ -49,7 +49,8 @@ pub struct SolverOptions {
     /// Brightness gain compensated per (triangle, camera) (diffuse shading changes as the
     /// surface turns).
     pub gain: GainModel,
-    /// How the next frame is sampled at warped positions.
+    /// How the next frame is sampled at warped positions (the tracker uses it at the finest
+    /// pyramid level and bilinear at coarser ones, which only bring the mesh near the solution).
     pub interpolation: Interpolation,
 }
 
@@ -60,8 +61,8 @@ pub struct SolverOptions {
 pub enum Interpolation {
     /// Bilinear, four taps (`RgbImage::sample_exact`).
     Linear,
-    /// Catmull–Rom bicubic, sixteen taps (`RgbImage::sample_cubic`): 20–40 % more time
-    /// per frame, and a smaller sub-pixel bias.
+    /// Catmull–Rom bicubic, sixteen taps (`RgbImage::sample_cubic`): a smaller sub-pixel bias,
+    /// for about a fifth more time per frame (used at the finest level only).
     Cubic,
 }
 

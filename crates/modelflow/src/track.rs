@@ -18,7 +18,7 @@ use crate::image::RgbImage;
 use crate::mesh::Mesh;
 use crate::patch::{PatchOptions, PatchSet};
 use crate::pyramid::Pyramid;
-use crate::solve::{Problem, SolveSummary, SolverOptions, StopReason};
+use crate::solve::{Interpolation, Problem, SolveSummary, SolverOptions, StopReason};
 use crate::springs::EdgeSet;
 use nalgebra::Point3;
 use rayon::prelude::*;
@@ -322,6 +322,16 @@ impl Tracker {
             let by_triangle = set.by_triangle();
             timing.patches += tp.elapsed().as_secs_f64();
             let ts = Instant::now();
+            // Coarse levels only bring the mesh near the solution and the finest level decides
+            // it, so the (dearer) chosen interpolation is used there only.
+            let sopts = SolverOptions {
+                interpolation: if level == 0 {
+                    self.opts.solver.interpolation
+                } else {
+                    Interpolation::Linear
+                },
+                ..self.opts.solver
+            };
             let problem = Problem {
                 triangles: &self.triangles,
                 patches: &set.patches,
@@ -341,17 +351,16 @@ impl Tracker {
                 if let Some(pp) = &self.before_prev {
                     let guess: Vec<Point3<f64>> =
                         x.iter().zip(pp).map(|(a, b)| a + (a - b)).collect();
-                    if problem.cost(&guess, &self.opts.solver) < problem.cost(&x, &self.opts.solver)
-                    {
+                    if problem.cost(&guess, &sopts) < problem.cost(&x, &sopts) {
                         x = guess;
                         predicted = true;
                     }
                 }
             }
             if level == 0 {
-                cost_before = problem.cost(&self.prev.positions, &self.opts.solver);
+                cost_before = problem.cost(&self.prev.positions, &sopts);
             }
-            let (sol, summary) = problem.solve(&x, &self.opts.solver);
+            let (sol, summary) = problem.solve(&x, &sopts);
             x = sol;
             if level == 0 {
                 cost_after = summary.final_cost;
