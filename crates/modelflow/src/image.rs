@@ -375,6 +375,32 @@ mod tests {
         }
     }
 
+    /// Checks a sampler's derivatives (entries 3..9) against central differences of its values.
+    fn assert_derivatives_match(
+        sample: impl Fn(f64, f64) -> Option<[f32; 9]>,
+        u: f64,
+        v: f64,
+        tol: f32,
+    ) {
+        let h = 1e-3;
+        let at = |u: f64, v: f64| sample(u, v).unwrap();
+        let s = at(u, v);
+        for k in 0..3 {
+            let gu = (at(u + h, v)[k] - at(u - h, v)[k]) / (2.0 * h as f32);
+            let gv = (at(u, v + h)[k] - at(u, v - h)[k]) / (2.0 * h as f32);
+            assert!(
+                (s[3 + k] - gu).abs() < tol,
+                "du {k} at ({u}, {v}): {} vs {gu}",
+                s[3 + k]
+            );
+            assert!(
+                (s[6 + k] - gv).abs() < tol,
+                "dv {k} at ({u}, {v}): {} vs {gv}",
+                s[6 + k]
+            );
+        }
+    }
+
     #[test]
     fn sample_exact_gives_the_bilinear_value_and_its_derivatives() {
         let img = RgbImage::from_fn(8, 6, |x, y| {
@@ -384,28 +410,11 @@ mod tests {
                 ((x + 2 * y) % 5) as f32,
             ]
         });
-        let h = 1e-3;
         for &(u, v) in &[(2.3, 1.6), (0.1, 4.7), (6.5, 0.2)] {
-            let s = img.sample_exact(u, v).unwrap();
-            let c = img.sample(u, v).unwrap();
-            let (du0, du1) = (img.sample(u - h, v).unwrap(), img.sample(u + h, v).unwrap());
-            let (dv0, dv1) = (img.sample(u, v - h).unwrap(), img.sample(u, v + h).unwrap());
-            for k in 0..3 {
-                assert!((s[k] - c[k]).abs() < 1e-6);
-                // Bilinear is linear in u (and in v) inside a cell: central differences are exact.
-                let gu = (du1[k] - du0[k]) / (2.0 * h as f32);
-                let gv = (dv1[k] - dv0[k]) / (2.0 * h as f32);
-                assert!(
-                    (s[3 + k] - gu).abs() < 2e-3,
-                    "du {k} at ({u}, {v}): {} vs {gu}",
-                    s[3 + k]
-                );
-                assert!(
-                    (s[6 + k] - gv).abs() < 2e-3,
-                    "dv {k} at ({u}, {v}): {} vs {gv}",
-                    s[6 + k]
-                );
-            }
+            let (s, c) = (img.sample_exact(u, v).unwrap(), img.sample(u, v).unwrap());
+            assert!((0..3).all(|k| (s[k] - c[k]).abs() < 1e-6));
+            // Bilinear is linear in u (and in v) inside a cell: central differences are exact.
+            assert_derivatives_match(|u, v| img.sample_exact(u, v), u, v, 2e-3);
         }
         assert!(img.sample_exact(7.01, 1.0).is_none() && img.sample_exact(1.0, -0.01).is_none());
     }
@@ -457,7 +466,6 @@ mod tests {
                 (y % 3) as f32,
             ]
         });
-        let h = 1e-3;
         // Inside cells, at the border, and just either side of a pixel boundary (u = 4).
         for &(u, v) in &[
             (2.3, 1.6),
@@ -466,22 +474,7 @@ mod tests {
             (4.0 - 1e-4, 2.5),
             (4.0 + 1e-4, 2.5),
         ] {
-            let s = img.sample_cubic(u, v).unwrap();
-            let at = |u: f64, v: f64| img.sample_cubic(u, v).unwrap();
-            for k in 0..3 {
-                let gu = (at(u + h, v)[k] - at(u - h, v)[k]) / (2.0 * h as f32);
-                let gv = (at(u, v + h)[k] - at(u, v - h)[k]) / (2.0 * h as f32);
-                assert!(
-                    (s[3 + k] - gu).abs() < 1e-2,
-                    "du {k} at ({u}, {v}): {} vs {gu}",
-                    s[3 + k]
-                );
-                assert!(
-                    (s[6 + k] - gv).abs() < 1e-2,
-                    "dv {k} at ({u}, {v}): {} vs {gv}",
-                    s[6 + k]
-                );
-            }
+            assert_derivatives_match(|u, v| img.sample_cubic(u, v), u, v, 1e-2);
         }
         let (a, b) = (
             img.sample_cubic(4.0 - 1e-6, 2.5).unwrap(),
