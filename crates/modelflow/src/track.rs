@@ -288,12 +288,10 @@ impl Tracker {
             None => self.prev.positions.clone(),
         };
         // The bending term's targets: the rest shape's Laplacian coordinates, turned by per-vertex
-        // rotations taken from the previous shape (they change little in a frame; not needed
-        // when the rest shape is flat).
+        // rotations taken from the previous shape (they change little in a frame; needed only
+        // where the rest Laplacian is not zero).
         let bend_targets = if self.opts.solver.springs.bending > 0.0 {
-            let rotations = (!self.bending.rest_is_flat())
-                .then(|| self.bending.rotations(&self.prev.positions));
-            self.bending.rest_targets(rotations.as_deref())
+            self.bending.targets_at(&self.prev.positions)
         } else {
             Vec::new()
         };
