@@ -46,7 +46,7 @@ pub struct TrackArgs {
     #[arg(long)]
     pub all_pixels: bool,
     /// How the next frame is sampled between pixel centres: Catmull-Rom bicubic, or bilinear
-    /// (about a sixth less time per frame, slightly less accurate).
+    /// (about a fifth less time per frame, slightly less accurate).
     #[arg(long, value_enum, default_value_t = InterpolationArg::Cubic)]
     pub interpolation: InterpolationArg,
 }
