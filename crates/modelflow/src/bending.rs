@@ -10,8 +10,8 @@
 //! `R_i` still comes from the vertex's whole one-ring. The
 //! residual `√β·(δ_i(X) − R_i·δ⁰_i)/L̄` (L̄: mean rest edge length, so β has no units) is linear in
 //! the positions once `R_i` is fixed, and `R_i` is re-estimated from the starting guess of each
-//! solve. A flat sheet's rest Laplacians are zero and the term is plain bending energy; a rigid
-//! motion costs nothing.
+//! solve. A flat sheet's rest Laplacians are zero (but at its corners) and the term is plain
+//! bending energy; a rigid motion costs nothing.
 //!
 //! Why the tracker needs it: the images pin each vertex's *projection* well, but depth along a
 //! narrow baseline and vertices on the mesh's border (few pixels, one-sided) are weakly seen.
@@ -96,8 +96,13 @@ impl Bending {
             } else {
                 r.clone()
             };
-            let wanted = if on_boundary[i] { 2 } else { 3 };
-            if (on_boundary[i] && stencil.len() != wanted) || stencil.len() < wanted {
+            // A border vertex needs exactly two border neighbours (a simple border curve).
+            let usable = if on_boundary[i] {
+                stencil.len() == 2
+            } else {
+                stencil.len() >= 3
+            };
+            if !usable {
                 continue;
             }
             let mean = stencil
