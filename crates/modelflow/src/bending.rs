@@ -160,12 +160,8 @@ impl Bending {
         )
     }
 
-    /// The rotation of each stencil that best turns its rest one-ring into the one at `x`
-    /// (orthogonal Procrustes on the centred ring, reflections excluded).
-    pub fn rotations(&self, x: &[Point3<f64>]) -> Vec<Matrix3<f64>> {
-        (0..self.len()).map(|k| self.rotation(k, x)).collect()
-    }
-
+    /// The rotation that best turns stencil `k`'s rest one-ring into the one at `x` (orthogonal
+    /// Procrustes on the centred ring, reflections excluded).
     fn rotation(&self, k: usize, x: &[Point3<f64>]) -> Matrix3<f64> {
         let c = self.centre[k] as usize;
         let mut m = Matrix3::zeros();
@@ -176,8 +172,8 @@ impl Bending {
         procrustes(&m)
     }
 
-    /// The rest Laplacian coordinates turned into the shape `x`: `R_k·δ⁰_k` with `R_k` from
-    /// [`Bending::rotations`], computed only where `δ⁰_k` is not zero (a flat sheet's inner
+    /// The rest Laplacian coordinates turned into the shape `x`: `R_k·δ⁰_k` with `R_k` the
+    /// rotation of stencil `k` at `x`, computed only where `δ⁰_k` is not zero (a flat sheet's inner
     /// and straight-border stencils need no rotation; its corners do).
     pub fn targets_at(&self, x: &[Point3<f64>]) -> Vec<Vector3<f64>> {
         let tol = 1e-9 * self.mean_length;
@@ -191,19 +187,6 @@ impl Bending {
                 }
             })
             .collect()
-    }
-
-    /// The rest shape's Laplacian coordinates turned by `rotations` (one per stencil, from
-    /// [`Bending::rotations`]), or as they are.
-    pub fn rest_targets(&self, rotations: Option<&[Matrix3<f64>]>) -> Vec<Vector3<f64>> {
-        match rotations {
-            Some(rot) => rot
-                .iter()
-                .zip(&self.rest_delta)
-                .map(|(r, d)| r * d)
-                .collect(),
-            None => self.rest_delta.clone(),
-        }
     }
 
     /// Adds the term's cost (returned) and, with `system`, its normal-equation matrix (as the
@@ -325,8 +308,7 @@ mod tests {
         let m = grid(6, 6, |u, v| Point3::new(u * 5.0, v * 5.0, 0.0));
         let b = Bending::new(&m.triangles, &m.positions);
         let border_cost = |x: &[Point3<f64>]| {
-            let rot = b.rotations(x);
-            let t = b.rest_targets(Some(&rot));
+            let t = b.targets_at(x);
             // Only the stencils centred on the moved row, away from the corners.
             (1..5)
                 .map(|i| {
@@ -354,26 +336,24 @@ mod tests {
         let r = Rotation3::from_euler_angles(0.4, -0.7, 1.1);
         let t = Vector3::new(3.0, -2.0, 0.5);
         let moved: Vec<Point3<f64>> = m.positions.iter().map(|p| r * p + t).collect();
-        let rot = b.rotations(&moved);
-        for q in &rot {
+        for k in 0..b.len() {
             assert!(
-                (q - r.matrix()).norm() < 1e-9,
+                (b.rotation(k, &moved) - r.matrix()).norm() < 1e-9,
                 "Procrustes recovers the rotation"
             );
         }
-        let targets = b.rest_targets(Some(&rot));
+        let targets = b.targets_at(&moved);
         assert!(b.accumulate(&moved, &targets, 1.0, None) < 1e-20);
-        // The shortcut that skips zero rest Laplacians gives the same targets.
-        for (a, t) in b.targets_at(&moved).iter().zip(&targets) {
-            assert!((a - t).norm() < 1e-12);
+        // Skipping the zero rest Laplacians gives the same targets as turning every one.
+        for (k, t) in targets.iter().enumerate() {
+            assert!((b.rotation(k, &moved) * b.rest_delta[k] - t).norm() < 1e-12);
         }
         // Without the rotations the turned rest shape is penalised...
-        assert!(b.accumulate(&moved, &b.rest_targets(None), 1.0, None) > 1e-3);
+        assert!(b.accumulate(&moved, &b.rest_delta, 1.0, None) > 1e-3);
         // ...and so is a real change of shape, even with them.
         let mut dented = moved.clone();
         dented[12] += r * Vector3::new(0.0, 0.0, 0.05);
-        let rot = b.rotations(&dented);
-        assert!(b.accumulate(&dented, &b.rest_targets(Some(&rot)), 1.0, None) > 1e-6);
+        assert!(b.accumulate(&dented, &b.targets_at(&dented), 1.0, None) > 1e-6);
     }
 
     #[test]
@@ -394,7 +374,7 @@ mod tests {
                 )
             })
             .collect();
-        let targets = b.rest_targets(None);
+        let targets = b.rest_delta.clone();
         let (c0, a, rhs) = system_of(&b, &x, &targets);
         let d: Vec<Vector3<f64>> = (0..x.len())
             .map(|i| Vector3::new((i as f64 * 0.7).cos(), (i as f64 * 1.9).sin(), 0.3) * 0.05)

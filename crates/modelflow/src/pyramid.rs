@@ -1,7 +1,7 @@
 //! Per-frame image pyramids. The Model Flow tracker's [`Pyramid`] holds Gaussian-smoothed RGB
 //! levels only: it differentiates the interpolant itself (`RgbImage::sample_cubic`, or
-//! `sample_exact` for bilinear), so
-//! stored gradients would be dead weight in its cache-bound inner loop. The Lucas–Kanade
+//! `sample_exact` for bilinear), so stored gradients would be dead weight in its cache-bound
+//! inner loop. The Lucas–Kanade
 //! baseline's [`GradientPyramid`] holds, per pixel and interleaved, the RGB value and its u and v
 //! derivatives (nine floats), so that one bilinear fetch gives it everything at a position.
 //!
