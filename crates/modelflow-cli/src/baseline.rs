@@ -2,10 +2,10 @@
 //! scene, written like `track`'s output so that `eval` can score it.
 
 use crate::progress::Progress;
+use crate::runfolder::{run_options, OutArgs};
 use anyhow::Context;
-use modelflow::baseline::{self, BaselineOptions, Seeding};
-use modelflow::lk::LkOptions;
-use modelflow::scene::Scene;
+use modelflow::baseline::{self, BaselineOptions, LkOptions, Seeding};
+use modelflow::input::Scene;
 use std::path::PathBuf;
 
 #[derive(clap::Args)]
@@ -13,9 +13,8 @@ pub struct Args {
     /// The scene file (modelflow-scene/1 JSON).
     #[arg(long)]
     pub scene: PathBuf,
-    /// Output folder: {frame:04}.obj per frame and log.jsonl.
-    #[arg(long)]
-    pub out: PathBuf,
+    #[command(flatten)]
+    pub out: OutArgs,
     /// Where each frame's 2D tracks start: `reprojected` (from the triangulated vertex) or
     /// `chained` (each camera's own 2D track continues, as Universal Capture did).
     #[arg(long, default_value = "reprojected", value_parser = ["reprojected", "chained"])]
@@ -34,7 +33,7 @@ pub struct Args {
     pub max_reprojection: f64,
 }
 
-pub fn run(args: Args) -> anyhow::Result<()> {
+pub fn run(args: Args, matches: &clap::ArgMatches) -> anyhow::Result<()> {
     if args.window < 3 || args.window % 2 == 0 {
         anyhow::bail!(
             "--window must be an odd number of pixels >= 3, got {}",
@@ -61,18 +60,22 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         max_reprojection_error: args.max_reprojection,
         ..defaults
     };
-    let progress = Progress::new("baseline", (scene.last - scene.first + 1) as u64);
-    let summary = baseline::run(&scene, &opts, &args.out, &|frame| {
-        progress.tick(&format!("frame {frame}"));
-    })
-    .with_context(|| format!("baseline on {}", args.scene.display()))?;
+    let run = run_options(args.out.mode(false), matches);
+    let progress = Progress::new("baseline", (scene.last - scene.first) as u64);
+    let result = baseline::run(&scene, &opts, &args.out.out, &run, &|f| {
+        progress.at(
+            (f.frame - scene.first) as u64,
+            &format!("frame {} · {:.0} ms", f.frame, f.wall_seconds * 1e3),
+        );
+    });
     progress.finish();
-    let n = summary.seconds.len().max(1) as f64;
+    let summary = result.with_context(|| format!("baseline on {}", args.scene.display()))?;
     eprintln!(
-        "wrote {} frames to {} ({:.3} s per frame)",
-        summary.frames.len() + 1,
+        "wrote frames {}..={} to {} ({:.0} ms per frame, median)",
+        scene.first,
+        scene.last,
         summary.out_dir.display(),
-        summary.seconds.iter().sum::<f64>() / n
+        modelflow::tracker::median(&summary.seconds) * 1e3
     );
     Ok(())
 }

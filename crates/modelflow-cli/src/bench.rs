@@ -3,9 +3,10 @@
 //! iteration, and pixel residuals evaluated per second — medians over the sequence.
 
 use crate::progress::Progress;
-use modelflow::scene::Scene;
+use modelflow::input::Scene;
 use modelflow::synth::{write_dataset, SynthOptions};
-use modelflow::track::{median, track_scene, FrameLog, TrackOptions};
+use modelflow::tracker::{median, track_scene, FrameReport, TrackOptions};
+use modelflow::{FrameLog, OpenMode, RunOptions};
 use serde::Serialize;
 use std::path::PathBuf;
 
@@ -70,45 +71,50 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let out = args.work.join("run");
     let mut logs: Vec<FrameLog> = Vec::new();
     let p = Progress::new("bench", (scene.last - scene.first) as u64);
-    track_scene(&scene, &TrackOptions::default(), &out, &mut |f| {
-        p.tick(&format!(
-            "frame {} {:.0} ms",
-            f.report.frame,
-            f.wall_seconds * 1e3
-        ));
+    // The run folder is the benchmark's own: each run replaces the last.
+    let run = RunOptions {
+        mode: OpenMode::Force,
+        ..RunOptions::default()
+    };
+    track_scene(&scene, &TrackOptions::default(), &out, &run, &mut |f| {
+        p.tick(&format!("frame {} {:.0} ms", f.frame, f.wall_seconds * 1e3));
         logs.push(f.clone());
     })?;
     p.finish();
-    let per = |f: &dyn Fn(&FrameLog) -> f64| median(&logs.iter().map(f).collect::<Vec<_>>());
-    let solve_secs: f64 = logs
+    let rows: Vec<(&FrameLog, &FrameReport)> = logs
         .iter()
-        .flat_map(|l| &l.report.levels)
+        .filter_map(|l| l.model_flow().map(|r| (l, r)))
+        .collect();
+    type Row<'a> = (&'a FrameLog, &'a FrameReport);
+    let per = |f: &dyn Fn(&Row) -> f64| median(&rows.iter().map(f).collect::<Vec<_>>());
+    let solve_secs: f64 = rows
+        .iter()
+        .flat_map(|(_, r)| &r.levels)
         .map(|s| s.seconds)
         .sum();
-    let evaluations: u64 = logs
+    let evaluations: u64 = rows
         .iter()
-        .flat_map(|l| &l.report.levels)
+        .flat_map(|(_, r)| &r.levels)
         .map(|s| s.pixel_evaluations)
         .sum();
     let report = BenchReport {
         scene: scene_path,
-        frames: logs.len(),
+        frames: rows.len(),
         threads: rayon::current_num_threads(),
-        ms_per_frame: per(&|l| l.wall_seconds) * 1e3,
-        ms_load: per(&|l| l.load_seconds) * 1e3,
-        ms_pyramids: per(&|l| l.report.timing.pyramids) * 1e3,
-        ms_solve: per(&|l| l.report.timing.patches + l.report.timing.solve) * 1e3,
-        ms_per_iteration: per(&|l| {
-            let it = l
-                .report
+        ms_per_frame: per(&|(l, _)| l.wall_seconds) * 1e3,
+        ms_load: per(&|(l, _)| l.load_seconds) * 1e3,
+        ms_pyramids: per(&|(_, r)| r.timing.pyramids) * 1e3,
+        ms_solve: per(&|(_, r)| r.timing.patches + r.timing.solve) * 1e3,
+        ms_per_iteration: per(&|(_, r)| {
+            let it = r
                 .levels
                 .iter()
                 .map(|s| s.iterations.len())
                 .sum::<usize>()
                 .max(1);
-            l.report.levels.iter().map(|s| s.seconds).sum::<f64>() / it as f64
+            r.levels.iter().map(|s| s.seconds).sum::<f64>() / it as f64
         }) * 1e3,
-        iterations: per(&|l| l.report.iterations as f64),
+        iterations: per(&|(_, r)| r.iterations as f64),
         residuals_per_second: 3.0 * evaluations as f64 / solve_secs.max(1e-12),
     };
     if args.json {

@@ -5,11 +5,12 @@
 use crate::progress::Progress;
 use anyhow::Context;
 use modelflow::baseline::{self, BaselineOptions};
-use modelflow::eval::{evaluate, read_run, EvalReport};
+use modelflow::input::Scene;
 use modelflow::report::{write_report, ReportOptions};
-use modelflow::scene::Scene;
 use modelflow::synth::{write_dataset, SynthOptions};
-use modelflow::track::{median, TrackOptions};
+use modelflow::tracker::{median, TrackOptions};
+use modelflow::{evaluate, read_run, EvalReport};
+use modelflow::{OpenMode, RunOptions};
 use std::path::{Path, PathBuf};
 
 #[derive(clap::Args)]
@@ -48,7 +49,13 @@ pub fn run(args: Args) -> anyhow::Result<()> {
 
     eprintln!("2/4 tracking with Model Flow");
     let mf_dir = args.out.join("runs").join("modelflow");
-    let mf = crate::track::run_scene(&scene, &TrackOptions::default(), &mf_dir)?;
+    // The demo's folder is its own: each demo replaces its runs (other files are kept).
+    let own = RunOptions {
+        mode: OpenMode::Force,
+        command: std::env::args().collect(),
+        ..RunOptions::default()
+    };
+    let mf = crate::track::run_scene(&scene, &TrackOptions::default(), &mf_dir, &own)?;
     let mut runs = vec![(
         "Model Flow".to_string(),
         mf_dir.clone(),
@@ -58,9 +65,12 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     if !args.no_baseline {
         eprintln!("3/4 tracking with the optical-flow baseline (Lucas-Kanade + triangulation)");
         let bl_dir = args.out.join("runs").join("baseline");
-        let p = Progress::new("baseline", (scene.last - scene.first + 1) as u64);
-        let bl = baseline::run(&scene, &BaselineOptions::default(), &bl_dir, &|f| {
-            p.tick(&format!("frame {f}"))
+        let p = Progress::new("baseline", (scene.last - scene.first) as u64);
+        let bl = baseline::run(&scene, &BaselineOptions::default(), &bl_dir, &own, &|f| {
+            p.at(
+                (f.frame - scene.first) as u64,
+                &format!("frame {}", f.frame),
+            )
         })
         .context("running the baseline")?;
         p.finish();

@@ -2,8 +2,8 @@
 //! prints a table, or one JSON object with `--json`.
 
 use anyhow::Context;
-use modelflow::eval::{evaluate, read_run, EvalReport};
-use modelflow::scene::Scene;
+use modelflow::input::Scene;
+use modelflow::{evaluate, read_run, EvalReport};
 use std::path::PathBuf;
 
 #[derive(clap::Args)]

@@ -2,7 +2,7 @@
 //! in its own module (`<name>.rs`) holding its clap `Args` and a `run` function; no algorithm
 //! lives in the binary.
 
-use clap::{Parser, Subcommand};
+use clap::{CommandFactory, FromArgMatches, Subcommand};
 
 mod baseline;
 mod bench;
@@ -10,10 +10,11 @@ mod demo;
 mod eval;
 mod progress;
 mod report;
+mod runfolder;
 mod synth;
 mod track;
 
-#[derive(Parser)]
+#[derive(clap::Parser)]
 #[command(
     name = "modelflow",
     version,
@@ -43,21 +44,46 @@ enum Command {
 }
 
 fn main() -> std::process::ExitCode {
-    let cli = Cli::parse();
+    let matches = Cli::command().get_matches();
+    let cli = match Cli::from_arg_matches(&matches) {
+        Ok(cli) => cli,
+        Err(e) => e.exit(),
+    };
+    // The subcommand's own matches tell which options the user set (for run manifests).
+    let sub = matches
+        .subcommand()
+        .map(|(_, m)| m.clone())
+        .unwrap_or_default();
     let result: anyhow::Result<()> = match cli.command {
-        Command::Baseline(args) => baseline::run(args),
+        Command::Baseline(args) => baseline::run(args, &sub),
         Command::Bench(a) => bench::run(a),
         Command::Demo(a) => demo::run(a),
         Command::Eval(a) => eval::run(a),
         Command::Report(a) => report::run(a),
-        Command::Track(a) => track::run(a),
+        Command::Track(a) => track::run(a, &sub),
         Command::Synth(a) => synth::run(a),
     };
     match result {
         Ok(()) => std::process::ExitCode::SUCCESS,
         Err(e) => {
             eprintln!("error: {e:#}");
-            std::process::ExitCode::FAILURE
+            // 130 = 128 + SIGINT: stopped on request (the run folder can be resumed).
+            let interrupted = e.chain().any(|c| {
+                matches!(
+                    c.downcast_ref::<modelflow::Error>(),
+                    Some(modelflow::Error::Interrupted { .. })
+                )
+            });
+            std::process::ExitCode::from(if interrupted { 130 } else { 1 })
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    #[test]
+    fn the_command_line_definition_is_consistent() {
+        use clap::CommandFactory;
+        super::Cli::command().debug_assert();
     }
 }

@@ -38,11 +38,17 @@ impl Progress {
 
     /// One more item done, with a message (a line per item when not on a terminal).
     pub fn tick(&self, msg: &str) {
-        let n = self.done.fetch_add(1, Ordering::Relaxed) + 1;
+        let n = self.done.load(Ordering::Relaxed) + 1;
+        self.at(n, msg);
+    }
+
+    /// `n` items done, the last with a message (a line per call when not on a terminal).
+    pub fn at(&self, n: u64, msg: &str) {
+        self.done.store(n, Ordering::Relaxed);
         match &self.bar {
             Some(b) => {
                 b.set_message(msg.to_string());
-                b.inc(1);
+                b.set_position(n);
             }
             None => eprintln!(
                 "{} {}/{}: {}",

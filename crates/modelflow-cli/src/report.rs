@@ -2,8 +2,8 @@
 //! oblique views, error-coloured meshes) comparing runs on a scene.
 
 use anyhow::{bail, Context};
+use modelflow::input::Scene;
 use modelflow::report::{write_report, ReportOptions};
-use modelflow::scene::Scene;
 use std::path::PathBuf;
 
 #[derive(clap::Args)]

@@ -2,11 +2,12 @@
 //! JSON-lines log, with a progress bar (plain lines when stderr is not a terminal).
 
 use crate::progress::Progress;
-use modelflow::scene::Scene;
-use modelflow::solve::{Interpolation, SolverOptions};
-use modelflow::springs::SpringParams;
-use modelflow::track::{track_scene, TrackOptions};
-use std::path::PathBuf;
+use crate::runfolder::{run_options, OutArgs};
+use modelflow::input::Scene;
+use modelflow::tracker::{
+    track_scene, Interpolation, Regularisation, SolverOptions, TrackOptions, TrackSummary,
+};
+use modelflow::RunOptions;
 
 #[derive(clap::Args, Clone, Debug)]
 pub struct TrackArgs {
@@ -17,17 +18,17 @@ pub struct TrackArgs {
     #[arg(long, default_value_t = TrackOptions::default().anchor_weight)]
     pub anchor_weight: f64,
     /// Spring constant k of the cubic edge springs (Eq. 5.16).
-    #[arg(long, default_value_t = TrackOptions::default().solver.springs.k)]
+    #[arg(long, default_value_t = TrackOptions::default().regularisation.spring_k)]
     pub spring_k: f64,
     /// Spring threshold T, as a fraction of the rest length (Eq. 5.16).
-    #[arg(long, default_value_t = TrackOptions::default().solver.springs.t)]
+    #[arg(long, default_value_t = TrackOptions::default().regularisation.spring_t)]
     pub spring_t: f64,
     /// Weight of the frame-to-frame membrane term (0 = off).
-    #[arg(long, default_value_t = TrackOptions::default().solver.springs.membrane)]
+    #[arg(long, default_value_t = TrackOptions::default().regularisation.membrane)]
     pub membrane: f64,
     /// Weight of the bending term that keeps the mesh's local shape close to its rest shape up to
     /// rotation (0 = off).
-    #[arg(long, default_value_t = TrackOptions::default().solver.springs.bending)]
+    #[arg(long, default_value_t = TrackOptions::default().regularisation.bending)]
     pub bending: f64,
     /// Gauss-Newton iterations at most per frame and level.
     #[arg(long, default_value_t = TrackOptions::default().solver.max_iterations)]
@@ -66,13 +67,13 @@ impl TrackArgs {
             anchor_weight: self.anchor_weight,
             blur: self.blur,
             checkerboard: !self.all_pixels,
+            regularisation: Regularisation {
+                spring_k: self.spring_k,
+                spring_t: self.spring_t,
+                membrane: self.membrane,
+                bending: self.bending,
+            },
             solver: SolverOptions {
-                springs: SpringParams {
-                    k: self.spring_k,
-                    t: self.spring_t,
-                    membrane: self.membrane,
-                    bending: self.bending,
-                },
                 max_iterations: self.max_iterations,
                 min_relative_decrease: self.min_decrease,
                 huber: self.huber,
@@ -91,46 +92,73 @@ impl TrackArgs {
 pub struct Args {
     /// The scene file (modelflow-scene/1).
     #[arg(long)]
-    scene: PathBuf,
-    /// Output folder: {frame:04}.obj per frame and log.jsonl.
-    #[arg(long)]
-    out: PathBuf,
+    scene: std::path::PathBuf,
+    #[command(flatten)]
+    out: OutArgs,
+    /// Continue the run in --out from its last complete frame (same scene, same options); the
+    /// result is identical to an uninterrupted run.
+    #[arg(long, conflicts_with = "force")]
+    resume: bool,
     #[command(flatten)]
     track: TrackArgs,
 }
 
-pub fn run(args: Args) -> anyhow::Result<()> {
+pub fn run(args: Args, matches: &clap::ArgMatches) -> anyhow::Result<()> {
     let scene = Scene::load(&args.scene)?;
-    let summary = run_scene(&scene, &args.track.options(), &args.out)?;
+    let run = run_options(args.out.mode(args.resume), matches);
+    let summary = run_scene(&scene, &args.track.options(), &args.out.out, &run)?;
+    let resumed = match summary.resumed_from {
+        Some(f) => format!(", resumed after frame {f}"),
+        None => String::new(),
+    };
     eprintln!(
-        "tracked {} frames in {:.1} s ({:.0} ms per frame, median; {} iterations per frame, median) -> {}",
-        summary.frames,
+        "tracked frames {}..={} ({} solved now{resumed}) in {:.1} s ({:.0} ms per frame, median; {} iterations per frame, median) -> {}",
+        scene.first,
+        scene.last,
+        summary.solved,
         summary.total_seconds,
         summary.median_frame_seconds * 1e3,
         summary.median_iterations,
-        args.out.display()
+        args.out.out.display()
     );
     Ok(())
 }
 
-/// Tracks with a progress bar; shared by `track` and `demo`.
+/// Tracks with a progress bar; shared by `track` and `demo`. An interrupted run says how to
+/// continue it.
 pub fn run_scene(
     scene: &Scene,
     opts: &TrackOptions,
     out: &std::path::Path,
-) -> anyhow::Result<modelflow::track::TrackSummary> {
+    run: &RunOptions,
+) -> anyhow::Result<TrackSummary> {
     let total = (scene.last - scene.first) as u64;
     let progress = Progress::new("track", total);
-    let summary = track_scene(scene, opts, out, &mut |f| {
-        progress.tick(&format!(
-            "frame {} · {} it · cost {:.2e} -> {:.2e} · {:.0} ms",
-            f.report.frame,
-            f.report.iterations,
-            f.report.cost_before,
-            f.report.cost_after,
-            f.wall_seconds * 1e3
-        ));
-    })?;
+    let result = track_scene(scene, opts, out, run, &mut |f| {
+        let r = f.model_flow();
+        progress.at(
+            (f.frame - scene.first) as u64,
+            &format!(
+                "frame {} · {} it · cost {:.2e} -> {:.2e} · {:.0} ms",
+                f.frame,
+                r.map_or(0, |r| r.iterations),
+                r.map_or(0.0, |r| r.cost_before),
+                r.map_or(0.0, |r| r.cost_after),
+                f.wall_seconds * 1e3
+            ),
+        );
+    });
     progress.finish();
-    Ok(summary)
+    result.map_err(|e| {
+        let interrupted = matches!(e, modelflow::Error::Interrupted { .. });
+        let e = anyhow::Error::new(e);
+        if interrupted {
+            e.context(format!(
+                "{} can be continued: run the same command with --resume",
+                out.display()
+            ))
+        } else {
+            e
+        }
+    })
 }

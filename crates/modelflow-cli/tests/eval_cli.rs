@@ -1,6 +1,6 @@
 //! `modelflow eval` as a user runs it: exit codes, the table, `--json`, and errors on stderr.
 
-use modelflow::meshio::{read_mesh, write_obj};
+use modelflow::input::{read_mesh, write_obj};
 use nalgebra::Vector3;
 use std::path::PathBuf;
 use std::process::{Command, Output};

@@ -34,12 +34,12 @@ fn writes_a_loadable_scene_with_images_and_truth() {
         String::from_utf8_lossy(&out.stdout).trim(),
         scene_path.display().to_string()
     );
-    let scene = modelflow::scene::Scene::load(&scene_path).unwrap();
+    let scene = modelflow::input::Scene::load(&scene_path).unwrap();
     assert_eq!((scene.first, scene.last, scene.cameras.len()), (0, 1, 3));
     for cam in ["cam0", "cam1", "cam2"] {
         for f in ["0000", "0001"] {
             let p = dir.path().join(format!("images/{cam}/{f}.png"));
-            assert_eq!(modelflow::imageio::image_size(&p).unwrap(), (96, 72));
+            assert_eq!(modelflow::input::image_size(&p).unwrap(), (96, 72));
         }
     }
     assert!(scene.ground_truth(1).unwrap().unwrap().is_closed());

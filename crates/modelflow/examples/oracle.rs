@@ -4,8 +4,8 @@
 //!
 //! `cargo run --release --example oracle -- SCENE.json [--oracle]`
 
-use modelflow::scene::Scene;
-use modelflow::track::{TrackOptions, Tracker};
+use modelflow::input::Scene;
+use modelflow::tracker::{TrackOptions, Tracker};
 use std::path::PathBuf;
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {

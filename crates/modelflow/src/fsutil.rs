@@ -23,7 +23,7 @@ pub fn write_atomic_with(
     std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
     let name = path
         .file_name()
-        .ok_or_else(|| Error::Usage(format!("{}: not a file path", path.display())))?;
+        .ok_or_else(|| Error::option("path", path.display(), "a file path"))?;
     let tmp = dir.join(format!(
         ".{}.{}.tmp",
         name.to_string_lossy(),

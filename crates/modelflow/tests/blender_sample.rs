@@ -1,7 +1,7 @@
 //! The Blender-rendered sample footage (a renderer that is not ours) loads, and its cameras
 //! follow the documented convention.
 
-use modelflow::scene::Scene;
+use modelflow::input::Scene;
 use std::path::PathBuf;
 
 fn sample() -> PathBuf {
@@ -122,12 +122,19 @@ fn blender_sample_projection_matches_the_pixels() {
 /// the weakly seen depth from accumulating (without it the final error is about 0.096 %).
 #[test]
 fn blender_sample_tracks_within_tolerance_with_defaults() {
-    use modelflow::track::{track_scene, TrackOptions};
+    use modelflow::tracker::{track_scene, TrackOptions};
     let scene = Scene::load(&sample()).unwrap();
     let dir = tempfile::tempdir().unwrap();
-    track_scene(&scene, &TrackOptions::default(), dir.path(), &mut |_| {}).unwrap();
-    let run = modelflow::eval::read_run(dir.path()).unwrap();
-    let report = modelflow::eval::evaluate(&scene, &run).unwrap();
+    track_scene(
+        &scene,
+        &TrackOptions::default(),
+        dir.path(),
+        &modelflow::RunOptions::default(),
+        &mut |_| {},
+    )
+    .unwrap();
+    let run = modelflow::read_run(dir.path()).unwrap();
+    let report = modelflow::evaluate(&scene, &run).unwrap();
     // Measured 0.0447 % mean and 0.062 % final (2.8 m bounding-box diagonal).
     assert!(
         report.rms_mean_pct < 0.05,

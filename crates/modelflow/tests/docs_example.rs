@@ -2,12 +2,12 @@
 //! own JSON, projects the stated points to the stated pixels, and its error example is what the
 //! loader prints.
 
-use modelflow::camera::Projection;
-use modelflow::image::RgbImage;
-use modelflow::imageio::write_png;
-use modelflow::mesh::grid;
-use modelflow::meshio::write_obj;
-use modelflow::scene::{Scene, SceneFile};
+use modelflow::base::grid;
+use modelflow::base::Projection;
+use modelflow::base::RgbImage;
+use modelflow::input::write_obj;
+use modelflow::input::write_png;
+use modelflow::input::{Scene, SceneFile};
 use nalgebra::{Matrix3, Point3, Vector3};
 use std::path::Path;
 

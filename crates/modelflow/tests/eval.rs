@@ -4,9 +4,9 @@
 mod common;
 
 use common::*;
-use modelflow::eval::{evaluate, frame_number, read_run};
-use modelflow::meshio::write_obj;
-use modelflow::scene::Scene;
+use modelflow::input::write_obj;
+use modelflow::input::Scene;
+use modelflow::{evaluate, read_run, run::frame_number};
 use nalgebra::Vector3;
 
 fn write_run(dir: &std::path::Path, offset: Vector3<f64>) {
@@ -102,7 +102,7 @@ fn collapsed_triangles_in_a_run_are_scored_not_rejected() {
     let mut m = truth(2);
     m.positions[1] = m.positions[0];
     write_obj(&run_dir.join("0002.obj"), &m).unwrap();
-    assert!(modelflow::meshio::read_mesh(&run_dir.join("0002.obj")).is_err());
+    assert!(modelflow::input::read_mesh(&run_dir.join("0002.obj")).is_err());
     let r = evaluate(&scene, &read_run(&run_dir).unwrap()).unwrap();
     assert!((r.per_frame[2].max - 0.25).abs() < 1e-12);
 }
@@ -133,7 +133,7 @@ fn run_errors() {
 
     // Vertex count mismatch.
     let mut run = read_run(&dir.path().join("truth")).unwrap();
-    run[1].1 = modelflow::mesh::grid(2, 2, |u, v| nalgebra::Point3::new(u, v, 0.0));
+    run[1].1 = modelflow::base::grid(2, 2, |u, v| nalgebra::Point3::new(u, v, 0.0));
     let msg = evaluate(&scene, &run).unwrap_err().to_string();
     assert!(
         msg.contains("frame 1") && msg.contains("4 vertices"),

@@ -3,8 +3,8 @@
 //! and round.
 
 use image::{DynamicImage, ImageBuffer, ImageFormat, Luma, LumaA, Rgb, Rgba};
-use modelflow::image::RgbImage;
-use modelflow::imageio::{image_size, read_rgb, write_png, write_png16};
+use modelflow::base::RgbImage;
+use modelflow::input::{image_size, read_rgb, write_png, write_png16};
 use std::path::{Path, PathBuf};
 
 const W: u32 = 7;

@@ -2,8 +2,8 @@
 //! written, polygons are triangulated, and bad files give errors naming the file and line or
 //! element.
 
-use modelflow::mesh::{grid, Mesh};
-use modelflow::meshio::{read_mesh, write_obj};
+use modelflow::base::{grid, Mesh};
+use modelflow::input::{read_mesh, write_obj};
 use nalgebra::Point3;
 use std::path::Path;
 

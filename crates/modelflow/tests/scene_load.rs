@@ -4,8 +4,8 @@
 mod common;
 
 use common::*;
-use modelflow::imageio::write_png;
-use modelflow::scene::{FramePattern, PoseEntry, Scene, SceneFile};
+use modelflow::input::write_png;
+use modelflow::input::{FramePattern, PoseEntry, Scene, SceneFile};
 use nalgebra::Point3;
 use std::path::Path;
 
@@ -169,7 +169,7 @@ fn missing_image() {
 #[test]
 fn wrong_image_size() {
     let msg = broken(|_, d| {
-        let small = modelflow::image::RgbImage::new(32, 48);
+        let small = modelflow::base::RgbImage::new(32, 48);
         write_png(&d.join("images/cam0/0002.png"), &small).unwrap();
     });
     assert_names(
@@ -192,7 +192,7 @@ fn wrong_image_size_at_load_images() {
     let scene = Scene::load(&path).unwrap();
     write_png(
         &dir.path().join("images/cam1/0000.png"),
-        &modelflow::image::RgbImage::new(10, 10),
+        &modelflow::base::RgbImage::new(10, 10),
     )
     .unwrap();
     let msg = scene.load_images(0).unwrap_err().to_string();
@@ -316,7 +316,7 @@ fn pose_forms_are_exclusive() {
             ];
             3
         ];
-        f.cameras[0] = modelflow::scene::CameraEntry {
+        f.cameras[0] = modelflow::input::CameraEntry {
             p: Some(p),
             ..c.clone()
         };
@@ -480,8 +480,8 @@ fn ground_truth_missing_and_mismatched() {
     let dir = tempfile::tempdir().unwrap();
     let (path, _) = write_scene(dir.path());
     let scene = Scene::load(&path).unwrap();
-    let small = modelflow::mesh::grid(2, 2, |u, v| Point3::new(u, v, 0.0));
-    modelflow::meshio::write_obj(&dir.path().join("truth/0001.obj"), &small).unwrap();
+    let small = modelflow::base::grid(2, 2, |u, v| Point3::new(u, v, 0.0));
+    modelflow::input::write_obj(&dir.path().join("truth/0001.obj"), &small).unwrap();
     let msg = scene.ground_truth(1).unwrap().unwrap_err().to_string();
     assert_names(&msg, &["truth/0001.obj", "4 vertices", "25"]);
 }
@@ -492,7 +492,7 @@ fn mesh_seen_by_fewer_than_two_cameras() {
     let msg = broken(|f, _| {
         let eye = Point3::new(0.4, 0.3, 2.0);
         let (r, t) =
-            modelflow::camera::look_at(&eye, &Point3::new(0.8, 0.6, 4.0), &nalgebra::Vector3::y());
+            modelflow::base::look_at(&eye, &Point3::new(0.8, 0.6, 4.0), &nalgebra::Vector3::y());
         f.cameras[1].r = Some([0, 1, 2].map(|i| [0, 1, 2].map(|j| r[(i, j)])));
         f.cameras[1].t = Some([t.x, t.y, t.z]);
     });

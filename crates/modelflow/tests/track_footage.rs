@@ -2,9 +2,10 @@
 //! and the Blender-rendered cloth sample in `shared/` (footage made by another renderer, which
 //! checks the camera and pixel conventions end to end).
 
-use modelflow::scene::Scene;
+use modelflow::input::Scene;
 use modelflow::synth::{SynthOptions, Synthetic};
-use modelflow::track::{track_scene, TrackOptions, Tracker};
+use modelflow::tracker::{track_scene, TrackOptions, Tracker};
+use modelflow::{OpenMode, RunOptions};
 use nalgebra::Point3;
 
 fn rms(a: &[Point3<f64>], b: &[Point3<f64>]) -> f64 {
@@ -73,14 +74,18 @@ fn blender_cloth_is_tracked_with_default_settings() {
     let scene = blender_scene();
     let dir = tempfile::tempdir().unwrap();
     let mut frames = 0;
-    let summary = track_scene(&scene, &TrackOptions::default(), dir.path(), &mut |_| {
-        frames += 1
-    })
+    let summary = track_scene(
+        &scene,
+        &TrackOptions::default(),
+        dir.path(),
+        &RunOptions::default(),
+        &mut |_| frames += 1,
+    )
     .unwrap();
     assert_eq!(frames, 11);
     assert_eq!(summary.frames, 12);
-    let run = modelflow::eval::read_run(dir.path()).unwrap();
-    let report = modelflow::eval::evaluate(&scene, &run).unwrap();
+    let run = modelflow::read_run(dir.path()).unwrap();
+    let report = modelflow::evaluate(&scene, &run).unwrap();
     // Standing still scores 0.30 % mean and 0.86 % final on this clip; OpenCV's pyramidal LK plus
     // triangulation 0.082 % and 0.113 % (tools/opencv_lk_reference.py). Issue #3 asks for at most
     // half of OpenCV's, mean and final (we measure 0.036 % and 0.053 %).
@@ -123,20 +128,51 @@ fn blender_cloth_is_tracked_with_default_settings() {
 }
 
 #[test]
-fn tracking_into_a_used_folder_leaves_exactly_one_run() {
+fn a_used_folder_is_refused_and_force_replaces_only_run_files() {
     let scene = blender_scene();
     let dir = tempfile::tempdir().unwrap();
     // Left from an earlier, longer run: a frame past the scene's end; and a user's own file.
     std::fs::write(dir.path().join("0042.obj"), "v 0 0 0\n").unwrap();
     std::fs::write(dir.path().join("notes.obj"), "keep me").unwrap();
     let short = Scene { last: 2, ..scene };
-    track_scene(&short, &TrackOptions::default(), dir.path(), &mut |_| {}).unwrap();
+    let err = track_scene(
+        &short,
+        &TrackOptions::default(),
+        dir.path(),
+        &RunOptions::default(),
+        &mut |_| {},
+    )
+    .unwrap_err()
+    .to_string();
+    assert!(
+        err.contains("not a modelflow run") && err.contains("--force"),
+        "{err}"
+    );
+    assert_eq!(
+        std::fs::read(dir.path().join("0042.obj")).unwrap(),
+        b"v 0 0 0\n"
+    );
+    let force = RunOptions {
+        mode: OpenMode::Force,
+        ..RunOptions::default()
+    };
+    track_scene(
+        &short,
+        &TrackOptions::default(),
+        dir.path(),
+        &force,
+        &mut |_| {},
+    )
+    .unwrap();
     assert!(!dir.path().join("0042.obj").exists());
-    assert!(dir.path().join("notes.obj").exists());
-    let run = modelflow::eval::read_run(dir.path()).unwrap();
+    assert_eq!(
+        std::fs::read(dir.path().join("notes.obj")).unwrap(),
+        b"keep me"
+    );
+    let run = modelflow::read_run(dir.path()).unwrap();
     assert_eq!(
         run.iter().map(|(f, _)| *f).collect::<Vec<_>>(),
         vec![0, 1, 2]
     );
-    modelflow::eval::evaluate(&short, &run).unwrap();
+    modelflow::evaluate(&short, &run).unwrap();
 }

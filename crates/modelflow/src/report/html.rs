@@ -1,9 +1,9 @@
 //! The report's `index.html`: one self-contained page (inline style, no scripts, no fonts or
 //! anything else fetched from the network; images by relative links into the report folder).
 
-use super::{fmt_sig, ReportOptions, RunSummary};
-use crate::plot::xml_escape as esc;
-use crate::scene::Scene;
+use super::page::{fmt_sig, ReportOptions, RunSummary};
+use crate::input::scene::Scene;
+use crate::report::plot::xml_escape as esc;
 use std::fmt::Write;
 
 /// Captioned image files of each section, in order.
@@ -153,7 +153,7 @@ pub(super) fn page(
     for (i, r) in runs.iter().enumerate() {
         let swatch = format!(
             "<span class=\"swatch\" style=\"background:{}\"></span>",
-            crate::draw::css(crate::colormap::run_colour(i))
+            crate::report::draw::css(crate::report::colormap::run_colour(i))
         );
         let _ = write!(o, "<tr><td>{swatch}{}</td>", esc(&r.name));
         if let Some(e) = &r.error {
@@ -183,7 +183,7 @@ pub(super) fn page(
     let _ = writeln!(o, "</table>");
     let _ = writeln!(
         o,
-        "<p class=\"muted\">Time per frame: mean of the <code>seconds</code> entries of each run's <code>log.jsonl</code> (— when there is none). Run folders: {}.</p>",
+        "<p class=\"muted\">Time per frame: median wall time per solved frame, image reading included (<code>wall_seconds</code> in each run's <code>log.jsonl</code>; — when there is none). Run folders: {}.</p>",
         runs.iter()
             .map(|r| format!("{} = <code>{}</code>", esc(&r.name), esc(&r.dir.display().to_string())))
             .collect::<Vec<_>>()

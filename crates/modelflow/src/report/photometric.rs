@@ -8,11 +8,11 @@
 //! in 0..1, bilinear samples at the projected positions). The frame's cost is the mean over the
 //! cameras that see at least one such vertex; `None` when none does.
 
+use crate::base::image::RgbImage;
+use crate::base::mesh::Mesh;
 use crate::error::Result;
-use crate::image::RgbImage;
-use crate::mesh::Mesh;
-use crate::render;
-use crate::scene::Scene;
+use crate::input::scene::Scene;
+use crate::synth::render;
 use rayon::prelude::*;
 
 /// Relative depth slack of the visibility test.

@@ -2,8 +2,8 @@
 //! truth), with runs made from the truth: an exact copy and a copy drifting by a known amount.
 
 use super::*;
-use crate::meshio;
-use crate::plot::tests::assert_well_formed;
+use crate::input::meshio;
+use crate::report::plot::tests::assert_well_formed;
 use nalgebra::Vector3;
 
 const SAMPLE: &str = concat!(
@@ -24,7 +24,13 @@ fn make_run(scene: &Scene, dir: &Path, drift: f64, seconds: Option<&[f64]>) {
         let log: String = s
             .iter()
             .enumerate()
-            .map(|(i, s)| format!("{{\"frame\": {}, \"seconds\": {s}}}\n", i + 1))
+            .map(|(i, s)| {
+                format!(
+                    "{{\"frame\": {}, \"seconds\": {s}, \"load_seconds\": 0, \"wall_seconds\": {s}, \
+                     \"method\": \"baseline\", \"tracked\": 1, \"triangulated\": 1}}\n",
+                    i + 1
+                )
+            })
             .collect();
         std::fs::write(dir.join("log.jsonl"), log).unwrap();
     }
@@ -193,7 +199,8 @@ fn bad_runs_and_logs_are_named() {
     make_run(&scene, &run, 0.0, None);
     std::fs::write(
         run.join("log.jsonl"),
-        "{\"frame\": 1, \"seconds\": 0.2}\n{\"frame\": 2}\n",
+        "{\"frame\": 1, \"seconds\": 0.2, \"load_seconds\": 0, \"wall_seconds\": 0.2, \
+         \"method\": \"baseline\", \"tracked\": 1, \"triangulated\": 1}\n{\"frame\": 2}\n",
     )
     .unwrap();
     let err = write_report(

@@ -2,12 +2,12 @@
 //! helpers to break it one field at a time.
 #![allow(dead_code)]
 
-use modelflow::camera::look_at;
-use modelflow::image::RgbImage;
-use modelflow::imageio::write_png;
-use modelflow::mesh::{grid, Mesh};
-use modelflow::meshio::write_obj;
-use modelflow::scene::{CameraEntry, FrameRange, SceneFile, FORMAT};
+use modelflow::base::look_at;
+use modelflow::base::RgbImage;
+use modelflow::base::{grid, Mesh};
+use modelflow::input::write_obj;
+use modelflow::input::write_png;
+use modelflow::input::{CameraEntry, FrameRange, SceneFile, FORMAT};
 use nalgebra::{Point3, Vector3};
 use std::path::{Path, PathBuf};
 

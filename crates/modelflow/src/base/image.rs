@@ -1,0 +1,512 @@
+//! In-memory images: RGB, `f32` per channel, interleaved, row-major, values nominally in [0, 1]
+//! (the file's encoded values, not linearised). Sampling follows the pixel-centre convention of
+//! `camera`: pixel `(i, j)` has its centre at `(u, v) = (i, j)`.
+//!
+//! Bilinear and bicubic sampling (each with its interpolant's exact derivatives), gradients,
+//! blurring and 2× reduction are written here by hand because the tracker's inner loop needs them
+//! fused and allocation-free, which no image crate offers.
+
+/// Catmull–Rom weights of the four taps at offsets −1, 0, 1, 2 for a sample at fraction `t` in
+/// `[0, 1]` between taps 0 and 1, and their derivatives with respect to `t`.
+#[inline]
+fn catmull_rom(t: f32) -> ([f32; 4], [f32; 4]) {
+    let t2 = t * t;
+    let t3 = t2 * t;
+    (
+        [
+            0.5 * (-t3 + 2.0 * t2 - t),
+            0.5 * (3.0 * t3 - 5.0 * t2 + 2.0),
+            0.5 * (-3.0 * t3 + 4.0 * t2 + t),
+            0.5 * (t3 - t2),
+        ],
+        [
+            0.5 * (-3.0 * t2 + 4.0 * t - 1.0),
+            0.5 * (9.0 * t2 - 10.0 * t),
+            0.5 * (-9.0 * t2 + 8.0 * t + 1.0),
+            0.5 * (3.0 * t2 - 2.0 * t),
+        ],
+    )
+}
+
+/// An RGB image with `f32` channels.
+#[derive(Clone, Debug, PartialEq)]
+pub struct RgbImage {
+    width: usize,
+    height: usize,
+    data: Vec<[f32; 3]>,
+}
+
+impl RgbImage {
+    /// A black image. Panics if a side is zero (callers validate sizes first).
+    pub fn new(width: usize, height: usize) -> Self {
+        assert!(width > 0 && height > 0, "image sides must be positive");
+        RgbImage {
+            width,
+            height,
+            data: vec![[0.0; 3]; width * height],
+        }
+    }
+
+    /// From row-major interleaved pixels; `None` if the length does not match.
+    pub fn from_pixels(width: usize, height: usize, data: Vec<[f32; 3]>) -> Option<Self> {
+        (width > 0 && height > 0 && data.len() == width * height).then_some(RgbImage {
+            width,
+            height,
+            data,
+        })
+    }
+
+    /// Fills each pixel from a function of its integer coordinates.
+    pub fn from_fn(
+        width: usize,
+        height: usize,
+        mut f: impl FnMut(usize, usize) -> [f32; 3],
+    ) -> Self {
+        let mut img = RgbImage::new(width, height);
+        for y in 0..height {
+            for x in 0..width {
+                img.data[y * width + x] = f(x, y);
+            }
+        }
+        img
+    }
+
+    pub fn width(&self) -> usize {
+        self.width
+    }
+
+    pub fn height(&self) -> usize {
+        self.height
+    }
+
+    pub fn pixels(&self) -> &[[f32; 3]] {
+        &self.data
+    }
+
+    pub fn pixels_mut(&mut self) -> &mut [[f32; 3]] {
+        &mut self.data
+    }
+
+    #[inline]
+    pub fn get(&self, x: usize, y: usize) -> [f32; 3] {
+        self.data[y * self.width + x]
+    }
+
+    #[inline]
+    pub fn set(&mut self, x: usize, y: usize, v: [f32; 3]) {
+        self.data[y * self.width + x] = v;
+    }
+
+    /// Whether a bilinear sample at `(u, v)` touches only pixels inside the image.
+    #[inline]
+    pub fn inside(&self, u: f64, v: f64) -> bool {
+        u >= 0.0 && v >= 0.0 && u <= (self.width - 1) as f64 && v <= (self.height - 1) as f64
+    }
+
+    /// Bilinear sample at `(u, v)`, or `None` outside `[0, w-1] × [0, h-1]`.
+    #[inline]
+    pub fn sample(&self, u: f64, v: f64) -> Option<[f32; 3]> {
+        if !self.inside(u, v) {
+            return None;
+        }
+        Some(self.sample_unchecked(u, v))
+    }
+
+    /// Bilinear sample at a point known to be inside (see [`RgbImage::inside`]).
+    #[inline]
+    pub fn sample_unchecked(&self, u: f64, v: f64) -> [f32; 3] {
+        let ([a, b, c, d], fx, fy) = self.taps(u, v);
+        let mut out = [0.0f32; 3];
+        for ch in 0..3 {
+            let top = a[ch] + (b[ch] - a[ch]) * fx;
+            let bot = c[ch] + (d[ch] - c[ch]) * fx;
+            out[ch] = top + (bot - top) * fy;
+        }
+        out
+    }
+
+    /// Bilinear sample of the colour with the *exact* derivatives of that bilinear interpolant,
+    /// `[r, g, b, ∂r/∂u, ∂g/∂u, ∂b/∂u, ∂r/∂v, ∂g/∂v, ∂b/∂v]`, or `None` outside
+    /// `[0, w-1] × [0, h-1]`. The tracker uses this: its Jacobian is then the true derivative of
+    /// the cost it evaluates, so Gauss–Newton's fixed point is the cost's own stationary point
+    /// rather than one shifted by a gradient approximation. It reads only the four colours around
+    /// `(u, v)`, so the tracker's images need no stored gradients.
+    #[inline]
+    pub fn sample_exact(&self, u: f64, v: f64) -> Option<[f32; 9]> {
+        if !self.inside(u, v) {
+            return None;
+        }
+        let ([a, b, c, d], fx, fy) = self.taps(u, v);
+        let mut out = [0.0f32; 9];
+        for k in 0..3 {
+            let top = a[k] + (b[k] - a[k]) * fx;
+            let bottom = c[k] + (d[k] - c[k]) * fx;
+            out[k] = top + (bottom - top) * fy;
+            out[3 + k] = (1.0 - fy) * (b[k] - a[k]) + fy * (d[k] - c[k]);
+            out[6 + k] = bottom - top;
+        }
+        Some(out)
+    }
+
+    /// Bicubic sample of the colour with the exact derivatives of that bicubic interpolant, in the
+    /// layout of [`RgbImage::sample_exact`], or `None` outside `[0, w-1] × [0, h-1]`.
+    ///
+    /// The kernel is Catmull–Rom's (Keys' cubic convolution with `a = −½`): it passes through
+    /// the pixel values, reproduces quadratics exactly, and its derivatives are continuous across
+    /// pixel boundaries. The tracker uses it because a sub-pixel shift of the bilinear interpolant
+    /// is not a shift of the image: its error depends on the sample's phase in the pixel and its
+    /// derivative jumps from one pixel to the next, which leaves a small, texture-dependent bias
+    /// in the solved positions (on the Blender sample it shows as depth error across the narrow
+    /// baseline). It reads the 4×4 pixels around `(u, v)`; beyond the border the edge pixels are
+    /// repeated.
+    #[inline]
+    pub fn sample_cubic(&self, u: f64, v: f64) -> Option<[f32; 9]> {
+        if !self.inside(u, v) {
+            return None;
+        }
+        let (w, h) = (self.width, self.height);
+        let x0 = (u as usize).min(w.saturating_sub(2));
+        let y0 = (v as usize).min(h.saturating_sub(2));
+        let (wx, dwx) = catmull_rom((u - x0 as f64) as f32);
+        let (wy, dwy) = catmull_rom((v - y0 as f64) as f32);
+        // The 4×4 block around the sample, one row of four RGB pixels at a time.
+        let mut block = [[[0.0f32; 3]; 4]; 4];
+        if x0 >= 1 && x0 + 2 < w && y0 >= 1 && y0 + 2 < h {
+            for (j, row) in block.iter_mut().enumerate() {
+                let start = (y0 + j - 1) * w + x0 - 1;
+                row.copy_from_slice(&self.data[start..start + 4]);
+            }
+        } else {
+            for (j, row) in block.iter_mut().enumerate() {
+                let y = (y0 + j).saturating_sub(1).min(h - 1);
+                for (i, px) in row.iter_mut().enumerate() {
+                    *px = self.data[y * w + (x0 + i).saturating_sub(1).min(w - 1)];
+                }
+            }
+        }
+        // Vertical pass (value weights and their derivative), then horizontal.
+        let mut col = [[0.0f32; 3]; 4];
+        let mut col_dv = [[0.0f32; 3]; 4];
+        for (j, row) in block.iter().enumerate() {
+            for i in 0..4 {
+                for k in 0..3 {
+                    col[i][k] += wy[j] * row[i][k];
+                    col_dv[i][k] += dwy[j] * row[i][k];
+                }
+            }
+        }
+        let mut out = [0.0f32; 9];
+        for i in 0..4 {
+            for k in 0..3 {
+                out[k] += wx[i] * col[i][k];
+                out[3 + k] += dwx[i] * col[i][k];
+                out[6 + k] += wx[i] * col_dv[i][k];
+            }
+        }
+        Some(out)
+    }
+
+    /// The four pixels around a point inside the image and the fractional position between them.
+    #[inline]
+    fn taps(&self, u: f64, v: f64) -> ([[f32; 3]; 4], f32, f32) {
+        let x0 = (u as usize).min(self.width.saturating_sub(2));
+        let y0 = (v as usize).min(self.height.saturating_sub(2));
+        let fx = (u - x0 as f64) as f32;
+        let fy = (v - y0 as f64) as f32;
+        let x1 = (x0 + 1).min(self.width - 1);
+        let y1 = (y0 + 1).min(self.height - 1);
+        let (r0, r1) = (y0 * self.width, y1 * self.width);
+        (
+            [
+                self.data[r0 + x0],
+                self.data[r0 + x1],
+                self.data[r1 + x0],
+                self.data[r1 + x1],
+            ],
+            fx,
+            fy,
+        )
+    }
+
+    /// Central-difference gradients `(∂I/∂u, ∂I/∂v)` per channel (one-sided at the border).
+    pub fn gradients(&self) -> (RgbImage, RgbImage) {
+        let (w, h) = (self.width, self.height);
+        let mut gx = RgbImage::new(w, h);
+        let mut gy = RgbImage::new(w, h);
+        for y in 0..h {
+            let (ym, yp) = (y.saturating_sub(1), (y + 1).min(h - 1));
+            for x in 0..w {
+                let (xm, xp) = (x.saturating_sub(1), (x + 1).min(w - 1));
+                let sx = if xp > xm { 1.0 / (xp - xm) as f32 } else { 0.0 };
+                let sy = if yp > ym { 1.0 / (yp - ym) as f32 } else { 0.0 };
+                let (l, r) = (self.get(xm, y), self.get(xp, y));
+                let (u, d) = (self.get(x, ym), self.get(x, yp));
+                gx.set(
+                    x,
+                    y,
+                    [(r[0] - l[0]) * sx, (r[1] - l[1]) * sx, (r[2] - l[2]) * sx],
+                );
+                gy.set(
+                    x,
+                    y,
+                    [(d[0] - u[0]) * sy, (d[1] - u[1]) * sy, (d[2] - u[2]) * sy],
+                );
+            }
+        }
+        (gx, gy)
+    }
+
+    /// Half-size image by averaging 2×2 blocks (odd last rows/columns are averaged with fewer
+    /// pixels). Pixel `i` of the result is centred at `2i + 0.5` of this one, matching
+    /// [`crate::base::camera::Projection::downscaled`].
+    pub fn downsample2(&self) -> RgbImage {
+        let w2 = self.width.div_ceil(2).max(1);
+        let h2 = self.height.div_ceil(2).max(1);
+        RgbImage::from_fn(w2, h2, |x, y| {
+            let mut acc = [0.0f32; 3];
+            let mut n = 0.0f32;
+            for yy in (2 * y)..(2 * y + 2).min(self.height) {
+                for xx in (2 * x)..(2 * x + 2).min(self.width) {
+                    let p = self.get(xx, yy);
+                    acc[0] += p[0];
+                    acc[1] += p[1];
+                    acc[2] += p[2];
+                    n += 1.0;
+                }
+            }
+            [acc[0] / n, acc[1] / n, acc[2] / n]
+        })
+    }
+
+    /// Separable Gaussian blur with standard deviation `sigma` pixels (clamped borders).
+    ///
+    /// Written as row operations on contiguous memory (the vertical pass adds whole rows), which
+    /// the compiler vectorises; every output value is summed over the taps in the same order as a
+    /// per-pixel loop would, so the result does not depend on this layout.
+    pub fn blurred(&self, sigma: f64) -> RgbImage {
+        if sigma <= 0.0 {
+            return self.clone();
+        }
+        let radius = (3.0 * sigma).ceil() as isize;
+        let mut kernel: Vec<f32> = (-radius..=radius)
+            .map(|i| (-(i * i) as f64 / (2.0 * sigma * sigma)).exp() as f32)
+            .collect();
+        let sum: f32 = kernel.iter().sum();
+        kernel.iter_mut().for_each(|k| *k /= sum);
+        let (w, h) = (self.width, self.height);
+        let clamp = |i: isize, n: usize| i.clamp(0, n as isize - 1) as usize;
+        // Horizontal pass, one row at a time.
+        let mut tmp = vec![[0.0f32; 3]; w * h];
+        for (src, dst) in self.data.chunks_exact(w).zip(tmp.chunks_exact_mut(w)) {
+            for (x, out) in dst.iter_mut().enumerate() {
+                let mut acc = [0.0f32; 3];
+                for (k, &kv) in kernel.iter().enumerate() {
+                    let p = src[clamp(x as isize + k as isize - radius, w)];
+                    acc[0] += kv * p[0];
+                    acc[1] += kv * p[1];
+                    acc[2] += kv * p[2];
+                }
+                *out = acc;
+            }
+        }
+        // Vertical pass: each output row accumulates whole source rows.
+        let mut out = vec![[0.0f32; 3]; w * h];
+        for (y, dst) in out.chunks_exact_mut(w).enumerate() {
+            let dst = dst.as_flattened_mut();
+            for (k, &kv) in kernel.iter().enumerate() {
+                let sy = clamp(y as isize + k as isize - radius, h);
+                let src = tmp[sy * w..(sy + 1) * w].as_flattened();
+                for (d, s) in dst.iter_mut().zip(src) {
+                    *d += kv * s;
+                }
+            }
+        }
+        RgbImage {
+            width: w,
+            height: h,
+            data: out,
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn ramp() -> RgbImage {
+        RgbImage::from_fn(8, 6, |x, y| [x as f32, y as f32, (x + 10 * y) as f32])
+    }
+
+    #[test]
+    fn bilinear_is_exact_on_pixel_centres_and_linear_between() {
+        let img = ramp();
+        assert_eq!(img.sample(3.0, 2.0), Some([3.0, 2.0, 23.0]));
+        let s = img.sample(2.25, 4.5).unwrap();
+        assert!(
+            (s[0] - 2.25).abs() < 1e-6 && (s[1] - 4.5).abs() < 1e-6 && (s[2] - 47.25).abs() < 1e-5
+        );
+        assert_eq!(img.sample(7.0, 5.0), Some([7.0, 5.0, 57.0]));
+        assert!(img.sample(-0.01, 0.0).is_none() && img.sample(0.0, 5.01).is_none());
+    }
+
+    #[test]
+    fn gradient_of_a_ramp_is_its_slope() {
+        let (gx, gy) = ramp().gradients();
+        assert_eq!(gx.get(3, 3), [1.0, 0.0, 1.0]);
+        assert_eq!(gy.get(3, 3), [0.0, 1.0, 10.0]);
+        assert_eq!(gx.get(0, 0), [1.0, 0.0, 1.0]);
+    }
+
+    #[test]
+    fn downsample_centres_follow_the_convention() {
+        // A linear ramp in u: averaging pixels 2i and 2i+1 gives the value at 2i + 0.5.
+        let small = ramp().downsample2();
+        assert_eq!((small.width(), small.height()), (4, 3));
+        assert_eq!(small.get(1, 1)[0], 2.5);
+        assert_eq!(small.get(1, 1)[1], 2.5);
+    }
+
+    #[test]
+    fn blur_preserves_constant_and_mean() {
+        let img = RgbImage::from_fn(9, 9, |_, _| [0.25, 0.5, 0.75]);
+        let b = img.blurred(1.5);
+        for p in b.pixels() {
+            assert!((p[0] - 0.25).abs() < 1e-6 && (p[2] - 0.75).abs() < 1e-6);
+        }
+    }
+
+    /// Checks a sampler's derivatives (entries 3..9) against central differences of its values.
+    fn assert_derivatives_match(
+        sample: impl Fn(f64, f64) -> Option<[f32; 9]>,
+        u: f64,
+        v: f64,
+        tol: f32,
+    ) {
+        let h = 1e-3;
+        let at = |u: f64, v: f64| sample(u, v).unwrap();
+        let s = at(u, v);
+        for k in 0..3 {
+            let gu = (at(u + h, v)[k] - at(u - h, v)[k]) / (2.0 * h as f32);
+            let gv = (at(u, v + h)[k] - at(u, v - h)[k]) / (2.0 * h as f32);
+            assert!(
+                (s[3 + k] - gu).abs() < tol,
+                "du {k} at ({u}, {v}): {} vs {gu}",
+                s[3 + k]
+            );
+            assert!(
+                (s[6 + k] - gv).abs() < tol,
+                "dv {k} at ({u}, {v}): {} vs {gv}",
+                s[6 + k]
+            );
+        }
+    }
+
+    #[test]
+    fn sample_exact_gives_the_bilinear_value_and_its_derivatives() {
+        let img = RgbImage::from_fn(8, 6, |x, y| {
+            [
+                (x * x) as f32 * 0.1,
+                (x * y) as f32,
+                ((x + 2 * y) % 5) as f32,
+            ]
+        });
+        for &(u, v) in &[(2.3, 1.6), (0.1, 4.7), (6.5, 0.2)] {
+            let (s, c) = (img.sample_exact(u, v).unwrap(), img.sample(u, v).unwrap());
+            assert!((0..3).all(|k| (s[k] - c[k]).abs() < 1e-6));
+            // Bilinear is linear in u (and in v) inside a cell: central differences are exact.
+            assert_derivatives_match(|u, v| img.sample_exact(u, v), u, v, 2e-3);
+        }
+        assert!(img.sample_exact(7.01, 1.0).is_none() && img.sample_exact(1.0, -0.01).is_none());
+    }
+
+    #[test]
+    fn sample_cubic_passes_through_the_pixels_and_reproduces_quadratics() {
+        // Quadratic in u and v per channel: Catmull–Rom is exact for it away from the border.
+        let q = |u: f64, v: f64| [0.01 * u * u, 0.02 * u * v, 0.5 + 0.1 * u - 0.03 * v * v];
+        let img = RgbImage::from_fn(12, 10, |x, y| q(x as f64, y as f64).map(|c| c as f32));
+        for &(u, v) in &[(3.0, 4.0), (4.25, 5.5), (7.9, 3.1), (5.5, 6.75)] {
+            let s = img.sample_cubic(u, v).unwrap();
+            let want = q(u, v);
+            let du = [0.02 * u, 0.02 * v, 0.1];
+            let dv = [0.0, 0.02 * u, -0.06 * v];
+            for k in 0..3 {
+                assert!(
+                    (s[k] as f64 - want[k]).abs() < 1e-5,
+                    "value {k} at ({u}, {v})"
+                );
+                assert!(
+                    (s[3 + k] as f64 - du[k]).abs() < 1e-5,
+                    "du {k} at ({u}, {v})"
+                );
+                assert!(
+                    (s[6 + k] as f64 - dv[k]).abs() < 1e-5,
+                    "dv {k} at ({u}, {v})"
+                );
+            }
+        }
+        // Any image: the interpolant passes through every pixel value, border pixels included.
+        let img = RgbImage::from_fn(7, 5, |x, y| {
+            [((x * 5 + y * 3) % 7) as f32, (x * y) as f32, 1.0]
+        });
+        for y in 0..5 {
+            for x in 0..7 {
+                let s = img.sample_cubic(x as f64, y as f64).unwrap();
+                assert_eq!([s[0], s[1], s[2]], img.get(x, y), "pixel ({x}, {y})");
+            }
+        }
+        assert!(img.sample_cubic(6.01, 1.0).is_none() && img.sample_cubic(1.0, -0.01).is_none());
+    }
+
+    #[test]
+    fn sample_cubic_derivatives_are_exact_and_continuous() {
+        let img = RgbImage::from_fn(9, 8, |x, y| {
+            [
+                ((x * 7 + y * 3) % 5) as f32,
+                ((x * x + y) % 4) as f32,
+                (y % 3) as f32,
+            ]
+        });
+        // Inside cells, at the border, and just either side of a pixel boundary (u = 4).
+        for &(u, v) in &[
+            (2.3, 1.6),
+            (0.2, 6.8),
+            (7.7, 3.4),
+            (4.0 - 1e-4, 2.5),
+            (4.0 + 1e-4, 2.5),
+        ] {
+            assert_derivatives_match(|u, v| img.sample_cubic(u, v), u, v, 1e-2);
+        }
+        let (a, b) = (
+            img.sample_cubic(4.0 - 1e-6, 2.5).unwrap(),
+            img.sample_cubic(4.0 + 1e-6, 2.5).unwrap(),
+        );
+        for k in 0..9 {
+            assert!(
+                (a[k] - b[k]).abs() < 1e-4,
+                "component {k} jumps at a pixel boundary"
+            );
+        }
+    }
+
+    #[test]
+    fn blur_of_an_impulse_is_the_separable_gaussian() {
+        let mut img = RgbImage::new(15, 11);
+        img.set(7, 5, [1.0, 2.0, 0.0]);
+        let b = img.blurred(1.0);
+        let g = |d: f64| (-d * d / 2.0).exp();
+        let norm: f64 = (-3..=3).map(|i| g(i as f64)).sum();
+        for y in 0..11 {
+            for x in 0..15 {
+                let (dx, dy) = (x as f64 - 7.0, y as f64 - 5.0);
+                let want = if dx.abs() <= 3.0 && dy.abs() <= 3.0 {
+                    g(dx) * g(dy) / (norm * norm)
+                } else {
+                    0.0
+                };
+                let p = b.get(x, y);
+                assert!((p[0] as f64 - want).abs() < 1e-7, "({x}, {y})");
+                assert!((p[1] as f64 - 2.0 * want).abs() < 2e-7 && p[2] == 0.0);
+            }
+        }
+    }
+}

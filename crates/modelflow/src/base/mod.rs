@@ -1,0 +1,14 @@
+//! Core values every stage shares: the camera model (`camera`), in-memory images and their
+//! samplers (`image`), triangle meshes and their topology (`mesh`), and z-buffered visibility of a
+//! mesh in a camera (`raster`, used by the tracker and the baseline alike, so both agree on what
+//! a camera sees). Nothing here reads or writes files or knows about tracking, footage or
+//! reports.
+
+pub(crate) mod camera;
+pub(crate) mod image;
+pub(crate) mod mesh;
+pub(crate) mod raster;
+
+pub use camera::{is_rotation, look_at, Camera, Projection, ProjectionError};
+pub use image::RgbImage;
+pub use mesh::{grid, Mesh};

@@ -1,0 +1,317 @@
+//! Scan-line rasterization of a mesh's projection into a z-buffered *index buffer*: for every
+//! pixel, the nearest triangle whose projection covers the pixel centre (the thesis' index patches,
+//! §6.2.3, with the z-buffer of §8.4.1 so that a pixel belongs to at most one triangle). Also
+//! decides which of those pixels are safe to use for tracking: not on a back-facing or grazing
+//! triangle, and not next to a silhouette or an occlusion boundary.
+//!
+//! Hand-written: it is part of the product (the tracker and the baseline's visibility test share
+//! it) and must follow the pixel-centre convention of `camera` exactly.
+
+use crate::base::camera::Projection;
+use nalgebra::Point3;
+
+/// Marks a pixel covered by no triangle.
+pub const NONE: u32 = u32::MAX;
+
+/// Per-pixel owner triangle and depth of one camera's view of a mesh.
+#[derive(Clone, Debug)]
+pub struct IndexBuffer {
+    pub width: usize,
+    pub height: usize,
+    /// Owner triangle per pixel (row-major), or [`NONE`].
+    pub owner: Vec<u32>,
+    /// Depth (camera z) per pixel; `f32::INFINITY` where no triangle.
+    pub depth: Vec<f32>,
+}
+
+#[cfg(test)]
+impl IndexBuffer {
+    pub fn owner_at(&self, x: usize, y: usize) -> u32 {
+        self.owner[y * self.width + x]
+    }
+}
+
+/// Screen-space data of one projected triangle.
+struct Projected {
+    p: [[f64; 2]; 3],
+    inv_z: [f64; 3],
+    area: f64,
+}
+
+fn project_triangle(
+    positions: &[Point3<f64>],
+    tri: &[u32; 3],
+    proj: &Projection,
+) -> Option<Projected> {
+    let mut p = [[0.0; 2]; 3];
+    let mut inv_z = [0.0; 3];
+    for k in 0..3 {
+        let h = proj.project_h(&positions[tri[k] as usize]);
+        // No near-plane clipping: a triangle reaching behind the camera is skipped.
+        if h.z.is_nan() || h.z <= 1e-9 {
+            return None;
+        }
+        p[k] = [h.x / h.z, h.y / h.z];
+        inv_z[k] = 1.0 / h.z;
+    }
+    let area =
+        (p[1][0] - p[0][0]) * (p[2][1] - p[0][1]) - (p[1][1] - p[0][1]) * (p[2][0] - p[0][0]);
+    (area.abs() > 1e-12 && area.is_finite()).then_some(Projected { p, inv_z, area })
+}
+
+/// Rasterizes every triangle (in index order; on equal depth the earlier triangle keeps the
+/// pixel, so the result is deterministic). A pixel `(x, y)` is covered when its centre lies inside
+/// or on the boundary of the projected triangle.
+pub fn rasterize(
+    positions: &[Point3<f64>],
+    triangles: &[[u32; 3]],
+    proj: &Projection,
+    width: usize,
+    height: usize,
+) -> IndexBuffer {
+    let mut ib = IndexBuffer {
+        width,
+        height,
+        owner: vec![NONE; width * height],
+        depth: vec![f32::INFINITY; width * height],
+    };
+    for (ti, tri) in triangles.iter().enumerate() {
+        let Some(t) = project_triangle(positions, tri, proj) else {
+            continue;
+        };
+        let ymin =
+            t.p.iter()
+                .map(|q| q[1])
+                .fold(f64::INFINITY, f64::min)
+                .ceil()
+                .max(0.0);
+        let ymax =
+            t.p.iter()
+                .map(|q| q[1])
+                .fold(f64::NEG_INFINITY, f64::max)
+                .floor()
+                .min(height as f64 - 1.0);
+        if ymin > ymax {
+            continue;
+        }
+        let s = t.area.signum();
+        for y in ymin as usize..=ymax as usize {
+            let yf = y as f64;
+            // Each edge function E(x) = A·x + B must be >= 0 (times the orientation sign).
+            let (mut xl, mut xr) = (0.0f64, width as f64 - 1.0);
+            let mut empty = false;
+            for k in 0..3 {
+                let [xi, yi] = t.p[k];
+                let [xj, yj] = t.p[(k + 1) % 3];
+                // E(x, y) = (xj - xi)(y - yi) - (yj - yi)(x - xi): positive inside for area > 0.
+                let a = -s * (yj - yi);
+                let b = s * ((xj - xi) * (yf - yi) + (yj - yi) * xi);
+                if a > 0.0 {
+                    xl = xl.max(-b / a);
+                } else if a < 0.0 {
+                    xr = xr.min(-b / a);
+                } else if b < 0.0 {
+                    empty = true;
+                }
+            }
+            if empty {
+                continue;
+            }
+            let (x0, x1) = (xl.ceil(), xr.floor());
+            if x0 > x1 {
+                continue;
+            }
+            for x in x0 as usize..=x1 as usize {
+                let b = screen_barycentric(&t.p, t.area, x as f64, yf);
+                let inv_z = b[0] * t.inv_z[0] + b[1] * t.inv_z[1] + b[2] * t.inv_z[2];
+                let z = (1.0 / inv_z) as f32;
+                let i = y * width + x;
+                if z < ib.depth[i] {
+                    ib.depth[i] = z;
+                    ib.owner[i] = ti as u32;
+                }
+            }
+        }
+    }
+    ib
+}
+
+#[inline]
+fn screen_barycentric(p: &[[f64; 2]; 3], area: f64, x: f64, y: f64) -> [f64; 3] {
+    let e = |a: [f64; 2], b: [f64; 2]| (b[0] - a[0]) * (y - a[1]) - (b[1] - a[1]) * (x - a[0]);
+    [
+        e(p[1], p[2]) / area,
+        e(p[2], p[0]) / area,
+        e(p[0], p[1]) / area,
+    ]
+}
+
+/// Which triangles may contribute pixels in one camera: front-facing enough to be trusted.
+///
+/// A triangle is *usable* when the cosine between its normal and the direction to the camera is
+/// at least `min_cos`. For a closed mesh, orientation matters (back faces are never used); an open
+/// sheet is two-sided, so only grazing triangles are dropped.
+pub fn usable_triangles(
+    positions: &[Point3<f64>],
+    triangles: &[[u32; 3]],
+    proj: &Projection,
+    two_sided: bool,
+    min_cos: f64,
+) -> Vec<bool> {
+    let c = proj.center();
+    triangles
+        .iter()
+        .map(|t| {
+            let [a, b, d] = t.map(|v| positions[v as usize]);
+            let n = (b - a).cross(&(d - a));
+            let centroid = Point3::from((a.coords + b.coords + d.coords) / 3.0);
+            let to_cam = c - centroid;
+            let denom = n.norm() * to_cam.norm();
+            if denom <= 0.0 {
+                return false;
+            }
+            let cos = n.dot(&to_cam) / denom;
+            if two_sided {
+                cos.abs() >= min_cos
+            } else {
+                cos >= min_cos
+            }
+        })
+        .collect()
+}
+
+/// Pixels that are safe to track: owned by a usable triangle, and every pixel within `margin`
+/// (Chebyshev distance) is owned by the same triangle or a mesh neighbour of it (one that shares a
+/// vertex). Pixels near the background, near an occluding fold or on a silhouette are dropped,
+/// because there the colour mixes two surfaces and the warp of one triangle does not hold.
+pub fn trackable_mask(
+    ib: &IndexBuffer,
+    triangles: &[[u32; 3]],
+    usable: &[bool],
+    margin: usize,
+) -> Vec<bool> {
+    let (w, h) = (ib.width, ib.height);
+    let mut mask = vec![false; w * h];
+    let m = margin as isize;
+    for y in 0..h {
+        for x in 0..w {
+            let t = ib.owner[y * w + x];
+            if t == NONE || !usable[t as usize] {
+                continue;
+            }
+            let tv = triangles[t as usize];
+            let mut ok = true;
+            'nb: for dy in -m..=m {
+                for dx in -m..=m {
+                    let (xx, yy) = (x as isize + dx, y as isize + dy);
+                    if xx < 0 || yy < 0 || xx >= w as isize || yy >= h as isize {
+                        ok = false;
+                        break 'nb;
+                    }
+                    let o = ib.owner[yy as usize * w + xx as usize];
+                    if o == t {
+                        continue;
+                    }
+                    if o == NONE || !triangles[o as usize].iter().any(|v| tv.contains(v)) {
+                        ok = false;
+                        break 'nb;
+                    }
+                }
+            }
+            mask[y * w + x] = ok;
+        }
+    }
+    mask
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use nalgebra::{Matrix3, Vector3};
+
+    fn camera() -> Projection {
+        let k = Matrix3::new(100.0, 0.0, 31.5, 0.0, 100.0, 23.5, 0.0, 0.0, 1.0);
+        Projection::from_krt(&k, &Matrix3::identity(), &Vector3::zeros()).unwrap()
+    }
+
+    #[test]
+    fn covers_exactly_the_pixel_centres_inside() {
+        // A right triangle with vertices on pixel centres (10,10), (20,10), (10,20) at depth 1.
+        let p = camera();
+        let to3 = |u: f64, v: f64| Point3::new((u - 31.5) / 100.0, (v - 23.5) / 100.0, 1.0);
+        let pos = vec![to3(10.0, 10.0), to3(20.0, 10.0), to3(10.0, 20.0)];
+        let ib = rasterize(&pos, &[[0, 1, 2]], &p, 64, 48);
+        let covered: usize = ib.owner.iter().filter(|&&o| o == 0).count();
+        // Pixel centres with x>=10, y>=10, (x-10)+(y-10) <= 10: 11+10+...+1 = 66.
+        assert_eq!(covered, 66);
+        assert_eq!(ib.owner_at(10, 10), 0);
+        assert_eq!(ib.owner_at(20, 10), 0);
+        assert_eq!(ib.owner_at(15, 15), 0);
+        assert_eq!(ib.owner_at(16, 15), NONE);
+        assert_eq!(ib.owner_at(9, 10), NONE);
+        assert!((ib.depth[15 * 64 + 12] - 1.0).abs() < 1e-6);
+    }
+
+    #[test]
+    fn nearest_triangle_wins_and_depth_is_perspective_correct() {
+        let p = camera();
+        let quad = |z: f64| {
+            vec![
+                Point3::new(-0.2 * z, -0.2 * z, z),
+                Point3::new(0.2 * z, -0.2 * z, z),
+                Point3::new(0.0, 0.2 * z, z),
+            ]
+        };
+        let mut pos = quad(3.0);
+        pos.extend(quad(2.0));
+        let ib = rasterize(&pos, &[[0, 1, 2], [3, 4, 5]], &p, 64, 48);
+        assert_eq!(
+            ib.owner_at(31, 24),
+            1,
+            "the nearer triangle (index 1) owns the centre"
+        );
+        // A slanted triangle: depth at a pixel equals the ray's intersection with the plane.
+        let pos = vec![
+            Point3::new(-1.0, -1.0, 2.0),
+            Point3::new(1.0, -1.0, 4.0),
+            Point3::new(0.0, 1.0, 3.0),
+        ];
+        let ib = rasterize(&pos, &[[0, 1, 2]], &p, 64, 48);
+        // Plane: z = 3 + x (through all three points). Ray through pixel (u,v): x = z(u-31.5)/100.
+        let (u, v) = (35usize, 20usize);
+        let rx = (u as f64 - 31.5) / 100.0;
+        let z = 3.0 / (1.0 - rx);
+        let _ = v;
+        assert!(
+            (ib.depth[v * 64 + u] as f64 - z).abs() < 1e-5,
+            "{} vs {z}",
+            ib.depth[v * 64 + u]
+        );
+    }
+
+    #[test]
+    fn silhouette_and_backfacing_pixels_are_not_trackable() {
+        let p = camera();
+        let to3 = |u: f64, v: f64| Point3::new((u - 31.5) / 100.0, (v - 23.5) / 100.0, 1.0);
+        // Counter-clockwise in the image with v down means the normal points away from the camera.
+        let pos = vec![to3(5.0, 5.0), to3(40.0, 5.0), to3(5.0, 40.0)];
+        let tris = [[0u32, 1, 2]];
+        let ib = rasterize(&pos, &tris, &p, 64, 48);
+        let facing = usable_triangles(&pos, &tris, &p, false, 0.1);
+        let flipped = usable_triangles(&pos, &[[0, 2, 1]], &p, false, 0.1);
+        assert_ne!(
+            facing[0], flipped[0],
+            "exactly one winding faces the camera"
+        );
+        let two_sided = usable_triangles(&pos, &tris, &p, true, 0.1);
+        assert!(two_sided[0]);
+        let mask = trackable_mask(&ib, &tris, &two_sided, 1);
+        assert!(mask[10 * 64 + 10], "interior pixel is trackable");
+        assert!(
+            !mask[5 * 64 + 20],
+            "pixel on the border next to the background is not"
+        );
+        let none = trackable_mask(&ib, &tris, &[false], 1);
+        assert!(none.iter().all(|&m| !m));
+    }
+}

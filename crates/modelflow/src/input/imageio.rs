@@ -1,0 +1,112 @@
+//! Reading and writing image files as [`RgbImage`]: PNG (8/16-bit, grey or colour, with or
+//! without alpha), JPEG, TIFF (8/16-bit) and OpenEXR in; PNG (8- or 16-bit) out. Integer samples
+//! are scaled to [0, 1] (8-bit by 1/255, 16-bit by 1/65535); float samples are kept as they are;
+//! alpha is dropped. Decoding is the `image` crate's; this module fixes the value convention and
+//! names the file in every error.
+
+use crate::base::image::RgbImage;
+use crate::error::{Error, Result};
+use crate::fsutil::write_atomic;
+use image::{DynamicImage, ImageReader};
+use std::path::Path;
+
+fn decode_error(path: &Path, e: image::ImageError) -> Error {
+    match e {
+        image::ImageError::IoError(e) => Error::io(path, e),
+        other => Error::invalid(path, "image", format!("cannot decode: {other}")),
+    }
+}
+
+fn open(path: &Path) -> Result<ImageReader<std::io::BufReader<std::fs::File>>> {
+    ImageReader::open(path)
+        .map_err(|e| Error::io(path, e))?
+        .with_guessed_format()
+        .map_err(|e| Error::io(path, e))
+}
+
+/// Reads an image file as RGB `f32` (see the module doc for the value convention).
+pub fn read_rgb(path: &Path) -> Result<RgbImage> {
+    let img = open(path)?.decode().map_err(|e| decode_error(path, e))?;
+    let (w, h) = (img.width() as usize, img.height() as usize);
+    if w == 0 || h == 0 {
+        return Err(Error::invalid(path, "size", "the image is empty"));
+    }
+    let grey = |v: f32| [v, v, v];
+    let data: Vec<[f32; 3]> = match &img {
+        DynamicImage::ImageLuma8(b) => b.pixels().map(|p| grey(p.0[0] as f32 / 255.0)).collect(),
+        DynamicImage::ImageLumaA8(b) => b.pixels().map(|p| grey(p.0[0] as f32 / 255.0)).collect(),
+        DynamicImage::ImageRgb8(b) => b.pixels().map(|p| p.0.map(|c| c as f32 / 255.0)).collect(),
+        DynamicImage::ImageRgba8(b) => b
+            .pixels()
+            .map(|p| [p.0[0], p.0[1], p.0[2]].map(|c| c as f32 / 255.0))
+            .collect(),
+        DynamicImage::ImageLuma16(b) => b.pixels().map(|p| grey(p.0[0] as f32 / 65535.0)).collect(),
+        DynamicImage::ImageLumaA16(b) => {
+            b.pixels().map(|p| grey(p.0[0] as f32 / 65535.0)).collect()
+        }
+        DynamicImage::ImageRgb16(b) => b
+            .pixels()
+            .map(|p| p.0.map(|c| c as f32 / 65535.0))
+            .collect(),
+        DynamicImage::ImageRgba16(b) => b
+            .pixels()
+            .map(|p| [p.0[0], p.0[1], p.0[2]].map(|c| c as f32 / 65535.0))
+            .collect(),
+        DynamicImage::ImageRgb32F(b) => b.pixels().map(|p| p.0).collect(),
+        DynamicImage::ImageRgba32F(b) => b.pixels().map(|p| [p.0[0], p.0[1], p.0[2]]).collect(),
+        // Any layout added to `image` later: its own conversion (same scaling).
+        other => other.to_rgb32f().pixels().map(|p| p.0).collect(),
+    };
+    RgbImage::from_pixels(w, h, data)
+        .ok_or_else(|| Error::invalid(path, "size", "decoded pixel count does not match its size"))
+}
+
+/// Width and height of an image file, from its header only (fast: no pixel is decoded).
+pub fn image_size(path: &Path) -> Result<(u32, u32)> {
+    open(path)?
+        .into_dimensions()
+        .map_err(|e| decode_error(path, e))
+}
+
+fn quantise<const MAX: u32>(v: f32) -> f32 {
+    let v = if v.is_nan() { 0.0 } else { v.clamp(0.0, 1.0) };
+    (v * MAX as f32).round()
+}
+
+/// Writes an 8-bit RGB PNG atomically; values are clamped to [0, 1] (NaN to 0) and rounded.
+pub fn write_png(path: &Path, img: &RgbImage) -> Result<()> {
+    let raw: Vec<u8> = img
+        .pixels()
+        .iter()
+        .flat_map(|p| p.map(|c| quantise::<255>(c) as u8))
+        .collect();
+    let buf = image::RgbImage::from_raw(img.width() as u32, img.height() as u32, raw)
+        .ok_or_else(|| Error::invalid(path, "size", "the image is too large to encode"))?;
+    encode_png(path, DynamicImage::ImageRgb8(buf))
+}
+
+/// Writes a 16-bit RGB PNG atomically; values are clamped to [0, 1] (NaN to 0) and rounded.
+pub fn write_png16(path: &Path, img: &RgbImage) -> Result<()> {
+    let raw: Vec<u16> = img
+        .pixels()
+        .iter()
+        .flat_map(|p| p.map(|c| quantise::<65535>(c) as u16))
+        .collect();
+    let buf = image::ImageBuffer::<image::Rgb<u16>, _>::from_raw(
+        img.width() as u32,
+        img.height() as u32,
+        raw,
+    )
+    .ok_or_else(|| Error::invalid(path, "size", "the image is too large to encode"))?;
+    encode_png(path, DynamicImage::ImageRgb16(buf))
+}
+
+fn encode_png(path: &Path, img: DynamicImage) -> Result<()> {
+    let mut bytes = Vec::new();
+    img.write_to(
+        &mut std::io::Cursor::new(&mut bytes),
+        image::ImageFormat::Png,
+    )
+    .map_err(|e| Error::invalid(path, "image", format!("cannot encode PNG: {e}")))?;
+    write_atomic(path, &bytes)
+}

@@ -1,0 +1,14 @@
+//! Everything that enters from disk: the scene format (`scene`), mesh files (`meshio`: OBJ, PLY)
+//! and image files (`imageio`: PNG, JPEG, TIFF, OpenEXR). Each reader validates what it reads and
+//! names the file and the field or line at fault. Nothing here tracks, renders or scores.
+
+pub(crate) mod imageio;
+pub(crate) mod meshio;
+pub(crate) mod scene;
+
+pub use imageio::{image_size, read_rgb, write_png, write_png16};
+pub use meshio::{parse_obj, parse_ply, read_mesh, read_mesh_with, validate, write_obj, Checks};
+pub use scene::{
+    visible_share, CameraEntry, FramePattern, FrameRange, PoseEntry, Scene, SceneFile, FORMAT,
+    MIN_VISIBLE_SHARE, ROTATION_TOLERANCE,
+};

@@ -1,0 +1,736 @@
+//! The scene format `modelflow-scene/1` (see `docs/scene-format.md`): reading and validating a
+//! scene file, resolving per-frame image and ground-truth paths, loading a frame's images, and
+//! writing a scene file (for synthetic footage).
+
+use crate::base::camera::{is_rotation, Camera, Projection, ProjectionError};
+use crate::base::image::RgbImage;
+use crate::base::mesh::Mesh;
+use crate::error::{Error, Result};
+use crate::fsutil::write_atomic;
+use crate::input::imageio::{image_size, read_rgb};
+use crate::input::meshio::read_mesh;
+use nalgebra::{Matrix3, Matrix3x4, Vector3};
+use rayon::prelude::*;
+use serde::{Deserialize, Serialize};
+use std::path::{Path, PathBuf};
+
+/// The format tag of this version of the scene format.
+pub const FORMAT: &str = "modelflow-scene/1";
+
+/// The scene file as it is on disk (serde mirror of the JSON). `Scene::load` turns it into a
+/// validated [`Scene`]; synthetic footage builds one and writes it.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SceneFile {
+    pub format: String,
+    pub frames: FrameRange,
+    pub mesh: String,
+    pub cameras: Vec<CameraEntry>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub ground_truth: Option<String>,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct FrameRange {
+    pub first: u32,
+    pub last: u32,
+}
+
+/// One camera entry: either `K` with `R`,`t` (static) or `poses` (moving), or `P` per frame.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct CameraEntry {
+    pub name: String,
+    pub width: u32,
+    pub height: u32,
+    #[serde(rename = "K", default, skip_serializing_if = "Option::is_none")]
+    pub k: Option<[[f64; 3]; 3]>,
+    #[serde(rename = "R", default, skip_serializing_if = "Option::is_none")]
+    pub r: Option<[[f64; 3]; 3]>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub t: Option<[f64; 3]>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub poses: Option<Vec<PoseEntry>>,
+    #[serde(rename = "P", default, skip_serializing_if = "Option::is_none")]
+    pub p: Option<Vec<[[f64; 4]; 3]>>,
+    pub images: String,
+}
+
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct PoseEntry {
+    pub frame: u32,
+    #[serde(rename = "R")]
+    pub r: [[f64; 3]; 3],
+    pub t: [f64; 3],
+}
+
+/// A path pattern in which `{frame}` or `{frame:0N}` stands for the frame number, resolved
+/// relative to the scene file's folder.
+#[derive(Clone, Debug, PartialEq)]
+pub struct FramePattern {
+    pub base: PathBuf,
+    pub pattern: String,
+}
+
+/// A loaded, validated scene.
+#[derive(Clone, Debug)]
+pub struct Scene {
+    /// The scene file it was read from.
+    pub path: PathBuf,
+    pub first: u32,
+    pub last: u32,
+    /// The mesh lined up with frame `first`.
+    pub mesh: Mesh,
+    pub cameras: Vec<Camera>,
+    /// Image pattern of each camera, in the order of `cameras`.
+    pub images: Vec<FramePattern>,
+    pub ground_truth: Option<FramePattern>,
+}
+
+impl Scene {
+    pub fn frames(&self) -> std::ops::RangeInclusive<u32> {
+        self.first..=self.last
+    }
+
+    pub fn dir(&self) -> &Path {
+        self.path.parent().unwrap_or(Path::new("."))
+    }
+}
+
+impl FramePattern {
+    /// A pattern relative to `base`; fails (with the reason) unless it holds at least one
+    /// `{frame}` or `{frame:0N}` placeholder and no other `{`/`}`.
+    pub fn new(base: impl Into<PathBuf>, pattern: impl Into<String>) -> Result<Self, String> {
+        let pattern = pattern.into();
+        let pieces = split_pattern(&pattern)?;
+        if !pieces.iter().any(|p| matches!(p, Piece::Frame(_))) {
+            return Err(format!(
+                "{pattern:?} has no {{frame}} or {{frame:0N}} placeholder"
+            ));
+        }
+        Ok(FramePattern {
+            base: base.into(),
+            pattern,
+        })
+    }
+
+    /// The file of `frame`: `{frame}` becomes the plain number, `{frame:0N}` the number
+    /// zero-padded to `N` digits; relative patterns are joined to `base`.
+    pub fn path(&self, frame: u32) -> PathBuf {
+        let mut s = String::with_capacity(self.pattern.len() + 8);
+        match split_pattern(&self.pattern) {
+            Ok(pieces) => {
+                for p in pieces {
+                    match p {
+                        Piece::Text(t) => s.push_str(t),
+                        Piece::Frame(w) => s.push_str(&format!("{frame:0w$}")),
+                    }
+                }
+            }
+            // Not a valid pattern (built by hand): used as it is.
+            Err(_) => s.push_str(&self.pattern),
+        }
+        self.base.join(s)
+    }
+}
+
+enum Piece<'a> {
+    Text(&'a str),
+    /// Zero-padding width (0 = plain).
+    Frame(usize),
+}
+
+fn split_pattern(p: &str) -> Result<Vec<Piece<'_>>, String> {
+    let mut out = Vec::new();
+    let mut rest = p;
+    while let Some(open) = rest.find(['{', '}']) {
+        if rest.as_bytes()[open] == b'}' {
+            return Err(format!("{p:?}: unmatched `}}`"));
+        }
+        if open > 0 {
+            out.push(Piece::Text(&rest[..open]));
+        }
+        let close = rest[open..]
+            .find('}')
+            .ok_or_else(|| format!("{p:?}: unclosed `{{`"))?
+            + open;
+        let inner = &rest[open + 1..close];
+        let width = if inner == "frame" {
+            0
+        } else if let Some(w) = inner.strip_prefix("frame:0") {
+            w.parse::<usize>()
+                .ok()
+                .filter(|&w| (1..=32).contains(&w))
+                .ok_or_else(|| {
+                    format!("{p:?}: bad placeholder {{{inner}}} (expected {{frame}} or {{frame:0N}}, N from 1 to 32)")
+                })?
+        } else {
+            return Err(format!(
+                "{p:?}: unknown placeholder {{{inner}}} (expected {{frame}} or {{frame:0N}})"
+            ));
+        };
+        out.push(Piece::Frame(width));
+        rest = &rest[close + 1..];
+    }
+    if !rest.is_empty() {
+        out.push(Piece::Text(rest));
+    }
+    Ok(out)
+}
+
+/// Tolerance on `RᵀR = I` and `det R = 1` (Blender and other tools write float32 rotations).
+pub const ROTATION_TOLERANCE: f64 = 1e-4;
+
+/// Share of the mesh's vertices a camera must see (inside its image, in front of it) at the
+/// first frame to count as seeing the mesh; the scene needs two such cameras.
+pub const MIN_VISIBLE_SHARE: f64 = 0.25;
+
+impl SceneFile {
+    /// Writes the scene file as pretty-printed JSON, atomically. Refuses non-finite numbers
+    /// (JSON cannot hold them; serde would write `null`).
+    pub fn write(&self, path: &Path) -> Result<()> {
+        for (i, c) in self.cameras.iter().enumerate() {
+            let finite = |v: &[f64]| v.iter().all(|x| x.is_finite());
+            let bad = [
+                ("K", c.k.is_some_and(|k| !finite(k.as_flattened()))),
+                ("R", c.r.is_some_and(|r| !finite(r.as_flattened()))),
+                ("t", c.t.is_some_and(|t| !finite(&t))),
+                (
+                    "poses",
+                    c.poses.as_ref().is_some_and(|ps| {
+                        ps.iter()
+                            .any(|p| !finite(p.r.as_flattened()) || !finite(&p.t))
+                    }),
+                ),
+                (
+                    "P",
+                    c.p.as_ref()
+                        .is_some_and(|ps| ps.iter().any(|p| !finite(p.as_flattened()))),
+                ),
+            ];
+            if let Some((field, _)) = bad.iter().find(|(_, b)| *b) {
+                return Err(Error::invalid(
+                    path,
+                    format!("cameras[{i}].{field}"),
+                    "cannot be written: it has a non-finite number",
+                ));
+            }
+        }
+        let mut text = serde_json::to_string_pretty(self)
+            .map_err(|e| Error::invalid(path, "scene", format!("cannot be serialised: {e}")))?;
+        text.push('\n');
+        write_atomic(path, text.as_bytes())
+    }
+
+    /// Parses scene JSON, naming the line and column of a syntax error and the field of a
+    /// structural one (`cameras[1]`, `frames`, ...).
+    pub fn parse(path: &Path, text: &str) -> Result<SceneFile> {
+        let value: serde_json::Value = serde_json::from_str(text).map_err(|e| {
+            let at = format!("line {} column {}", e.line(), e.column());
+            let what = e.to_string().replace(&format!(" at {at}"), "");
+            let hint = if what.starts_with("number out of range") {
+                " (numbers must be finite)"
+            } else {
+                ""
+            };
+            Error::invalid(path, at, format!("invalid JSON: {what}{hint}"))
+        })?;
+        let obj = value
+            .as_object()
+            .ok_or_else(|| Error::invalid(path, "(top level)", "expected a JSON object"))?;
+        match obj.get("format") {
+            Some(serde_json::Value::String(f)) if f == FORMAT => {}
+            Some(other) => {
+                return Err(Error::invalid(
+                    path,
+                    "format",
+                    format!("expected \"{FORMAT}\", found {other}"),
+                ))
+            }
+            None => {
+                return Err(Error::invalid(
+                    path,
+                    "format",
+                    format!("missing (expected \"{FORMAT}\")"),
+                ))
+            }
+        }
+        let structural = |field: String, e: serde_json::Error| {
+            Error::invalid(
+                path,
+                field,
+                e.to_string().replace(" at line 0 column 0", ""),
+            )
+        };
+        if let Some(f) = obj.get("frames") {
+            serde_json::from_value::<FrameRange>(f.clone())
+                .map_err(|e| structural("frames".into(), e))?;
+        }
+        if let Some(serde_json::Value::Array(cams)) = obj.get("cameras") {
+            for (i, c) in cams.iter().enumerate() {
+                if let Some(serde_json::Value::Array(poses)) = c.get("poses") {
+                    for (j, p) in poses.iter().enumerate() {
+                        serde_json::from_value::<PoseEntry>(p.clone())
+                            .map_err(|e| structural(format!("cameras[{i}].poses[{j}]"), e))?;
+                    }
+                }
+                serde_json::from_value::<CameraEntry>(c.clone())
+                    .map_err(|e| structural(format!("cameras[{i}]"), e))?;
+            }
+        }
+        serde_json::from_value::<SceneFile>(value).map_err(|e| structural("(top level)".into(), e))
+    }
+}
+
+fn mat3(m: &[[f64; 3]; 3]) -> Matrix3<f64> {
+    Matrix3::from_fn(|i, j| m[i][j])
+}
+
+fn check_k(path: &Path, field: &str, k: &[[f64; 3]; 3]) -> Result<Matrix3<f64>> {
+    let bad = |msg: String| Error::invalid(path, field, msg);
+    if !k.iter().flatten().all(|v| v.is_finite()) {
+        return Err(bad(format!("has a non-finite entry: {k:?}")));
+    }
+    if k[2] != [0.0, 0.0, 1.0] {
+        return Err(bad(format!("last row must be [0, 0, 1], found {:?}", k[2])));
+    }
+    if k[1][0] != 0.0 {
+        return Err(bad(format!(
+            "must be upper-triangular: K[1][0] is {}, expected 0",
+            k[1][0]
+        )));
+    }
+    if k[0][0] <= 0.0 || k[1][1] <= 0.0 {
+        return Err(bad(format!(
+            "is singular or mirrored: focal lengths fx = {}, fy = {} must be positive",
+            k[0][0], k[1][1]
+        )));
+    }
+    Ok(mat3(k))
+}
+
+fn check_r(path: &Path, field: &str, r: &[[f64; 3]; 3]) -> Result<Matrix3<f64>> {
+    let m = mat3(r);
+    if !r.iter().flatten().all(|v| v.is_finite()) {
+        return Err(Error::invalid(
+            path,
+            field,
+            format!("has a non-finite entry: {r:?}"),
+        ));
+    }
+    if !is_rotation(&m, ROTATION_TOLERANCE) {
+        let dev = (m.transpose() * m - Matrix3::identity()).abs().max();
+        return Err(Error::invalid(
+            path,
+            field,
+            format!(
+                "not a rotation matrix (R^T R differs from I by {dev:.3e}, det R = {:.6}; tolerance {ROTATION_TOLERANCE:e})",
+                m.determinant()
+            ),
+        ));
+    }
+    Ok(m)
+}
+
+fn check_t(path: &Path, field: &str, t: &[f64; 3]) -> Result<Vector3<f64>> {
+    if !t.iter().all(|v| v.is_finite()) {
+        return Err(Error::invalid(
+            path,
+            field,
+            format!("has a non-finite entry: {t:?}"),
+        ));
+    }
+    Ok(Vector3::from(*t))
+}
+
+fn projection(
+    path: &Path,
+    field: &str,
+    r: std::result::Result<Projection, ProjectionError>,
+) -> Result<Projection> {
+    r.map_err(|e| Error::invalid(path, field, format!("the projection {e}")))
+}
+
+/// Turns one camera entry into a [`Camera`], validating it.
+fn build_camera(path: &Path, i: usize, c: &CameraEntry, first: u32, last: u32) -> Result<Camera> {
+    let f = |name: &str| format!("cameras[{i}].{name}");
+    let nframes = (last - first) as usize + 1;
+    if c.name.trim().is_empty() {
+        return Err(Error::invalid(path, f("name"), "must not be empty"));
+    }
+    if c.width == 0 || c.height == 0 {
+        return Err(Error::invalid(
+            path,
+            f(if c.width == 0 { "width" } else { "height" }),
+            format!("image size {}x{} must be positive", c.width, c.height),
+        ));
+    }
+    if let Some(ps) = &c.p {
+        if c.k.is_some() || c.r.is_some() || c.t.is_some() || c.poses.is_some() {
+            return Err(Error::invalid(
+                path,
+                f("P"),
+                "give exactly one of K+R+t, K+poses or P (found P together with K, R, t or poses)",
+            ));
+        }
+        if ps.len() != nframes {
+            return Err(Error::invalid(
+                path,
+                f("P"),
+                format!(
+                    "needs exactly one matrix per frame: {nframes} for frames {first}..={last}, found {}",
+                    ps.len()
+                ),
+            ));
+        }
+        let mut poses = ps
+            .iter()
+            .enumerate()
+            .map(|(j, m)| {
+                let m = Matrix3x4::from_fn(|a, b| m[a][b]);
+                projection(
+                    path,
+                    &format!("cameras[{i}].P[{j}] (frame {})", first + j as u32),
+                    Projection::from_matrix(&m),
+                )
+            })
+            .collect::<Result<Vec<_>>>()?;
+        return Ok(if poses.len() == 1 {
+            Camera::fixed(&c.name, c.width, c.height, poses.remove(0))
+        } else {
+            Camera::moving(&c.name, c.width, c.height, first, poses)
+        });
+    }
+    let k = c.k.as_ref().ok_or_else(|| {
+        Error::invalid(
+            path,
+            f("K"),
+            "missing: give exactly one of K+R+t, K+poses or P",
+        )
+    })?;
+    let k = check_k(path, &f("K"), k)?;
+    match (&c.poses, &c.r, &c.t) {
+        (Some(_), Some(_), _) | (Some(_), _, Some(_)) => Err(Error::invalid(
+            path,
+            f("poses"),
+            "give either poses or R and t, not both",
+        )),
+        (Some(poses), None, None) => {
+            // Keyed by frame: memory bounded by the file, not by the (user-given) frame range.
+            let mut by_frame: std::collections::BTreeMap<u32, Projection> = Default::default();
+            for (j, pe) in poses.iter().enumerate() {
+                let pf = format!("cameras[{i}].poses[{j}]");
+                if pe.frame < first || pe.frame > last {
+                    return Err(Error::invalid(
+                        path,
+                        format!("{pf}.frame"),
+                        format!(
+                            "frame {} outside the scene's frames {first}..={last}",
+                            pe.frame
+                        ),
+                    ));
+                }
+                let r = check_r(path, &format!("{pf}.R"), &pe.r)?;
+                let t = check_t(path, &format!("{pf}.t"), &pe.t)?;
+                let proj = projection(path, &pf, Projection::from_krt(&k, &r, &t))?;
+                if by_frame.insert(pe.frame, proj).is_some() {
+                    return Err(Error::invalid(
+                        path,
+                        format!("{pf}.frame"),
+                        format!("frame {} has more than one pose", pe.frame),
+                    ));
+                }
+            }
+            if by_frame.len() != nframes {
+                let missing: Vec<u32> = (first..=last)
+                    .filter(|f| !by_frame.contains_key(f))
+                    .take(11)
+                    .collect();
+                return Err(Error::invalid(
+                    path,
+                    f("poses"),
+                    format!(
+                        "no pose for frame(s) {} ({} poses for {nframes} frames)",
+                        list_frames(&missing),
+                        by_frame.len()
+                    ),
+                ));
+            }
+            let slot = by_frame.into_values();
+            let poses: Vec<Projection> = slot.collect();
+            Ok(Camera::moving(&c.name, c.width, c.height, first, poses))
+        }
+        (None, Some(r), Some(t)) => {
+            let r = check_r(path, &f("R"), r)?;
+            let t = check_t(path, &f("t"), t)?;
+            let p = projection(path, &f("K"), Projection::from_krt(&k, &r, &t))?;
+            Ok(Camera::fixed(&c.name, c.width, c.height, p))
+        }
+        (None, None, _) => Err(Error::invalid(
+            path,
+            f("R"),
+            "missing: a camera with K needs R and t, or poses",
+        )),
+        (None, Some(_), None) => Err(Error::invalid(
+            path,
+            f("t"),
+            "missing: a camera with K and R needs t",
+        )),
+    }
+}
+
+fn list_frames(frames: &[u32]) -> String {
+    let shown: Vec<String> = frames.iter().take(10).map(|f| f.to_string()).collect();
+    if frames.len() > 10 {
+        format!("{}, ...", shown.join(", "))
+    } else {
+        shown.join(", ")
+    }
+}
+
+/// Share of `mesh`'s vertices that project inside `cam`'s image, in front of it, at `frame`.
+pub fn visible_share(cam: &Camera, frame: u32, mesh: &Mesh) -> f64 {
+    if mesh.positions.is_empty() {
+        return 0.0;
+    }
+    let p = cam.at(frame);
+    let seen = mesh
+        .positions
+        .iter()
+        .filter(|x| p.project(x).is_some_and(|q| cam.contains(&q)))
+        .count();
+    seen as f64 / mesh.positions.len() as f64
+}
+
+impl Scene {
+    /// Reads and validates a scene file: everything a run will need is checked here, so that a
+    /// run cannot fail half-way on bad input. Errors name the file and the field at fault.
+    pub fn load(path: &Path) -> Result<Scene> {
+        let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
+        let file = SceneFile::parse(path, &text)?;
+        Scene::from_file(path, &file)
+    }
+
+    /// Validates a scene file already in memory as if it had been read from `path` (relative
+    /// paths are resolved against `path`'s folder; errors name `path`).
+    pub fn from_file(path: &Path, file: &SceneFile) -> Result<Scene> {
+        if file.format != FORMAT {
+            return Err(Error::invalid(
+                path,
+                "format",
+                format!("expected \"{FORMAT}\", found {:?}", file.format),
+            ));
+        }
+        let base = path.parent().unwrap_or(Path::new("")).to_path_buf();
+        let (first, last) = (file.frames.first, file.frames.last);
+        if first > last {
+            return Err(Error::invalid(
+                path,
+                "frames",
+                format!("first ({first}) is after last ({last})"),
+            ));
+        }
+        // Mesh.
+        let mesh_path = base.join(&file.mesh);
+        if !mesh_path.is_file() {
+            return Err(Error::invalid(
+                path,
+                "mesh",
+                format!("file not found: {}", mesh_path.display()),
+            ));
+        }
+        let mesh = read_mesh(&mesh_path)?;
+        // Cameras.
+        if file.cameras.is_empty() {
+            return Err(Error::invalid(path, "cameras", "no camera"));
+        }
+        let mut cameras = Vec::with_capacity(file.cameras.len());
+        let mut images = Vec::with_capacity(file.cameras.len());
+        for (i, c) in file.cameras.iter().enumerate() {
+            if let Some(j) = file.cameras[..i].iter().position(|o| o.name == c.name) {
+                return Err(Error::invalid(
+                    path,
+                    format!("cameras[{i}].name"),
+                    format!(
+                        "{:?} is also the name of cameras[{j}]; names must be unique",
+                        c.name
+                    ),
+                ));
+            }
+            cameras.push(build_camera(path, i, c, first, last)?);
+            images.push(
+                FramePattern::new(&base, &c.images)
+                    .map_err(|m| Error::invalid(path, format!("cameras[{i}].images"), m))?,
+            );
+        }
+        let ground_truth = match &file.ground_truth {
+            Some(g) => Some(
+                FramePattern::new(&base, g).map_err(|m| Error::invalid(path, "ground_truth", m))?,
+            ),
+            None => None,
+        };
+        // Every image present and of the declared size (headers only, in parallel). Checked in
+        // blocks of 64 frames, so that memory does not grow with the frame range; the problem
+        // reported is the first in (block, camera, frame) order, whatever the thread count.
+        let check = |i: usize, f: u32| -> Result<()> {
+            let p = images[i].path(f);
+            let field = format!("cameras[{i}].images");
+            if !p.is_file() {
+                return Err(Error::invalid(
+                    path,
+                    field,
+                    format!("frame {f}: image not found: {}", p.display()),
+                ));
+            }
+            let (w, h) = image_size(&p)?;
+            let cam = &cameras[i];
+            if (w, h) != (cam.width, cam.height) {
+                return Err(Error::invalid(
+                    path,
+                    field,
+                    format!(
+                        "frame {f}: {} is {w}x{h}, but the camera is declared {}x{}",
+                        p.display(),
+                        cam.width,
+                        cam.height
+                    ),
+                ));
+            }
+            Ok(())
+        };
+        const BLOCK: u32 = 64;
+        let mut start = first;
+        loop {
+            let end = start.saturating_add(BLOCK - 1).min(last);
+            let jobs: Vec<(usize, u32)> = (0..cameras.len())
+                .flat_map(|i| (start..=end).map(move |f| (i, f)))
+                .collect();
+            if let Some(Err(e)) = jobs
+                .par_iter()
+                .map(|&(i, f)| check(i, f))
+                .find_first(|r| r.is_err())
+            {
+                return Err(e);
+            }
+            if end == last {
+                break;
+            }
+            start = end + 1;
+        }
+        if let Some(g) = &ground_truth {
+            if let Some(f) = (first..=last).find(|&f| !g.path(f).is_file()) {
+                return Err(Error::invalid(
+                    path,
+                    "ground_truth",
+                    format!("frame {f}: file not found: {}", g.path(f).display()),
+                ));
+            }
+        }
+        // The mesh must be seen by at least two cameras at the first frame.
+        let shares: Vec<f64> = cameras
+            .iter()
+            .map(|c| visible_share(c, first, &mesh))
+            .collect();
+        if shares.iter().filter(|&&s| s >= MIN_VISIBLE_SHARE).count() < 2 {
+            let detail: Vec<String> = cameras
+                .iter()
+                .zip(&shares)
+                .map(|(c, s)| format!("{} sees {:.0}%", c.name, 100.0 * s))
+                .collect();
+            return Err(Error::invalid(
+                path,
+                "cameras",
+                format!(
+                    "the mesh is seen by fewer than two cameras at frame {first} (a camera sees it when at least {:.0}% of its vertices project inside the image, in front of the camera): {}",
+                    100.0 * MIN_VISIBLE_SHARE,
+                    detail.join(", ")
+                ),
+            ));
+        }
+        Ok(Scene {
+            path: path.to_path_buf(),
+            first,
+            last,
+            mesh,
+            cameras,
+            images,
+            ground_truth,
+        })
+    }
+
+    fn check_frame(&self, frame: u32) -> Result<()> {
+        if frame < self.first || frame > self.last {
+            return Err(Error::option(
+                "frame",
+                frame,
+                format!(
+                    "a frame of {} ({}..={})",
+                    self.path.display(),
+                    self.first,
+                    self.last
+                ),
+            ));
+        }
+        Ok(())
+    }
+
+    /// The images of `frame`, one per camera in the order of `cameras` (read in parallel),
+    /// each checked to have its camera's size.
+    pub fn load_images(&self, frame: u32) -> Result<Vec<RgbImage>> {
+        self.check_frame(frame)?;
+        self.cameras
+            .par_iter()
+            .zip(self.images.par_iter())
+            .map(|(cam, pat)| {
+                let p = pat.path(frame);
+                let img = read_rgb(&p)?;
+                if (img.width(), img.height()) != (cam.width as usize, cam.height as usize) {
+                    return Err(Error::invalid(
+                        &p,
+                        "size",
+                        format!(
+                            "{}x{}, but camera {} is declared {}x{}",
+                            img.width(),
+                            img.height(),
+                            cam.name,
+                            cam.width,
+                            cam.height
+                        ),
+                    ));
+                }
+                Ok(img)
+            })
+            .collect()
+    }
+
+    /// The ground-truth mesh of `frame`, if the scene has ground truth; it must have the scene
+    /// mesh's vertex count and triangles.
+    pub fn ground_truth(&self, frame: u32) -> Option<Result<Mesh>> {
+        let g = self.ground_truth.as_ref()?;
+        Some(self.check_frame(frame).and_then(|()| {
+            let p = g.path(frame);
+            let m = read_mesh(&p)?;
+            if m.positions.len() != self.mesh.positions.len() {
+                return Err(Error::invalid(
+                    &p,
+                    "vertices",
+                    format!(
+                        "{} vertices, but the scene mesh has {}",
+                        m.positions.len(),
+                        self.mesh.positions.len()
+                    ),
+                ));
+            }
+            if m.triangles != self.mesh.triangles {
+                return Err(Error::invalid(
+                    &p,
+                    "faces",
+                    "the triangles differ from the scene mesh's (ground truth must share its topology)",
+                ));
+            }
+            Ok(m)
+        }))
+    }
+}

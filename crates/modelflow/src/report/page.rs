@@ -1,0 +1,628 @@
+//! The report a tracking artist shows their supervisor (thesis Fig. 7.3–7.6, 7.12–7.14): for a
+//! scene and some runs, a folder with a per-frame error plot (PNG + SVG) — or, without ground
+//! truth, a per-frame photometric cost plot — wireframe overlays of every run on the input images,
+//! oblique views where depth errors show, meshes coloured by per-vertex error, and a
+//! self-contained `index.html` tying them together with a summary table.
+//!
+//! Every file is written atomically (`fsutil`); the pictures come from `plot`, `overlay` and
+//! `render`, the errors from `eval`, the photometric cost from `report::photometric`.
+
+use super::{html, photometric};
+
+use crate::base::camera::Projection;
+use crate::base::image::RgbImage;
+use crate::base::mesh::Mesh;
+use crate::error::{Error, Result};
+use crate::fsutil;
+use crate::input::imageio;
+use crate::input::scene::Scene;
+use crate::report::colormap;
+use crate::report::draw::{self, Rgb};
+use crate::report::eval::{self, EvalReport};
+use crate::report::overlay::{self, WireStyle};
+use crate::report::plot::{LinePlot, Series};
+use crate::synth::render::{self, RenderOptions, Surface};
+use nalgebra::Point3;
+use rayon::prelude::*;
+use std::path::{Path, PathBuf};
+
+/// What the report shows.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ReportOptions {
+    /// Frames to draw overlays, oblique views and error maps for; `None`: first, middle, last.
+    pub frames: Option<Vec<u32>>,
+    /// How far the oblique camera is turned about the vertical axis through the mesh centroid.
+    pub oblique_degrees: f64,
+    /// Camera images narrower than this are magnified (by a whole factor) for the panels.
+    pub min_panel_width: usize,
+}
+
+impl Default for ReportOptions {
+    fn default() -> Self {
+        ReportOptions {
+            frames: None,
+            oblique_degrees: 60.0,
+            min_panel_width: 480,
+        }
+    }
+}
+
+/// The figures of one run.
+#[derive(Clone, Debug, PartialEq)]
+pub struct RunSummary {
+    pub name: String,
+    pub dir: PathBuf,
+    /// Error against ground truth (when the scene has it).
+    pub error: Option<EvalReport>,
+    /// Photometric cost per scene frame (when the scene has no ground truth).
+    pub photometric: Option<Vec<Option<f64>>>,
+    /// Median wall time per solved frame from the run's log, image reading included (`None`
+    /// without a log or lines).
+    pub seconds_per_frame: Option<f64>,
+}
+
+/// What [`write_report`] wrote.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ReportSummary {
+    /// `index.html`.
+    pub index: PathBuf,
+    /// Every other file written, in the report folder.
+    pub files: Vec<PathBuf>,
+    pub runs: Vec<RunSummary>,
+    /// The frames the pictures were drawn for.
+    pub frames: Vec<u32>,
+}
+
+/// One run as loaded: its mesh per scene frame.
+struct Run {
+    name: String,
+    dir: PathBuf,
+    /// `(frame, mesh)` for every scene frame, in order.
+    meshes: Vec<(u32, Mesh)>,
+}
+
+impl Run {
+    fn at(&self, scene: &Scene, frame: u32) -> &Mesh {
+        &self.meshes[(frame - scene.first) as usize].1
+    }
+}
+
+/// Writes the report for `runs` (name, run folder) on `scene` into `out_dir`, `index.html` first
+/// among equals. Each run folder holds one OBJ per scene frame and, optionally, `log.jsonl`.
+pub fn write_report(
+    scene: &Scene,
+    runs: &[(String, PathBuf)],
+    opts: &ReportOptions,
+    out_dir: &Path,
+) -> Result<ReportSummary> {
+    if runs.is_empty() {
+        return Err(Error::option("runs", "none", "at least one run"));
+    }
+    for (i, (name, _)) in runs.iter().enumerate() {
+        if name.trim().is_empty() {
+            return Err(Error::option(
+                format!("name of run {}", i + 1),
+                "\"\"",
+                "a name that is not empty",
+            ));
+        }
+        if runs[..i].iter().any(|(n, _)| n == name) {
+            return Err(Error::option(
+                "two runs are named",
+                format!("{name:?}"),
+                "one name per run",
+            ));
+        }
+    }
+    let frames = chosen_frames(scene, opts.frames.as_deref())?;
+    let loaded: Vec<Run> = runs
+        .iter()
+        .map(|(name, dir)| load_run(scene, name, dir))
+        .collect::<Result<_>>()?;
+    let seconds: Vec<Option<f64>> = runs
+        .iter()
+        .map(|(_, dir)| seconds_per_frame(dir))
+        .collect::<Result<_>>()?;
+
+    let has_truth = scene.ground_truth.is_some();
+    let mut files = Vec::new();
+    let mut summaries = Vec::new();
+    let plot;
+    if has_truth {
+        let reports: Vec<EvalReport> = loaded
+            .iter()
+            .map(|r| eval::evaluate(scene, &r.meshes).map_err(|e| context(&r.name, &r.dir, e)))
+            .collect::<Result<_>>()?;
+        plot = LinePlot {
+            title: "RMS vertex error against ground truth".into(),
+            x_label: "frame".into(),
+            y_label: "RMS vertex error (% of bbox diagonal)".into(),
+            series: reports
+                .iter()
+                .zip(&loaded)
+                .enumerate()
+                .map(|(i, (rep, r))| Series {
+                    name: r.name.clone(),
+                    colour: colormap::run_colour(i),
+                    points: rep
+                        .per_frame
+                        .iter()
+                        .map(|e| [e.frame as f64, e.rms_pct])
+                        .collect(),
+                })
+                .collect(),
+            width: 960,
+            height: 480,
+        };
+        for ((r, rep), s) in loaded.iter().zip(reports).zip(&seconds) {
+            summaries.push(RunSummary {
+                name: r.name.clone(),
+                dir: r.dir.clone(),
+                error: Some(rep),
+                photometric: None,
+                seconds_per_frame: *s,
+            });
+        }
+    } else {
+        let meshes: Vec<Vec<&Mesh>> = loaded
+            .iter()
+            .map(|r| r.meshes.iter().map(|(_, m)| m).collect())
+            .collect();
+        let costs = photometric::cost_per_frame(scene, &meshes)?;
+        plot = LinePlot {
+            title: "Photometric cost (no ground truth)".into(),
+            x_label: "frame".into(),
+            y_label: format!(
+                "mean squared RGB difference to frame {} (×10⁻³, RGB in 0–1)",
+                scene.first
+            ),
+            series: costs
+                .iter()
+                .zip(&loaded)
+                .enumerate()
+                .map(|(i, (c, r))| Series {
+                    name: r.name.clone(),
+                    colour: colormap::run_colour(i),
+                    points: scene
+                        .frames()
+                        .zip(c)
+                        .map(|(f, v)| [f as f64, v.map_or(f64::NAN, |v| 1e3 * v)])
+                        .collect(),
+                })
+                .collect(),
+            width: 960,
+            height: 480,
+        };
+        for ((r, c), s) in loaded.iter().zip(costs).zip(&seconds) {
+            summaries.push(RunSummary {
+                name: r.name.clone(),
+                dir: r.dir.clone(),
+                error: None,
+                photometric: Some(c),
+                seconds_per_frame: *s,
+            });
+        }
+    }
+    let plot_stem = if has_truth { "error" } else { "photometric" };
+    let plot_png = out_dir.join(format!("{plot_stem}.png"));
+    let plot_svg = out_dir.join(format!("{plot_stem}.svg"));
+    imageio::write_png(&plot_png, &plot.render())?;
+    fsutil::write_atomic(&plot_svg, plot.to_svg().as_bytes())?;
+    files.push(plot_png.clone());
+    files.push(plot_svg.clone());
+
+    let truth: Option<Vec<(u32, Mesh)>> = if has_truth {
+        Some(
+            frames
+                .iter()
+                .map(|&f| Ok((f, scene.ground_truth(f).expect("scene has ground truth")?)))
+                .collect::<Result<_>>()?,
+        )
+    } else {
+        None
+    };
+    let truth_at = |f: u32| {
+        truth
+            .as_ref()
+            .and_then(|t| t.iter().find(|(g, _)| *g == f).map(|(_, m)| m))
+    };
+
+    let mut figures = html::Figures::default();
+    for &f in &frames {
+        let images = scene.load_images(f)?;
+        for (c, (cam, img)) in scene.cameras.iter().zip(&images).enumerate() {
+            let sheet = overlay_sheet(scene, &loaded, f, c, img, opts)?;
+            let name = format!("overlay_f{f:04}_c{c}_{}.png", file_safe(&cam.name));
+            let path = out_dir.join(&name);
+            imageio::write_png(&path, &sheet)?;
+            files.push(path);
+            figures
+                .overlays
+                .push((format!("{} — frame {f}", cam.name), name));
+        }
+        let sheet = oblique_sheet(scene, &loaded, truth_at(f), f, opts)?;
+        let name = format!("oblique_f{f:04}.png");
+        let path = out_dir.join(&name);
+        imageio::write_png(&path, &sheet)?;
+        files.push(path);
+        figures.obliques.push((format!("frame {f}"), name));
+    }
+    if let Some(truth) = &truth {
+        let max = error_scale(scene, &loaded, truth);
+        for (f, gt) in truth {
+            let sheet = error_sheet(scene, &loaded, gt, *f, max, opts)?;
+            let name = format!("errormap_f{f:04}.png");
+            let path = out_dir.join(&name);
+            imageio::write_png(&path, &sheet)?;
+            files.push(path);
+            figures.error_maps.push((format!("frame {f}"), name));
+        }
+    }
+    let index = out_dir.join("index.html");
+    let page = html::page(scene, &summaries, &frames, plot_stem, &figures, opts);
+    fsutil::write_atomic(&index, page.as_bytes())?;
+    Ok(ReportSummary {
+        index,
+        files,
+        runs: summaries,
+        frames,
+    })
+}
+
+fn context(name: &str, dir: &Path, e: Error) -> Error {
+    Error::InRun {
+        name: name.to_string(),
+        dir: dir.to_path_buf(),
+        source: Box::new(e),
+    }
+}
+
+/// The frames to draw: the given ones (each in the scene), or first, middle and last.
+fn chosen_frames(scene: &Scene, given: Option<&[u32]>) -> Result<Vec<u32>> {
+    let mut frames = match given {
+        Some(fs) if !fs.is_empty() => {
+            if let Some(f) = fs.iter().find(|f| !scene.frames().contains(f)) {
+                return Err(Error::option(
+                    "frame",
+                    f,
+                    format!("a frame of the scene ({}..={})", scene.first, scene.last),
+                ));
+            }
+            fs.to_vec()
+        }
+        _ => vec![
+            scene.first,
+            scene.first + (scene.last - scene.first) / 2,
+            scene.last,
+        ],
+    };
+    frames.sort_unstable();
+    frames.dedup();
+    Ok(frames)
+}
+
+/// Reads a run folder and checks it has every scene frame with the scene mesh's topology.
+fn load_run(scene: &Scene, name: &str, dir: &Path) -> Result<Run> {
+    let mut got = crate::run::read_run(dir)?;
+    got.retain(|(f, _)| scene.frames().contains(f));
+    let missing: Vec<String> = scene
+        .frames()
+        .filter(|f| got.binary_search_by_key(f, |(g, _)| *g).is_err())
+        .map(crate::run::frame_file)
+        .collect();
+    if !missing.is_empty() {
+        let shown: Vec<&str> = missing.iter().take(5).map(String::as_str).collect();
+        return Err(Error::invalid(
+            dir,
+            shown.join(", ") + if missing.len() > 5 { ", ..." } else { "" },
+            format!(
+                "run {name} lacks {} of the scene's frames {}..={} (one OBJ per frame expected)",
+                missing.len(),
+                scene.first,
+                scene.last
+            ),
+        ));
+    }
+    for (f, m) in &got {
+        if m.positions.len() != scene.mesh.positions.len() || m.triangles != scene.mesh.triangles {
+            return Err(Error::invalid(
+                dir.join(crate::run::frame_file(*f)),
+                "faces",
+                format!(
+                    "run {name}: {} vertices / {} triangles, but the scene mesh has {} / {} (a run keeps the mesh's topology)",
+                    m.positions.len(),
+                    m.triangles.len(),
+                    scene.mesh.positions.len(),
+                    scene.mesh.triangles.len()
+                ),
+            ));
+        }
+    }
+    Ok(Run {
+        name: name.to_string(),
+        dir: dir.to_path_buf(),
+        meshes: got,
+    })
+}
+
+/// Median wall time per solved frame (image reading included) from a run folder's log;
+/// `None` if there is no log or no line.
+pub fn seconds_per_frame(dir: &Path) -> Result<Option<f64>> {
+    let lines = crate::run::read_frame_log(dir)?;
+    let walls: Vec<f64> = lines.iter().map(|l| l.wall_seconds).collect();
+    Ok((!walls.is_empty()).then(|| crate::tracker::median(&walls)))
+}
+
+/// A file-name-safe form of a camera name.
+fn file_safe(s: &str) -> String {
+    s.chars()
+        .map(|c| {
+            if c.is_ascii_alphanumeric() || c == '-' || c == '_' {
+                c
+            } else {
+                '_'
+            }
+        })
+        .collect()
+}
+
+/// Magnification of camera images for panels: a whole factor for small images, none otherwise.
+fn panel_scale(width: u32, min_width: usize) -> f64 {
+    if (width as usize) < min_width {
+        (min_width as f64 / width as f64).ceil()
+    } else {
+        1.0
+    }
+}
+
+const SHEET_BG: Rgb = [0.15, 0.15, 0.15];
+
+/// Every run's wireframe over camera `c`'s image at `frame`, side by side, each panel labelled.
+fn overlay_sheet(
+    scene: &Scene,
+    runs: &[Run],
+    frame: u32,
+    c: usize,
+    img: &RgbImage,
+    opts: &ReportOptions,
+) -> Result<RgbImage> {
+    let cam = &scene.cameras[c];
+    let s = panel_scale(cam.width, opts.min_panel_width);
+    let proj = overlay::magnified(cam.at(frame), s);
+    let base = overlay::magnify_image(img, s);
+    let panels = runs
+        .par_iter()
+        .enumerate()
+        .map(|(i, run)| {
+            let mesh = run.at(scene, frame);
+            let depth = render::depth_map(mesh, &proj, base.width(), base.height())?;
+            let mut p = base.clone();
+            let style = WireStyle {
+                colour: colormap::overlay_colour(i),
+                width: 1.0,
+                alpha: 0.75,
+                hidden_alpha: 0.2,
+            };
+            overlay::wireframe(&mut p, mesh, &proj, Some(&depth), &style);
+            draw::label(
+                &mut p,
+                &format!("{} — {} — frame {frame}", run.name, cam.name),
+                6.0,
+                6.0,
+                14.0,
+            );
+            Ok(p)
+        })
+        .collect::<Result<Vec<_>>>()?;
+    Ok(overlay::side_by_side(&panels, 6, SHEET_BG))
+}
+
+fn centroid(points: &[Point3<f64>]) -> Point3<f64> {
+    let n = points.len().max(1) as f64;
+    Point3::from(
+        points
+            .iter()
+            .fold(nalgebra::Vector3::zeros(), |a, p| a + p.coords)
+            / n,
+    )
+}
+
+/// The camera of the oblique views at `frame`: the first camera turned about the centroid of the
+/// ground truth (or of the first run).
+fn oblique_camera(
+    scene: &Scene,
+    runs: &[Run],
+    truth: Option<&Mesh>,
+    frame: u32,
+    opts: &ReportOptions,
+    size: (usize, usize),
+) -> Projection {
+    let reference = truth.unwrap_or_else(|| runs[0].at(scene, frame));
+    let pivot = centroid(&reference.positions);
+    let mut fit: Vec<Point3<f64>> = runs
+        .iter()
+        .flat_map(|r| r.at(scene, frame).positions.iter().copied())
+        .collect();
+    if let Some(t) = truth {
+        fit.extend(t.positions.iter().copied());
+    }
+    overlay::oblique(
+        scene.cameras[0].at(frame),
+        &pivot,
+        opts.oblique_degrees,
+        &fit,
+        size.0,
+        size.1,
+    )
+}
+
+/// Every run's wireframe (with the ground truth's behind it, grey) from the oblique camera.
+fn oblique_sheet(
+    scene: &Scene,
+    runs: &[Run],
+    truth: Option<&Mesh>,
+    frame: u32,
+    opts: &ReportOptions,
+) -> Result<RgbImage> {
+    let cam0 = &scene.cameras[0];
+    let s = panel_scale(cam0.width, opts.min_panel_width);
+    let size = (
+        (cam0.width as f64 * s) as usize,
+        (cam0.height as f64 * s) as usize,
+    );
+    let proj = oblique_camera(scene, runs, truth, frame, opts, size);
+    let truth_layer = match truth {
+        Some(t) => {
+            let depth = render::depth_map(t, &proj, size.0, size.1)?;
+            let mut img = draw::filled(size.0, size.1, [0.08; 3]);
+            let style = WireStyle {
+                colour: colormap::TRUTH,
+                width: 1.0,
+                alpha: 0.7,
+                hidden_alpha: 0.15,
+            };
+            overlay::wireframe(&mut img, t, &proj, Some(&depth), &style);
+            img
+        }
+        None => draw::filled(size.0, size.1, [0.08; 3]),
+    };
+    let panels = runs
+        .par_iter()
+        .enumerate()
+        .map(|(i, run)| {
+            let mesh = run.at(scene, frame);
+            let depth = render::depth_map(mesh, &proj, size.0, size.1)?;
+            let mut p = truth_layer.clone();
+            let style = WireStyle {
+                colour: colormap::overlay_colour(i),
+                width: 1.0,
+                alpha: 0.95,
+                hidden_alpha: 0.25,
+            };
+            overlay::wireframe(&mut p, mesh, &proj, Some(&depth), &style);
+            let what = if truth.is_some() {
+                " (grey: ground truth)"
+            } else {
+                ""
+            };
+            draw::label(
+                &mut p,
+                &format!(
+                    "{} — {} turned {:.0}° — frame {frame}{what}",
+                    run.name, cam0.name, opts.oblique_degrees
+                ),
+                6.0,
+                6.0,
+                14.0,
+            );
+            Ok(p)
+        })
+        .collect::<Result<Vec<_>>>()?;
+    Ok(overlay::side_by_side(&panels, 6, SHEET_BG))
+}
+
+/// Distance of each vertex to its ground-truth position.
+fn vertex_errors(mesh: &Mesh, truth: &Mesh) -> Vec<f64> {
+    mesh.positions
+        .iter()
+        .zip(&truth.positions)
+        .map(|(a, b)| (a - b).norm())
+        .collect()
+}
+
+/// The top of the error colour scale: the largest vertex error over the drawn frames and runs.
+fn error_scale(scene: &Scene, runs: &[Run], truth: &[(u32, Mesh)]) -> f64 {
+    let mut max = 0.0f64;
+    for (f, gt) in truth {
+        for r in runs {
+            max = vertex_errors(r.at(scene, *f), gt)
+                .into_iter()
+                .fold(max, f64::max);
+        }
+    }
+    if max > 0.0 {
+        max
+    } else {
+        // All exact: any positive scale shows them at the bottom of the map.
+        scene.mesh.bbox_diagonal().max(1.0) * 1e-3
+    }
+}
+
+/// Each run's mesh at `frame` from the first camera, coloured by vertex error (viridis over
+/// `[0, max]`), side by side with a colour bar.
+fn error_sheet(
+    scene: &Scene,
+    runs: &[Run],
+    truth: &Mesh,
+    frame: u32,
+    max: f64,
+    opts: &ReportOptions,
+) -> Result<RgbImage> {
+    let cam0 = &scene.cameras[0];
+    let s = panel_scale(cam0.width, opts.min_panel_width);
+    let proj = overlay::magnified(cam0.at(frame), s);
+    let (w, h) = (
+        (cam0.width as f64 * s) as usize,
+        (cam0.height as f64 * s) as usize,
+    );
+    let ropts = RenderOptions {
+        background: [0.08; 3],
+        ..RenderOptions::default()
+    };
+    let mut panels = runs
+        .par_iter()
+        .map(|run| {
+            let mesh = run.at(scene, frame);
+            let colours: Vec<[f32; 3]> = vertex_errors(mesh, truth)
+                .iter()
+                .map(|e| colormap::viridis(e / max))
+                .collect();
+            let mut p = render::render(
+                mesh,
+                &[],
+                &Surface::VertexColors(&colours),
+                &proj,
+                w,
+                h,
+                &ropts,
+            )?;
+            draw::label(
+                &mut p,
+                &format!("{} — {} — frame {frame}", run.name, cam0.name),
+                6.0,
+                6.0,
+                14.0,
+            );
+            Ok(p)
+        })
+        .collect::<Result<Vec<_>>>()?;
+    let diag = scene.mesh.bbox_diagonal();
+    let bar = overlay::colour_bar(
+        colormap::viridis,
+        max,
+        h,
+        "vertex error (scene units, % of bbox diag.)",
+        |v| {
+            if diag > 0.0 {
+                format!("{} ({:.2}%)", fmt_sig(v), 100.0 * v / diag)
+            } else {
+                fmt_sig(v)
+            }
+        },
+    );
+    panels.push(bar);
+    Ok(overlay::side_by_side(&panels, 6, SHEET_BG))
+}
+
+/// A number with about 3 significant digits, for labels.
+pub(crate) fn fmt_sig(v: f64) -> String {
+    if v == 0.0 || !v.is_finite() {
+        return format!("{v}");
+    }
+    let digits = (2 - v.abs().log10().floor() as i32).clamp(0, 9) as usize;
+    format!("{v:.digits$}")
+}
+
+#[cfg(test)]
+#[path = "tests.rs"]
+mod tests;

@@ -1,0 +1,371 @@
+//! Opening a run folder for writing, by the rules that keep users' files safe:
+//!
+//! * a folder that does not exist, or is empty, gets a new run;
+//! * a folder holding a run of the same scene is refused unless the run is resumed (`Resume`)
+//!   or replaced (`Force`), so two runs are never mixed in one folder;
+//! * a folder holding anything else (another scene's run, a ground truth, a user's files) is
+//!   refused unless `Force`, and `Force` removes only files of the run-folder layout
+//!   (`layout::is_layout_file`): everything else in the folder stays as it was.
+//!
+//! A frame is *complete* when its mesh and its log line are both written (mesh first). Resuming
+//! drops what lies past the last complete frame (a torn log line, a mesh without its line) and
+//! any temporary file a crash left.
+
+use super::layout::{self, frame_file, LOG, MANIFEST};
+use super::log::{read_log, FrameLog, LogWriter};
+use super::manifest::{now, Manifest, Resumption, Status};
+use crate::base::mesh::Mesh;
+use crate::error::{Error, Result};
+use crate::input::meshio::{read_mesh_with, Checks};
+use nalgebra::Point3;
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+use std::sync::atomic::AtomicBool;
+use std::sync::Arc;
+
+/// How to treat a folder that already holds files.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum OpenMode {
+    /// Only an empty or new folder (the default).
+    #[default]
+    New,
+    /// Continue the run of the same scene and options in the folder from its last complete
+    /// frame (a new run if the folder is empty).
+    Resume,
+    /// Replace the run-folder files in the folder (frame meshes, log, manifest); leave every
+    /// other file alone.
+    Force,
+}
+
+/// How a run is written, besides the method's own options.
+#[derive(Clone, Debug, Default)]
+pub struct RunOptions {
+    /// What to do with a folder that already holds files.
+    pub mode: OpenMode,
+    /// The command line, for the manifest (empty when a program calls the library).
+    pub command: Vec<String>,
+    /// The options the user set explicitly, as written, for the manifest.
+    pub given: BTreeMap<String, String>,
+    /// When set (e.g. by a Ctrl-C handler), the run stops within one solver iteration; the
+    /// frame being solved is abandoned and the folder stays resumable.
+    pub cancel: Option<Arc<AtomicBool>>,
+}
+
+impl RunOptions {
+    /// Whether the run was asked to stop.
+    pub fn cancelled(&self) -> bool {
+        self.cancel
+            .as_ref()
+            .is_some_and(|c| c.load(std::sync::atomic::Ordering::Relaxed))
+    }
+}
+
+/// A run folder open for writing.
+pub struct RunFolder {
+    dir: PathBuf,
+    manifest: Manifest,
+    log: LogWriter,
+    last_complete: Option<u32>,
+}
+
+/// What an opened folder already holds.
+pub struct Opened {
+    pub folder: RunFolder,
+    /// When resuming: the last complete frame and the log lines up to it.
+    pub resumed: Option<(u32, Vec<FrameLog>)>,
+}
+
+impl RunFolder {
+    /// Opens `dir` for the run `manifest` describes, by the rules of `mode` (see the module
+    /// documentation). Refusals are `Error::RunFolder` with the reason and what to do.
+    pub fn open(dir: &Path, manifest: Manifest, mode: OpenMode) -> Result<Opened> {
+        let mut manifest = manifest;
+        if dir.exists() && !dir.is_dir() {
+            return Err(Error::run_folder(dir, "exists and is not a folder"));
+        }
+        std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
+        let listing = Listing::read(dir)?;
+        let existing = if listing.has_manifest {
+            Some(Manifest::read(&dir.join(MANIFEST))?)
+        } else {
+            None
+        };
+        let same_scene = existing.as_ref().is_some_and(|m| {
+            m.method == manifest.method && m.scene.checksum == manifest.scene.checksum
+        });
+        let mut resumed = None;
+        match mode {
+            OpenMode::Force => listing.remove_layout(dir)?,
+            OpenMode::New | OpenMode::Resume if listing.is_empty() => listing.remove_layout(dir)?,
+            OpenMode::New => {
+                return Err(Error::run_folder(
+                    dir,
+                    refusal(&listing, &existing, same_scene),
+                ))
+            }
+            OpenMode::Resume => {
+                let Some(old) = existing.clone().filter(|_| same_scene) else {
+                    return Err(Error::run_folder(
+                        dir,
+                        format!(
+                            "{}, so there is nothing to resume; choose another folder, or add \
+                             --force to replace the run files in this one",
+                            refusal_reason(&listing, &existing)
+                        ),
+                    ));
+                };
+                if old.options.used != manifest.options.used {
+                    return Err(Error::run_folder(
+                        dir,
+                        format!(
+                            "the run was made with other options ({}); resume it with the \
+                             same options, or add --force to start it again",
+                            differences(&old.options.used, &manifest.options.used)
+                        ),
+                    ));
+                }
+                let (last, lines) = truncate_to_complete(dir, &old)?;
+                listing.remove_temporaries(dir)?;
+                let command = std::mem::take(&mut manifest.command);
+                manifest = Manifest {
+                    status: Status::Running,
+                    ended: None,
+                    ..old
+                };
+                manifest.resumed.push(Resumption {
+                    at: now(),
+                    from_frame: last.unwrap_or(manifest.scene.first),
+                    command,
+                });
+                resumed = last.map(|l| (l, lines));
+            }
+        }
+        manifest.write(&dir.join(MANIFEST))?;
+        let log = LogWriter::append_to(&dir.join(LOG))?;
+        let last_complete = resumed.as_ref().map(|(l, _)| *l);
+        Ok(Opened {
+            folder: RunFolder {
+                dir: dir.to_path_buf(),
+                manifest,
+                log,
+                last_complete,
+            },
+            resumed,
+        })
+    }
+
+    pub fn dir(&self) -> &Path {
+        &self.dir
+    }
+
+    pub fn manifest(&self) -> &Manifest {
+        &self.manifest
+    }
+
+    /// The last frame whose mesh and log line are both written.
+    pub fn last_complete(&self) -> Option<u32> {
+        self.last_complete
+    }
+
+    /// Writes the first frame: the input mesh, with no log line (nothing was solved).
+    pub fn write_first(&mut self, mesh: &Mesh) -> Result<()> {
+        let first = self.manifest.scene.first;
+        crate::input::meshio::write_obj(&self.dir.join(frame_file(first)), mesh)?;
+        self.last_complete = Some(first);
+        Ok(())
+    }
+
+    /// Writes a solved frame's mesh (atomically). The frame is complete once its log line is
+    /// appended too ([`RunFolder::append`]).
+    pub fn write_mesh(&mut self, frame: u32, mesh: &Mesh) -> Result<()> {
+        crate::input::meshio::write_obj(&self.dir.join(frame_file(frame)), mesh)
+    }
+
+    /// Appends a solved frame's log line, after its mesh: the frame is complete.
+    pub fn append(&mut self, line: &FrameLog) -> Result<()> {
+        self.log.append(line)?;
+        self.last_complete = Some(line.frame);
+        Ok(())
+    }
+
+    /// The positions of a complete frame's mesh, as written (exactly: OBJ numbers are written
+    /// in their shortest round-trip form).
+    pub fn read_positions(&self, frame: u32) -> Result<Vec<Point3<f64>>> {
+        let path = self.dir.join(frame_file(frame));
+        Ok(read_mesh_with(&path, Checks::Structure)?.positions)
+    }
+
+    /// Records how the run ended in the manifest.
+    pub fn finish(&mut self, status: Status) -> Result<()> {
+        self.manifest.status = status;
+        self.manifest.ended = Some(now());
+        self.manifest.last_complete = self.last_complete;
+        self.manifest.frames_completed = self
+            .last_complete
+            .map_or(0, |l| l - self.manifest.scene.first + 1);
+        self.manifest.write(&self.dir.join(MANIFEST))
+    }
+}
+
+/// What a folder holds, sorted into the layout's files and the others.
+struct Listing {
+    layout: Vec<String>,
+    other: Vec<String>,
+    has_manifest: bool,
+}
+
+impl Listing {
+    fn read(dir: &Path) -> Result<Self> {
+        let mut l = Listing {
+            layout: Vec::new(),
+            other: Vec::new(),
+            has_manifest: false,
+        };
+        for entry in std::fs::read_dir(dir).map_err(|e| Error::io(dir, e))? {
+            let entry = entry.map_err(|e| Error::io(dir, e))?;
+            let name = entry.file_name().to_string_lossy().into_owned();
+            let is_file = entry.file_type().map_err(|e| Error::io(dir, e))?.is_file();
+            if is_file && layout::is_layout_file(&name) {
+                l.has_manifest |= name == MANIFEST;
+                l.layout.push(name);
+            } else {
+                l.other.push(name);
+            }
+        }
+        l.layout.sort();
+        l.other.sort();
+        Ok(l)
+    }
+
+    /// Nothing but temporaries a crash left.
+    fn is_empty(&self) -> bool {
+        self.other.is_empty() && self.layout.iter().all(|n| layout::layout_temporary(n))
+    }
+
+    fn remove_layout(&self, dir: &Path) -> Result<()> {
+        for name in &self.layout {
+            let p = dir.join(name);
+            std::fs::remove_file(&p).map_err(|e| Error::io(&p, e))?;
+        }
+        Ok(())
+    }
+
+    fn remove_temporaries(&self, dir: &Path) -> Result<()> {
+        for name in self.layout.iter().filter(|n| layout::layout_temporary(n)) {
+            let p = dir.join(name);
+            std::fs::remove_file(&p).map_err(|e| Error::io(&p, e))?;
+        }
+        Ok(())
+    }
+}
+
+/// Why a folder is refused for a new run, and what to do.
+fn refusal(listing: &Listing, existing: &Option<Manifest>, same_scene: bool) -> String {
+    if same_scene {
+        let m = existing.as_ref().expect("same scene implies a manifest");
+        let done = match m.status {
+            Status::Complete => "complete".to_string(),
+            _ => "not complete".to_string(),
+        };
+        return format!(
+            "holds a run of this scene ({done}, started {}); add --resume to continue it or \
+             --force to replace it",
+            m.started
+        );
+    }
+    format!(
+        "{}; choose an empty folder, or add --force to replace the run files in it (frame \
+         meshes NNNN.obj, {LOG}, {MANIFEST}; other files are kept)",
+        refusal_reason(listing, existing)
+    )
+}
+
+fn refusal_reason(listing: &Listing, existing: &Option<Manifest>) -> String {
+    if let Some(m) = existing {
+        return format!(
+            "holds a {} run of another scene ({})",
+            match m.method {
+                super::Method::ModelFlow => "Model Flow",
+                super::Method::Baseline => "baseline",
+            },
+            m.scene.path.display()
+        );
+    }
+    let names: Vec<&String> = listing.layout.iter().chain(&listing.other).collect();
+    let shown: Vec<&str> = names.iter().take(3).map(|s| s.as_str()).collect();
+    format!(
+        "holds {} file(s) that are not a modelflow run ({}{})",
+        names.len(),
+        shown.join(", "),
+        if names.len() > 3 { ", ..." } else { "" }
+    )
+}
+
+/// The top-level keys in which two option sets differ, as `key: old -> new`.
+fn differences(old: &serde_json::Value, new: &serde_json::Value) -> String {
+    let (Some(a), Some(b)) = (old.as_object(), new.as_object()) else {
+        return "options".into();
+    };
+    let mut keys: Vec<&String> = a.keys().chain(b.keys()).collect();
+    keys.sort();
+    keys.dedup();
+    keys.into_iter()
+        .filter(|k| a.get(*k) != b.get(*k))
+        .map(|k| {
+            let show = |v: Option<&serde_json::Value>| v.map_or("none".into(), |v| v.to_string());
+            format!("{k}: {} -> {}", show(a.get(k)), show(b.get(k)))
+        })
+        .collect::<Vec<_>>()
+        .join("; ")
+}
+
+/// Finds the last complete frame of the run in `dir` (mesh and log line written, every frame
+/// before it too), cuts the log to it and removes the meshes past it. Returns it (`None` if not
+/// even the first frame was written) with the log's lines up to it.
+fn truncate_to_complete(dir: &Path, m: &Manifest) -> Result<(Option<u32>, Vec<FrameLog>)> {
+    let log_path = dir.join(LOG);
+    let read = read_log(&log_path)?;
+    let first = m.scene.first;
+    let has_mesh = |f: u32| dir.join(frame_file(f)).is_file();
+    let mut last = has_mesh(first).then_some(first);
+    let mut kept = 0;
+    if last.is_some() {
+        for (i, line) in read.lines.iter().enumerate() {
+            let expected = first + 1 + i as u32;
+            if line.frame != expected || expected > m.scene.last || !has_mesh(expected) {
+                break;
+            }
+            last = Some(expected);
+            kept = i + 1;
+        }
+    }
+    // The byte length of the first `kept` lines.
+    let text = std::fs::read(&log_path).unwrap_or_default();
+    let keep_len = if kept == 0 {
+        0
+    } else {
+        text.iter()
+            .enumerate()
+            .filter(|(_, &c)| c == b'\n')
+            .nth(kept - 1)
+            .map_or(read.valid_len, |(i, _)| i as u64 + 1)
+    };
+    if (text.len() as u64) != keep_len {
+        let f = std::fs::OpenOptions::new()
+            .write(true)
+            .open(&log_path)
+            .map_err(|e| Error::io(&log_path, e))?;
+        f.set_len(keep_len).map_err(|e| Error::io(&log_path, e))?;
+    }
+    // Meshes past the last complete frame belong to the interrupted frame(s).
+    let from = last.map_or(first, |l| l + 1);
+    for f in from..=m.scene.last {
+        let p = dir.join(frame_file(f));
+        if p.is_file() {
+            std::fs::remove_file(&p).map_err(|e| Error::io(&p, e))?;
+        }
+    }
+    let mut lines = read.lines;
+    lines.truncate(kept);
+    Ok((last, lines))
+}

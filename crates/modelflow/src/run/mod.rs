@@ -1,0 +1,18 @@
+//! The run folder: what `track` and `baseline` write and `eval`, `report` and later exports
+//! read. This module owns its layout (`layout`: `{frame:04}.obj` per frame, `log.jsonl`,
+//! `run.json`), the manifest (`manifest`), the log schema (`log`), and the rules for opening a
+//! folder (`folder`): it never destroys a file it did not write, never mixes two runs in one
+//! folder, and resumes an interrupted run from its last complete frame. See
+//! `docs/run-folder.md`. Knows nothing of how frames are solved.
+
+mod folder;
+mod layout;
+mod log;
+mod manifest;
+
+pub use folder::{OpenMode, Opened, RunFolder, RunOptions};
+pub use layout::{frame_file, frame_number, read_run, LOG, MANIFEST};
+pub use log::{read_frame_log, FrameDetail, FrameLog};
+pub use manifest::{
+    inputs_checksum, Manifest, Method, Options, Resumption, SceneRecord, Status, RUN_FORMAT,
+};

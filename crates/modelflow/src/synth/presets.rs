@@ -1,0 +1,906 @@
+//! Synthetic multi-view footage with exact ground truth (our own version of the thesis' "CG cloth
+//! data set", §7.1): an analytically moving surface, textured with the procedural pattern of
+//! `texture`, rendered by `render` into the images of calibrated cameras, plus the true mesh of
+//! every frame. Presets:
+//!
+//! - `cloth` (default): a 1 m × 1 m sheet of 41 × 41 vertices hanging from a nearly fixed top
+//!   edge, with waves travelling down it, a gentle sideways swing and a pleat (a fold across the
+//!   sheet, bulging towards the cameras and hiding a strip of cloth) forming over the sequence;
+//!   two cameras 25 cm apart at 2.2 m, 20° to the side and 8° above, slightly converging (thesis
+//!   Fig. 7.2). Vertical edges keep their rest length exactly (each column is a chain of
+//!   unit-length segments); horizontal and diagonal ones stay within 8 % (the columns differ
+//!   only slowly).
+//! - `blob`: a closed surface (icosphere of radius 0.4 m, 2562 vertices) with five lobes that
+//!   swell and shrink while the whole body turns, seen by cameras on a ring around it; the lobes
+//!   occlude other parts of the surface.
+//!
+//! The texture is a function of the material (rest-pose) coordinates, so it sticks to the
+//! surface. Everything is deterministic for a seed (the seed chooses the texture and the image
+//! noise; the motion of a preset is fixed). [`Synthetic::generate`] builds everything in memory;
+//! [`write_dataset`] writes a scene (`modelflow-scene/1`) with images, initial mesh and ground
+//! truth.
+
+use crate::base::camera::{look_at, Camera, Projection};
+use crate::base::image::RgbImage;
+use crate::base::mesh::{grid, Mesh};
+use crate::error::{Error, Result};
+use crate::input::imageio::write_png;
+use crate::input::meshio::write_obj;
+use crate::input::scene::{CameraEntry, FrameRange, SceneFile, FORMAT};
+use crate::synth::render::{render, Light, RenderOptions, Surface};
+use crate::synth::texture::{mix64, CubeTexture, PlaneTexture, Texture};
+use nalgebra::{Matrix3, Point3, Rotation3, Unit, Vector3};
+use rayon::prelude::*;
+use std::collections::HashMap;
+use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicUsize, Ordering};
+
+/// Frames per second of the synthetic clips (the motion is defined in seconds).
+pub const FPS: f64 = 30.0;
+
+/// A synthetic scene type.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Preset {
+    Cloth,
+    Blob,
+}
+
+impl Preset {
+    pub const ALL: [Preset; 2] = [Preset::Cloth, Preset::Blob];
+
+    pub fn name(self) -> &'static str {
+        match self {
+            Preset::Cloth => "cloth",
+            Preset::Blob => "blob",
+        }
+    }
+
+    /// The preset called `name`, or an error listing the presets.
+    pub fn from_name(name: &str) -> Result<Preset> {
+        Preset::ALL
+            .into_iter()
+            .find(|p| p.name() == name)
+            .ok_or_else(|| {
+                let names: Vec<&str> = Preset::ALL.iter().map(|p| p.name()).collect();
+                Error::option(
+                    "unknown synthetic preset",
+                    format!("'{name}'"),
+                    format!("one of: {}", names.join(", ")),
+                )
+            })
+    }
+
+    /// Number of cameras when none is asked for.
+    pub fn default_cameras(self) -> usize {
+        match self {
+            Preset::Cloth => 2,
+            Preset::Blob => 4,
+        }
+    }
+}
+
+impl std::fmt::Display for Preset {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+/// What to generate.
+#[derive(Clone, Debug, PartialEq)]
+pub struct SynthOptions {
+    pub preset: Preset,
+    /// Number of cameras; `None` = the preset's default (cloth 2, blob 4).
+    pub cameras: Option<usize>,
+    pub width: u32,
+    pub height: u32,
+    pub frames: u32,
+    /// Standard deviation of additive Gaussian image noise (intensities in [0, 1]).
+    pub noise: f64,
+    /// Diffuse lighting (off: flat albedo).
+    pub light: bool,
+    pub seed: u64,
+    /// Anti-aliasing subsamples per pixel along each axis.
+    pub supersample: u32,
+}
+
+impl Default for SynthOptions {
+    fn default() -> Self {
+        SynthOptions {
+            preset: Preset::Cloth,
+            cameras: None,
+            width: 640,
+            height: 480,
+            frames: 120,
+            noise: 0.0,
+            light: true,
+            seed: 1,
+            supersample: 3,
+        }
+    }
+}
+
+impl SynthOptions {
+    /// Defaults for a preset given by name.
+    pub fn preset(name: &str) -> Result<Self> {
+        Ok(SynthOptions {
+            preset: Preset::from_name(name)?,
+            ..Default::default()
+        })
+    }
+
+    pub fn camera_count(&self) -> usize {
+        self.cameras.unwrap_or(self.preset.default_cameras())
+    }
+
+    /// Checks the options, naming the one at fault.
+    pub fn validate(&self) -> Result<()> {
+        let n = self.camera_count();
+        if !(2..=16).contains(&n) {
+            return Err(Error::option(
+                "--cameras",
+                n,
+                "2 to 16 (a scene needs two views of the mesh)",
+            ));
+        }
+        if !(16..=8192).contains(&self.width) {
+            return Err(Error::option("--width", self.width, "16 to 8192 pixels"));
+        }
+        if !(16..=8192).contains(&self.height) {
+            return Err(Error::option("--height", self.height, "16 to 8192 pixels"));
+        }
+        if !(1..=10000).contains(&self.frames) {
+            return Err(Error::option("--frames", self.frames, "1 to 10000"));
+        }
+        if !(self.noise.is_finite() && (0.0..=1.0).contains(&self.noise)) {
+            return Err(Error::option("--noise", self.noise, "a sigma in [0, 1]"));
+        }
+        if !(1..=8).contains(&self.supersample) {
+            return Err(Error::option("--supersample", self.supersample, "1 to 8"));
+        }
+        Ok(())
+    }
+}
+
+/// The baked texture of a preset.
+#[derive(Clone, Debug)]
+enum Skin {
+    Plane(PlaneTexture),
+    Cube(CubeTexture),
+}
+
+/// A generated synthetic sequence, in memory.
+#[derive(Clone, Debug)]
+pub struct Synthetic {
+    pub options: SynthOptions,
+    pub cameras: Vec<Camera>,
+    /// The mesh at the first frame (frame 0), with texture coordinates.
+    pub mesh: Mesh,
+    /// Material (rest-pose) coordinate of every vertex; the texture is a function of it.
+    pub material: Vec<[f64; 3]>,
+    /// True vertex positions of every frame `0..frames`.
+    pub truth: Vec<Vec<Point3<f64>>>,
+    skin: Skin,
+    render_options: RenderOptions,
+    /// (K, R, t) of each camera, for the scene file.
+    krt: Vec<Krt>,
+}
+
+/// Per-frame image motion of the vertices, in pixels, over all cameras and frame pairs.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct MotionStats {
+    pub max: f64,
+    pub median: f64,
+}
+
+/// Intrinsics: square pixels, principal point at the image centre, focal length so that a 1 m
+/// object at ~2.2 m fills about 80 % of the image height at 4:3.
+fn intrinsics(width: u32, height: u32) -> Matrix3<f64> {
+    let (w, h) = (width as f64, height as f64);
+    let f = 1.3 * w.min(h * 4.0 / 3.0);
+    Matrix3::new(
+        f,
+        0.0,
+        (w - 1.0) / 2.0,
+        0.0,
+        f,
+        (h - 1.0) / 2.0,
+        0.0,
+        0.0,
+        1.0,
+    )
+}
+
+type Krt = (Matrix3<f64>, Matrix3<f64>, Vector3<f64>);
+
+fn camera_looking(
+    name: String,
+    opts: &SynthOptions,
+    eye: Point3<f64>,
+    target: Point3<f64>,
+) -> (Camera, Krt) {
+    let (r, t) = look_at(&eye, &target, &Vector3::z());
+    let k = intrinsics(opts.width, opts.height);
+    let p = Projection::from_krt(&k, &r, &t).expect("look_at gives a rotation and K is regular");
+    (Camera::fixed(name, opts.width, opts.height, p), (k, r, t))
+}
+
+fn smoothstep(a: f64, b: f64, x: f64) -> f64 {
+    let t = ((x - a) / (b - a)).clamp(0.0, 1.0);
+    t * t * (3.0 - 2.0 * t)
+}
+
+// ---------------------------------------------------------------------------------------------
+// Cloth
+
+const CLOTH_N: usize = 41;
+const CLOTH_SIZE: f64 = 1.0;
+const CLOTH_TOP: f64 = 0.5;
+
+/// Vertex positions of the cloth at time `t` seconds. Vertex `j·N + i` has material coordinate
+/// `X = (i/(N-1) - 0.5)·size` across and arc length `s = j/(N-1)·size` down from the top edge.
+fn cloth_positions(t: f64) -> Vec<Point3<f64>> {
+    use std::f64::consts::PI;
+    let n = CLOTH_N;
+    let ds = CLOTH_SIZE / (n - 1) as f64;
+    let h = CLOTH_SIZE;
+    // The fold: a pleat bulging towards the cameras, forming between 0.6 s and 3 s, a little
+    // lower and stronger on the right than on the left.
+    let fold = smoothstep(0.6, 3.0, t);
+    let mut out = Vec::with_capacity(n * n);
+    out.resize(n * n, Point3::origin());
+    for i in 0..n {
+        let x = (i as f64 / (n - 1) as f64 - 0.5) * CLOTH_SIZE;
+        let (sf, depth, width) = (0.6 + 0.08 * x, 0.85 + 0.25 * x, 0.065 + 0.01 * x);
+        // Chain of unit-length segments down this column: every vertical edge keeps its rest
+        // length exactly; neighbouring columns differ only slowly, so horizontal and diagonal
+        // edges stay within a few per cent.
+        let mut p = Vector3::new(0.0, 0.0, CLOTH_TOP);
+        for j in 0..n {
+            out[j * n + i] = Point3::new(x + p.x, p.y, p.z);
+            let sm = (j as f64 + 0.5) * ds;
+            let ramp = smoothstep(0.0, 0.35, sm);
+            let d = (sm - sf) / width;
+            // Depth angle: slow pendulum + two travelling waves + the pleat (derivative of a
+            // Gaussian: turns towards the cameras and back, so the cloth below continues
+            // parallel to the cloth above).
+            let b = 0.12 * (2.0 * PI * t / 4.0).sin() * (sm / h)
+                + ramp
+                    * (0.3 * (10.0 * sm - 3.3 * t + 1.2 * x).sin()
+                        + 0.16 * (17.0 * sm - 4.6 * t - 1.5 * x + 1.3).sin())
+                + fold * depth * d * (0.5 - 0.5 * d * d).exp();
+            // Lateral angle: a gentle sideways swing (the same for every column).
+            let a = 0.05 * (sm / h) * (2.0 * PI * t / 3.2 + 0.4).sin();
+            p += Vector3::new(a.sin(), a.cos() * b.sin(), -a.cos() * b.cos()) * ds;
+        }
+    }
+    out
+}
+
+fn cloth(opts: &SynthOptions) -> Synthetic {
+    let n = CLOTH_N;
+    let mut mesh = grid(n, n, |_, _| Point3::origin());
+    let material: Vec<[f64; 3]> = (0..n * n)
+        .map(|k| {
+            let (i, j) = (k % n, k / n);
+            let x = (i as f64 / (n - 1) as f64 - 0.5) * CLOTH_SIZE;
+            let z = CLOTH_TOP - j as f64 / (n - 1) as f64 * CLOTH_SIZE;
+            [x, z, 0.0]
+        })
+        .collect();
+    let truth: Vec<Vec<Point3<f64>>> = (0..opts.frames)
+        .into_par_iter()
+        .map(|f| cloth_positions(f as f64 / FPS))
+        .collect();
+    mesh.positions = truth[0].clone();
+    let tex = Texture::new(opts.seed, 0.006);
+    let skin = Skin::Plane(tex.bake_plane(
+        [-0.5 * CLOTH_SIZE - 0.01, CLOTH_TOP - CLOTH_SIZE - 0.01],
+        [CLOTH_SIZE + 0.02, CLOTH_SIZE + 0.02],
+        1000.0,
+    ));
+    // A rig of cameras 25 cm apart, 2.2 m from the cloth, 20° to its left and 8° above,
+    // all aimed at the cloth's centre.
+    let target = Point3::new(0.0, 0.0, 0.02);
+    let (az, el, dist) = (20f64.to_radians(), 8f64.to_radians(), 2.2);
+    let view = Vector3::new(-az.sin() * el.cos(), -az.cos() * el.cos(), el.sin());
+    let side = Vector3::z().cross(&view).normalize();
+    let count = opts.camera_count();
+    let (cameras, krt): (Vec<Camera>, Vec<Krt>) = (0..count)
+        .map(|c| {
+            let off = (c as f64 - (count as f64 - 1.0) / 2.0) * 0.25;
+            let eye = target + view * dist + side * off;
+            camera_looking(format!("cam{c}"), opts, eye, target)
+        })
+        .unzip();
+    Synthetic {
+        options: opts.clone(),
+        cameras,
+        mesh,
+        material,
+        truth,
+        skin,
+        krt,
+        render_options: render_options(opts, Vector3::new(-0.5, -0.5, 1.0), [0.13, 0.14, 0.17]),
+    }
+}
+
+// ---------------------------------------------------------------------------------------------
+// Blob
+
+const BLOB_RADIUS: f64 = 0.4;
+
+/// A unit icosphere: the icosahedron with each triangle split `levels` times into four.
+/// Triangles are counter-clockwise seen from outside.
+pub fn icosphere(levels: u32) -> Mesh {
+    let p = (1.0 + 5f64.sqrt()) / 2.0;
+    let mut pos: Vec<Vector3<f64>> = [
+        [-1.0, p, 0.0],
+        [1.0, p, 0.0],
+        [-1.0, -p, 0.0],
+        [1.0, -p, 0.0],
+        [0.0, -1.0, p],
+        [0.0, 1.0, p],
+        [0.0, -1.0, -p],
+        [0.0, 1.0, -p],
+        [p, 0.0, -1.0],
+        [p, 0.0, 1.0],
+        [-p, 0.0, -1.0],
+        [-p, 0.0, 1.0],
+    ]
+    .iter()
+    .map(|v| Vector3::from(*v).normalize())
+    .collect();
+    let mut tris: Vec<[u32; 3]> = vec![
+        [0, 11, 5],
+        [0, 5, 1],
+        [0, 1, 7],
+        [0, 7, 10],
+        [0, 10, 11],
+        [1, 5, 9],
+        [5, 11, 4],
+        [11, 10, 2],
+        [10, 7, 6],
+        [7, 1, 8],
+        [3, 9, 4],
+        [3, 4, 2],
+        [3, 2, 6],
+        [3, 6, 8],
+        [3, 8, 9],
+        [4, 9, 5],
+        [2, 4, 11],
+        [6, 2, 10],
+        [8, 6, 7],
+        [9, 8, 1],
+    ];
+    for _ in 0..levels {
+        let mut mid: HashMap<(u32, u32), u32> = HashMap::new();
+        let mut midpoint = |a: u32, b: u32, pos: &mut Vec<Vector3<f64>>| {
+            let key = (a.min(b), a.max(b));
+            *mid.entry(key).or_insert_with(|| {
+                pos.push(((pos[a as usize] + pos[b as usize]) * 0.5).normalize());
+                (pos.len() - 1) as u32
+            })
+        };
+        let mut next = Vec::with_capacity(tris.len() * 4);
+        for [a, b, c] in tris {
+            let ab = midpoint(a, b, &mut pos);
+            let bc = midpoint(b, c, &mut pos);
+            let ca = midpoint(c, a, &mut pos);
+            next.extend([[a, ab, ca], [b, bc, ab], [c, ca, bc], [ab, bc, ca]]);
+        }
+        tris = next;
+    }
+    Mesh::new(pos.into_iter().map(Point3::from).collect(), tris)
+}
+
+/// Lobe directions (body frame), phases and rates of the blob.
+const LOBES: [([f64; 3], f64, f64); 5] = [
+    ([0.9, 0.3, 0.3], 0.0, 1.0),
+    ([-0.5, 0.8, -0.2], 1.9, 0.8),
+    ([-0.3, -0.6, 0.7], 3.7, 1.25),
+    ([0.2, -0.4, -0.9], 5.1, 0.9),
+    ([-0.8, -0.3, -0.3], 2.6, 1.1),
+];
+
+fn blob_positions(dirs: &[Point3<f64>], t: f64) -> Vec<Point3<f64>> {
+    let lobes: Vec<(Vector3<f64>, f64)> = LOBES
+        .iter()
+        .map(|(d, phase, rate)| {
+            let amp = 0.5 + 0.16 * (2.0 * std::f64::consts::PI * t * rate / 2.7 + phase).sin();
+            (Vector3::from(*d).normalize(), amp)
+        })
+        .collect();
+    let axis = Unit::new_normalize(Vector3::new(0.3, 0.2, 1.0));
+    let rot = Rotation3::from_axis_angle(&axis, 0.34 * t);
+    dirs.iter()
+        .map(|d| {
+            let r: f64 = 1.0
+                + lobes
+                    .iter()
+                    .map(|(c, a)| a * (16.0 * (d.coords.dot(c) - 1.0)).exp())
+                    .sum::<f64>();
+            Point3::from(rot * (d.coords * (BLOB_RADIUS * r)))
+        })
+        .collect()
+}
+
+fn blob(opts: &SynthOptions) -> Synthetic {
+    let sphere = icosphere(4);
+    let dirs = sphere.positions.clone();
+    let material: Vec<[f64; 3]> = dirs
+        .iter()
+        .map(|d| [d.x * BLOB_RADIUS, d.y * BLOB_RADIUS, d.z * BLOB_RADIUS])
+        .collect();
+    let truth: Vec<Vec<Point3<f64>>> = (0..opts.frames)
+        .into_par_iter()
+        .map(|f| blob_positions(&dirs, f as f64 / FPS))
+        .collect();
+    // Texture coordinates: longitude/latitude of the rest direction (for viewers only).
+    let uvs = dirs
+        .iter()
+        .map(|d| {
+            [
+                0.5 + d.y.atan2(d.x) / (2.0 * std::f64::consts::PI),
+                0.5 + d.z.clamp(-1.0, 1.0).asin() / std::f64::consts::PI,
+            ]
+        })
+        .collect();
+    let mesh = Mesh {
+        positions: truth[0].clone(),
+        triangles: sphere.triangles,
+        uvs: Some(uvs),
+    };
+    let tex = Texture::new(opts.seed, 0.006);
+    let skin = Skin::Cube(tex.bake_cube(BLOB_RADIUS, 512));
+    let count = opts.camera_count();
+    let target = Point3::origin();
+    let (cameras, krt): (Vec<Camera>, Vec<Krt>) = (0..count)
+        .map(|c| {
+            let az = (15.0 + 360.0 * c as f64 / count as f64).to_radians();
+            let el = if c % 2 == 0 { 12f64 } else { 28.0 }.to_radians();
+            let eye = Point3::new(
+                2.5 * el.cos() * az.sin(),
+                -2.5 * el.cos() * az.cos(),
+                2.5 * el.sin(),
+            );
+            camera_looking(format!("cam{c}"), opts, eye, target)
+        })
+        .unzip();
+    Synthetic {
+        options: opts.clone(),
+        cameras,
+        mesh,
+        material,
+        truth,
+        skin,
+        krt,
+        render_options: render_options(opts, Vector3::new(0.4, -0.6, 0.8), [0.12, 0.12, 0.12]),
+    }
+}
+
+fn render_options(opts: &SynthOptions, light: Vector3<f64>, background: [f32; 3]) -> RenderOptions {
+    RenderOptions {
+        supersample: opts.supersample,
+        background,
+        light: opts.light.then_some(Light {
+            direction: light,
+            ambient: 0.25,
+            diffuse: 0.85,
+        }),
+        near: 1e-3,
+    }
+}
+
+// ---------------------------------------------------------------------------------------------
+
+/// Adds seeded Gaussian noise (Box–Muller over SplitMix64) and clamps to [0, 1].
+fn add_noise(img: &mut RgbImage, sigma: f64, seed: u64) {
+    let mut state = seed;
+    let mut next = || {
+        state = state.wrapping_add(0x9E37_79B9_7F4A_7C15);
+        ((mix64(state) >> 11) as f64 + 0.5) / (1u64 << 53) as f64
+    };
+    for px in img.pixels_mut() {
+        for pair in [[0usize, 1], [2, 3]] {
+            let (u1, u2) = (next(), next());
+            let r = (-2.0 * u1.ln()).sqrt() * sigma;
+            let th = 2.0 * std::f64::consts::PI * u2;
+            for (k, ch) in pair.into_iter().enumerate() {
+                if ch < 3 {
+                    let z = if k == 0 { r * th.cos() } else { r * th.sin() };
+                    px[ch] = (px[ch] as f64 + z).clamp(0.0, 1.0) as f32;
+                }
+            }
+        }
+    }
+}
+
+impl Synthetic {
+    /// Generates a preset's geometry, cameras and texture (images are rendered on demand).
+    pub fn generate(opts: &SynthOptions) -> Result<Self> {
+        opts.validate()?;
+        Ok(match opts.preset {
+            Preset::Cloth => cloth(opts),
+            Preset::Blob => blob(opts),
+        })
+    }
+
+    pub fn frames(&self) -> u32 {
+        self.truth.len() as u32
+    }
+
+    /// The true mesh at `frame` (panics past the last frame).
+    pub fn frame_mesh(&self, frame: u32) -> Mesh {
+        self.mesh.with_positions(self.truth[frame as usize].clone())
+    }
+
+    /// The image of camera `camera` at `frame` (with the configured noise). Panics if either is
+    /// out of range (`cameras.len()`, [`Synthetic::frames`]).
+    pub fn render(&self, camera: usize, frame: u32) -> RgbImage {
+        let mesh = self.frame_mesh(frame);
+        let surface = match &self.skin {
+            Skin::Plane(t) => Surface::Material(t),
+            Skin::Cube(t) => Surface::Material(t),
+        };
+        let cam = &self.cameras[camera];
+        let mut img = render(
+            &mesh,
+            &self.material,
+            &surface,
+            cam.at(frame),
+            cam.width as usize,
+            cam.height as usize,
+            &self.render_options,
+        )
+        .expect("synthetic meshes and materials are consistent");
+        if self.options.noise > 0.0 {
+            let seed =
+                mix64(self.options.seed ^ 0x0153_E000 ^ ((camera as u64) << 40) ^ frame as u64);
+            add_noise(&mut img, self.options.noise, seed);
+        }
+        img
+    }
+
+    /// Image motion of every vertex from one frame to the next, over all cameras.
+    pub fn motion_stats(&self) -> MotionStats {
+        let mut d: Vec<f64> = self
+            .cameras
+            .iter()
+            .flat_map(|cam| {
+                self.truth.windows(2).enumerate().flat_map(move |(f, w)| {
+                    let (p0, p1) = (cam.at(f as u32), cam.at(f as u32 + 1));
+                    w[0].iter()
+                        .zip(&w[1])
+                        .filter_map(move |(a, b)| Some((p1.project(b)? - p0.project(a)?).norm()))
+                })
+            })
+            .collect();
+        if d.is_empty() {
+            return MotionStats {
+                max: 0.0,
+                median: 0.0,
+            };
+        }
+        d.sort_by(f64::total_cmp);
+        MotionStats {
+            max: d[d.len() - 1],
+            median: d[d.len() / 2],
+        }
+    }
+
+    /// The scene file describing this sequence as [`write_dataset`] lays it out.
+    pub fn scene_file(&self) -> SceneFile {
+        let rows = |m: &Matrix3<f64>| {
+            [
+                [m[(0, 0)], m[(0, 1)], m[(0, 2)]],
+                [m[(1, 0)], m[(1, 1)], m[(1, 2)]],
+                [m[(2, 0)], m[(2, 1)], m[(2, 2)]],
+            ]
+        };
+        SceneFile {
+            format: FORMAT.to_string(),
+            frames: FrameRange {
+                first: 0,
+                last: self.frames() - 1,
+            },
+            mesh: "mesh/initial.obj".to_string(),
+            cameras: self
+                .cameras
+                .iter()
+                .zip(&self.krt)
+                .map(|(cam, (k, r, t))| CameraEntry {
+                    name: cam.name.clone(),
+                    width: cam.width,
+                    height: cam.height,
+                    k: Some(rows(k)),
+                    r: Some(rows(r)),
+                    t: Some([t.x, t.y, t.z]),
+                    poses: None,
+                    p: None,
+                    images: format!("images/{}/{{frame:04}}.png", cam.name),
+                })
+                .collect(),
+            ground_truth: Some("truth/{frame:04}.obj".to_string()),
+        }
+    }
+}
+
+/// Generates the sequence of `opts` and writes it under `dir`: `scene.json`
+/// (`modelflow-scene/1`), `mesh/initial.obj` (frame 0, with texture coordinates),
+/// `images/camN/{frame:04}.png` (8-bit) and `truth/{frame:04}.obj`. Frames are rendered and
+/// written in parallel; `progress(done, total)` is called after each file (from worker threads).
+/// The scene file is written last, so a scene file present means a complete data set. Returns
+/// the scene file's path.
+pub fn write_dataset(
+    opts: &SynthOptions,
+    dir: &Path,
+    progress: &(dyn Fn(usize, usize) + Sync),
+) -> Result<PathBuf> {
+    Synthetic::generate(opts)?.write(dir, progress)
+}
+
+impl Synthetic {
+    /// Writes this sequence under `dir`; see [`write_dataset`].
+    pub fn write(&self, dir: &Path, progress: &(dyn Fn(usize, usize) + Sync)) -> Result<PathBuf> {
+        let synth = self;
+        let frames = synth.frames();
+        let ncam = synth.cameras.len();
+        let total = frames as usize * (ncam + 1) + 1;
+        let done = AtomicUsize::new(0);
+        let tick = || progress(done.fetch_add(1, Ordering::Relaxed) + 1, total);
+        write_obj(&dir.join("mesh/initial.obj"), &synth.mesh)?;
+        tick();
+        let jobs: Vec<(Option<usize>, u32)> = (0..frames)
+            .flat_map(|f| (0..=ncam).map(move |c| ((c < ncam).then_some(c), f)))
+            .collect();
+        jobs.par_iter().try_for_each(|&(cam, f)| -> Result<()> {
+            match cam {
+                Some(c) => {
+                    let name = &synth.cameras[c].name;
+                    let path = dir.join(format!("images/{name}/{f:04}.png"));
+                    write_png(&path, &synth.render(c, f))?;
+                }
+                None => write_obj(&dir.join(format!("truth/{f:04}.obj")), &synth.frame_mesh(f))?,
+            }
+            tick();
+            Ok(())
+        })?;
+        let scene = dir.join("scene.json");
+        synth.scene_file().write(&scene)?;
+        Ok(scene)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::synth::render::depth_map;
+    use crate::synth::render::vertex_normals;
+
+    fn opts(preset: Preset, frames: u32) -> SynthOptions {
+        SynthOptions {
+            preset,
+            frames,
+            ..Default::default()
+        }
+    }
+
+    #[test]
+    fn unknown_preset_lists_the_presets() {
+        let e = SynthOptions::preset("sheet").unwrap_err().to_string();
+        assert!(e.contains("'sheet'") && e.contains("cloth, blob"), "{e}");
+        assert_eq!(SynthOptions::preset("blob").unwrap().preset, Preset::Blob);
+    }
+
+    #[test]
+    fn bad_options_are_named() {
+        let mut o = SynthOptions {
+            cameras: Some(0),
+            ..Default::default()
+        };
+        assert!(Synthetic::generate(&o)
+            .unwrap_err()
+            .to_string()
+            .contains("--cameras 0"));
+        o.cameras = None;
+        o.supersample = 0;
+        assert!(o
+            .validate()
+            .unwrap_err()
+            .to_string()
+            .contains("--supersample 0"));
+        o.supersample = 3;
+        o.noise = f64::NAN;
+        assert!(o.validate().unwrap_err().to_string().contains("--noise"));
+    }
+
+    #[test]
+    fn cloth_edges_stay_near_rest_length_and_top_edge_stays_put() {
+        let s = Synthetic::generate(&opts(Preset::Cloth, 120)).unwrap();
+        assert!(s.mesh.vertex_count() >= 41 * 41);
+        let edges = s.mesh.edges();
+        let rest: Vec<f64> = edges
+            .iter()
+            .map(|&[a, b]| {
+                let (p, q) = (s.material[a as usize], s.material[b as usize]);
+                ((p[0] - q[0]).powi(2) + (p[1] - q[1]).powi(2)).sqrt()
+            })
+            .collect();
+        let (mut lo, mut hi) = (f64::MAX, f64::MIN);
+        for frame in &s.truth {
+            for (e, r) in edges.iter().zip(&rest) {
+                let l = (frame[e[0] as usize] - frame[e[1] as usize]).norm() / r;
+                lo = lo.min(l);
+                hi = hi.max(l);
+            }
+        }
+        eprintln!("cloth edge length / rest length in [{lo:.4}, {hi:.4}]");
+        assert!(lo > 0.9 && hi < 1.1, "edge length ratios in [{lo}, {hi}]");
+        // The top row moves less than 2 mm over the whole clip; the bottom moves a lot.
+        let first = &s.truth[0];
+        let top_move = s
+            .truth
+            .iter()
+            .flat_map(|f| (0..CLOTH_N).map(move |i| (f[i] - first[i]).norm()))
+            .fold(0.0, f64::max);
+        assert!(top_move < 2e-3, "top edge moved {top_move} m");
+        let bottom = CLOTH_N * (CLOTH_N - 1) + CLOTH_N / 2;
+        let bottom_move = s
+            .truth
+            .iter()
+            .map(|f| (f[bottom] - first[bottom]).norm())
+            .fold(0.0, f64::max);
+        assert!(bottom_move > 0.05, "bottom moved only {bottom_move} m");
+    }
+
+    #[test]
+    fn every_vertex_stays_in_frame_and_motion_is_moderate() {
+        for preset in Preset::ALL {
+            let s = Synthetic::generate(&opts(preset, 120)).unwrap();
+            for cam in &s.cameras {
+                for (f, frame) in s.truth.iter().enumerate() {
+                    let p = cam.at(f as u32);
+                    for x in frame {
+                        let q = p.project(x).unwrap();
+                        assert!(
+                            q.x > 20.0 && q.y > 20.0 && q.x < 620.0 && q.y < 460.0,
+                            "{preset} {} frame {f}: vertex at {q:?}",
+                            cam.name
+                        );
+                    }
+                }
+            }
+            let m = s.motion_stats();
+            assert!(m.max < 6.0 && m.median > 0.3, "{preset}: {m:?}");
+        }
+    }
+
+    #[test]
+    fn blob_is_closed_and_self_occluding() {
+        let s = Synthetic::generate(&opts(Preset::Blob, 60)).unwrap();
+        assert!(s.mesh.is_closed());
+        assert!(s.cameras.len() >= 3);
+        // Outward-facing triangles on the rest sphere.
+        let sphere = icosphere(2);
+        for i in 0..sphere.triangles.len() {
+            let c = sphere.positions[sphere.triangles[i][0] as usize];
+            assert!(sphere.triangle_normal(i).dot(&c.coords) > 0.0);
+        }
+        // Some vertex faces a camera but is hidden behind another part of the surface.
+        let mut occluded = 0;
+        for frame in [0u32, 30, 59] {
+            let mesh = s.frame_mesh(frame);
+            let normals = vertex_normals(&mesh);
+            for cam in &s.cameras {
+                let p = cam.at(frame);
+                let (w, h) = (cam.width as usize, cam.height as usize);
+                let depth = depth_map(&mesh, p, w, h).unwrap();
+                for (x, n) in mesh.positions.iter().zip(&normals) {
+                    let to_cam = (p.center() - x).normalize();
+                    if n.dot(&to_cam) < 0.2 {
+                        continue;
+                    }
+                    let q = p.project(x).unwrap();
+                    let d = depth[q.y.round() as usize * w + q.x.round() as usize];
+                    if p.depth(x) > d + 0.03 {
+                        occluded += 1;
+                    }
+                }
+            }
+        }
+        assert!(
+            occluded > 10,
+            "only {occluded} front-facing vertices hidden"
+        );
+    }
+
+    #[test]
+    fn deterministic_for_a_seed_and_different_across_seeds() {
+        let mut o = SynthOptions {
+            frames: 3,
+            width: 160,
+            height: 120,
+            noise: 0.02,
+            ..Default::default()
+        };
+        let a = Synthetic::generate(&o).unwrap().render(1, 2);
+        let b = Synthetic::generate(&o).unwrap().render(1, 2);
+        assert_eq!(a, b);
+        o.seed = 2;
+        let c = Synthetic::generate(&o).unwrap().render(1, 2);
+        let differ = a
+            .pixels()
+            .iter()
+            .zip(c.pixels())
+            .filter(|(x, y)| x != y)
+            .count();
+        assert!(differ > a.pixels().len() / 3, "{differ}");
+    }
+
+    #[test]
+    fn noise_has_the_requested_sigma() {
+        let o = SynthOptions {
+            frames: 1,
+            width: 160,
+            height: 120,
+            light: false,
+            ..Default::default()
+        };
+        let clean = Synthetic::generate(&o).unwrap().render(0, 0);
+        let noisy = Synthetic::generate(&SynthOptions { noise: 0.03, ..o })
+            .unwrap()
+            .render(0, 0);
+        let (mut s2, mut n) = (0.0, 0.0);
+        for (a, b) in clean.pixels().iter().zip(noisy.pixels()) {
+            for ch in 0..3 {
+                // Skip values the clamp could have cut.
+                if a[ch] > 0.15 && a[ch] < 0.85 {
+                    s2 += ((b[ch] - a[ch]) as f64).powi(2);
+                    n += 1.0;
+                }
+            }
+        }
+        let sigma = (s2 / n).sqrt();
+        assert!((sigma - 0.03).abs() < 0.002, "{sigma}");
+    }
+
+    #[test]
+    fn written_dataset_loads_and_matches_memory() {
+        let o = SynthOptions {
+            frames: 3,
+            width: 160,
+            height: 120,
+            cameras: Some(3),
+            ..Default::default()
+        };
+        let dir = tempfile::tempdir().unwrap();
+        let calls = AtomicUsize::new(0);
+        let path = write_dataset(&o, dir.path(), &|done, total| {
+            assert!(done <= total && total == 3 * 4 + 1);
+            calls.fetch_add(1, Ordering::Relaxed);
+        })
+        .unwrap();
+        assert_eq!(calls.load(Ordering::Relaxed), 13);
+        let scene = crate::input::scene::Scene::load(&path).unwrap();
+        let s = Synthetic::generate(&o).unwrap();
+        assert_eq!((scene.first, scene.last), (0, 2));
+        assert_eq!(scene.cameras.len(), 3);
+        assert_eq!(scene.mesh.triangles, s.mesh.triangles);
+        for (a, b) in scene.cameras.iter().zip(&s.cameras) {
+            let x = s.truth[1][100];
+            let (pa, pb) = (a.at(1).project(&x).unwrap(), b.at(1).project(&x).unwrap());
+            assert!((pa - pb).norm() < 1e-9);
+        }
+        let truth = scene.ground_truth(2).unwrap().unwrap();
+        assert_eq!(truth.positions, s.truth[2], "OBJ round trip is exact");
+        let imgs = scene.load_images(2).unwrap();
+        let mem = s.render(2, 2);
+        let worst = imgs[2]
+            .pixels()
+            .iter()
+            .zip(mem.pixels())
+            .flat_map(|(a, b)| (0..3).map(move |c| (a[c] - b[c]).abs()))
+            .fold(0.0f32, f32::max);
+        assert!(worst <= 0.5 / 255.0 + 1e-6, "{worst}");
+    }
+}

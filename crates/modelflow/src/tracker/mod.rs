@@ -1,0 +1,28 @@
+//! The Model Flow tracker. Per frame: image pyramids (`pyramid`), template patches of the known
+//! frames (`patch`, on `base::raster`'s index buffers), the per-triangle homography warp and its
+//! analytic Jacobian (`warp`), the regularisers (`regularise`), the block-sparse normal equations
+//! and their conjugate-gradient solver (`sparse`), and the Gauss–Newton/Levenberg–Marquardt
+//! solve (`solve`). Over a shot: [`Tracker`] in memory (`sequence`: images in, positions out)
+//! and [`track_scene`] from a scene on disk into a run folder (`shot`). Only `shot` touches
+//! files, through `run`; everything else takes and returns memory.
+
+mod options;
+pub(crate) mod patch;
+pub(crate) mod pyramid;
+pub(crate) mod regularise;
+mod sequence;
+mod shot;
+pub(crate) mod solve;
+pub(crate) mod sparse;
+pub(crate) mod warp;
+
+#[cfg(test)]
+mod tests;
+
+pub use options::{OptionsUsed, TrackOptions};
+pub use regularise::Regularisation;
+pub use sequence::{prepare, FrameReport, Prepared, StepTiming, Tracker};
+pub use shot::{median, track_scene, TrackSummary};
+pub use solve::{
+    GainModel, Interpolation, IterationSummary, SolveSummary, SolverOptions, StopReason,
+};

@@ -1,0 +1,152 @@
+//! Index patches and pixel patches (thesis §6.2.3–6.2.4): for every (triangle, camera) of a
+//! *template* frame, the pixels the triangle owns after z-buffering and silhouette erosion, each
+//! with its barycentric coordinates on the triangle and its colour. These are what the solver
+//! warps into the next frame.
+//!
+//! A template is any frame whose mesh and images are known: the previous frame (the thesis'
+//! "current" frame) and, to stop drift, the first frame of the shot.
+
+use crate::base::camera::Projection;
+use crate::base::image::RgbImage;
+use crate::base::raster::{rasterize, trackable_mask, usable_triangles, NONE};
+use crate::tracker::warp::{barycentric, source_matrix};
+use nalgebra::Point3;
+
+/// One source pixel: barycentric coordinates on its triangle and its RGB value.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct PixelSample {
+    pub lambda: [f32; 3],
+    pub color: [f32; 3],
+}
+
+/// The pixels of one (triangle, camera) of one template: `pixels[start..end]`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Patch {
+    pub triangle: u32,
+    pub camera: u16,
+    /// Weight of the template this patch comes from.
+    pub weight: f32,
+    pub start: u32,
+    pub end: u32,
+}
+
+/// Options deciding which pixels are trusted.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct PatchOptions {
+    /// Pixels closer than this (in pixels, Chebyshev) to a silhouette, the background or an
+    /// occluding surface are left out.
+    pub margin: usize,
+    /// Triangles seen at a grazing angle (cosine below this) or from behind (closed meshes) are
+    /// left out.
+    pub min_cos: f64,
+    /// Whether the surface is two-sided (an open sheet) or has an outside (a closed mesh).
+    pub two_sided: bool,
+    /// Keep only pixels with even `x + y` (half the pixels, evenly spread).
+    pub checkerboard: bool,
+}
+
+/// All patches of a problem, ordered by triangle, with their pixels.
+#[derive(Clone, Debug, Default)]
+pub struct PatchSet {
+    pub patches: Vec<Patch>,
+    pub pixels: Vec<PixelSample>,
+}
+
+impl PatchSet {
+    /// Adds the patches of one camera of one template frame.
+    #[allow(clippy::too_many_arguments)]
+    pub fn add_camera(
+        &mut self,
+        positions: &[Point3<f64>],
+        triangles: &[[u32; 3]],
+        proj: &Projection,
+        image: &RgbImage,
+        camera: u16,
+        weight: f32,
+        opts: &PatchOptions,
+        only: Option<&dyn Fn(u32) -> bool>,
+    ) {
+        let (w, h) = (image.width(), image.height());
+        let ib = rasterize(positions, triangles, proj, w, h);
+        let usable = usable_triangles(positions, triangles, proj, opts.two_sided, opts.min_cos);
+        let mut mask = trackable_mask(&ib, triangles, &usable, opts.margin);
+        if opts.checkerboard {
+            for (i, m) in mask.iter_mut().enumerate() {
+                *m &= (i % w + i / w) % 2 == 0;
+            }
+        }
+        // Counting sort of the kept pixels by owner triangle.
+        let mut count = vec![0u32; triangles.len() + 1];
+        for (i, &m) in mask.iter().enumerate() {
+            if m {
+                count[ib.owner[i] as usize + 1] += 1;
+            }
+        }
+        for t in 0..triangles.len() {
+            count[t + 1] += count[t];
+        }
+        let mut order = vec![0u32; count[triangles.len()] as usize];
+        let mut next = count.clone();
+        for (i, &m) in mask.iter().enumerate() {
+            if m {
+                let t = ib.owner[i] as usize;
+                order[next[t] as usize] = i as u32;
+                next[t] += 1;
+            }
+        }
+        for t in 0..triangles.len() {
+            let (a, b) = (count[t] as usize, count[t + 1] as usize);
+            if a == b || only.is_some_and(|f| !f(t as u32)) {
+                continue;
+            }
+            let x = triangles[t].map(|v| positions[v as usize]);
+            let Some(s_inv) = source_matrix(proj, &x).try_inverse() else {
+                continue;
+            };
+            let start = self.pixels.len() as u32;
+            for &pi in &order[a..b] {
+                let (px, py) = (pi as usize % w, pi as usize / w);
+                debug_assert!(ib.owner[pi as usize] != NONE);
+                let l = barycentric(&s_inv, px as f64, py as f64);
+                self.pixels.push(PixelSample {
+                    lambda: [l[0] as f32, l[1] as f32, l[2] as f32],
+                    color: image.get(px, py),
+                });
+            }
+            self.patches.push(Patch {
+                triangle: t as u32,
+                camera,
+                weight,
+                start,
+                end: self.pixels.len() as u32,
+            });
+        }
+    }
+
+    /// Sorts patches by triangle (stable) and returns, for each triangle that has patches, the
+    /// range of its patches.
+    pub fn by_triangle(&mut self) -> Vec<(u32, std::ops::Range<usize>)> {
+        self.patches.sort_by_key(|p| p.triangle);
+        let mut out = Vec::new();
+        let mut i = 0;
+        while i < self.patches.len() {
+            let t = self.patches[i].triangle;
+            let mut j = i;
+            while j < self.patches.len() && self.patches[j].triangle == t {
+                j += 1;
+            }
+            out.push((t, i..j));
+            i = j;
+        }
+        out
+    }
+
+    /// `covered[triangle * cameras + camera]`: whether that pair has a patch.
+    pub fn coverage(&self, triangles: usize, cameras: usize) -> Vec<bool> {
+        let mut c = vec![false; triangles * cameras];
+        for p in &self.patches {
+            c[p.triangle as usize * cameras + p.camera as usize] = true;
+        }
+        c
+    }
+}

@@ -1,0 +1,145 @@
+//! Regularisers: the terms of the tracker's cost that do not come from the images and keep the
+//! mesh sane where the images say little. Each one is a [`Regulariser`] in a file of its own:
+//! the thesis' cubic edge springs (`springs`), the frame-to-frame membrane (`membrane`) and the
+//! bending term against the rest shape (`bending`). The solver sees only the trait: it adds each
+//! term's cost and normal equations to the photometric ones. A new regulariser is one new file
+//! implementing the trait, a weight in [`Regularisation`] and a line in [`build`].
+//!
+//! Knows the mesh, its rest shape and the previous frames' positions; nothing of images or
+//! cameras.
+
+pub(crate) mod bending;
+pub(crate) mod membrane;
+pub(crate) mod springs;
+
+use crate::base::mesh::Mesh;
+use crate::tracker::sparse::BlockSparse;
+use nalgebra::{Point3, Vector3};
+use serde::{Deserialize, Serialize};
+use std::sync::Arc;
+
+/// Weights and parameters of the regularisers (0 turns a term off). `Default` is what
+/// `modelflow track` uses.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Regularisation {
+    /// Spring constant `k` of the cubic edge springs (thesis Eq. 5.16).
+    pub spring_k: f64,
+    /// Threshold ratio `T` of Eq. 5.16, as a fraction of the rest length (0.1 = 10 %).
+    pub spring_t: f64,
+    /// Weight `μ` of the frame-to-frame membrane.
+    pub membrane: f64,
+    /// Weight `β` of the bending term against the rest shape.
+    pub bending: f64,
+}
+
+impl Default for Regularisation {
+    fn default() -> Self {
+        Regularisation {
+            spring_k: 1.0,
+            spring_t: 0.1,
+            membrane: 0.002,
+            bending: 0.01,
+        }
+    }
+}
+
+/// What a regulariser may refer to in the frame being solved.
+pub(crate) struct FrameContext<'a> {
+    /// The positions solved for the previous frame.
+    pub previous: &'a [Point3<f64>],
+    /// The constant-velocity prediction from the two previous frames (the previous positions
+    /// when there is no velocity yet).
+    pub predicted: &'a [Point3<f64>],
+}
+
+/// The normal equations a term adds to: `JᵀJ` and `−Jᵀr`.
+pub(crate) type System<'s> = (&'s mut BlockSparse, &'s mut [Vector3<f64>]);
+
+/// One term of the cost, `Σ |r(X)|²` over its residuals, with its Gauss–Newton normal
+/// equations. Implementations hold their own weight (normalised so that the weights of
+/// [`Regularisation`] need no units and do not depend on the mesh's size).
+pub(crate) trait Regulariser: Send + Sync {
+    /// Its name in logs and manifests (`snake_case`).
+    fn name(&self) -> &'static str;
+
+    /// Called once per frame before it is solved (e.g. to take a reference shape).
+    fn begin_frame(&mut self, _frame: &FrameContext<'_>) {}
+
+    /// The term's cost at `x` (returned); with `system`, adds its `JᵀJ` and `−Jᵀr` there, on
+    /// the mesh's vertex-pair blocks (or the matrix's shared scalar part).
+    fn accumulate(&self, x: &[Point3<f64>], system: Option<System<'_>>) -> f64;
+}
+
+/// The edges of a mesh with their rest lengths (taken from the first frame), shared by the edge
+/// terms.
+#[derive(Clone, Debug)]
+pub(crate) struct EdgeSet {
+    pub edges: Vec<[u32; 2]>,
+    pub rest: Vec<f64>,
+    pub mean_length: f64,
+}
+
+impl EdgeSet {
+    pub fn new(edges: Vec<[u32; 2]>, rest_positions: &[Point3<f64>]) -> Self {
+        let rest: Vec<f64> = edges
+            .iter()
+            .map(|[a, b]| (rest_positions[*b as usize] - rest_positions[*a as usize]).norm())
+            .collect();
+        let mean_length = if rest.is_empty() {
+            1.0
+        } else {
+            rest.iter().sum::<f64>() / rest.len() as f64
+        };
+        EdgeSet {
+            edges,
+            rest,
+            mean_length,
+        }
+    }
+
+    /// Adds an edge term whose Hessian blocks are `h` on (a,a), (b,b) and `−h` on (a,b), and
+    /// whose gradient with respect to `b` is `g_b` (and `−g_b` with respect to `a`).
+    pub fn add_edge(
+        system: &mut System<'_>,
+        [a, b]: [usize; 2],
+        h: &nalgebra::Matrix3<f64>,
+        g_b: &Vector3<f64>,
+    ) {
+        let (m, rhs) = system;
+        m.add_pair(a, a, h);
+        m.add_pair(b, b, h);
+        m.add_pair(a, b, &(-h));
+        rhs[b] -= g_b;
+        rhs[a] += g_b;
+    }
+}
+
+/// The regularisers `reg` asks for on `mesh` (whose positions are the rest shape), in the order
+/// the solver adds them.
+pub(crate) fn build(
+    mesh: &Mesh,
+    edges: &Arc<EdgeSet>,
+    reg: &Regularisation,
+) -> Vec<Box<dyn Regulariser>> {
+    let mut out: Vec<Box<dyn Regulariser>> = Vec::new();
+    if reg.spring_k > 0.0 {
+        out.push(Box::new(springs::CubicSprings::new(
+            edges.clone(),
+            reg.spring_k,
+            reg.spring_t,
+        )));
+    }
+    if reg.membrane > 0.0 {
+        out.push(Box::new(membrane::Membrane::new(
+            edges.clone(),
+            reg.membrane,
+        )));
+    }
+    if reg.bending > 0.0 {
+        let b = bending::Bending::new(&mesh.triangles, &mesh.positions);
+        if !b.is_empty() {
+            out.push(Box::new(bending::BendingTerm::new(b, reg.bending)));
+        }
+    }
+    out
+}

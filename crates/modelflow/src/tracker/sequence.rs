@@ -1,0 +1,458 @@
+//! The tracker: runs the per-frame solver over a shot (thesis §6.6, "the next frame starts from
+//! the solved one").
+//!
+//! For each new frame it builds image pyramids, compares the new frame against two templates —
+//! the previous frame (the thesis' method) and the first frame of the shot (so that small errors
+//! do not accumulate into drift; the thesis' Fig. 7.7 shows that they otherwise do) — and solves
+//! coarse to fine. Each frame uses every camera's own projection at that frame. A constant-velocity
+//! prediction is tried as the starting guess and kept only if it matches the images better than
+//! the previous positions.
+//!
+//! [`Tracker`] works in memory (images in, positions out); `shot::track_scene` drives it over a
+//! scene on disk into a run folder.
+
+use crate::base::camera::{Camera, Projection};
+use crate::base::image::RgbImage;
+use crate::base::mesh::Mesh;
+use crate::error::{Error, Result};
+use crate::tracker::options::{OptionsUsed, TrackOptions};
+use crate::tracker::patch::{PatchOptions, PatchSet};
+use crate::tracker::pyramid::Pyramid;
+use crate::tracker::regularise::{self, EdgeSet, FrameContext, Regulariser};
+use crate::tracker::solve::{Problem, SolveSummary, SolverOptions, StopReason};
+use nalgebra::Point3;
+use rayon::prelude::*;
+use serde::{Deserialize, Serialize};
+use std::sync::atomic::AtomicBool;
+use std::sync::Arc;
+use std::time::Instant;
+
+/// What happened in one frame (the frame and its timing are the caller's: see
+/// `run::FrameLog`).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct FrameReport {
+    /// Gauss–Newton iterations over all levels.
+    pub iterations: usize,
+    /// Cost at the previous frame's positions (no deformation), finest level.
+    pub cost_before: f64,
+    /// Cost at the solution, finest level.
+    pub cost_after: f64,
+    /// Pixels compared at the solution, finest level.
+    pub pixels: usize,
+    /// Why the finest level stopped.
+    pub stop: StopReason,
+    /// Whether the constant-velocity prediction was used as the start.
+    pub predicted: bool,
+    /// Where the time went: building pyramids, building patches, solving (seconds).
+    pub timing: StepTiming,
+    /// Per-level solver summaries, coarse to fine.
+    pub levels: Vec<SolveSummary>,
+}
+
+/// Time split of one frame's step, seconds.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct StepTiming {
+    /// Building the frame's image pyramids ([`prepare`]); `track_scene` does this while the
+    /// previous frame is solved, so it is not on the critical path there.
+    pub pyramids: f64,
+    /// Building the template patches.
+    pub patches: f64,
+    /// The Gauss–Newton solves.
+    pub solve: f64,
+}
+
+struct Template {
+    positions: Vec<Point3<f64>>,
+    pyramids: Vec<Pyramid>,
+    frame: u32,
+}
+
+/// Frame-by-frame tracker state, in memory.
+pub struct Tracker {
+    triangles: Vec<[u32; 3]>,
+    cameras: Vec<Camera>,
+    opts: TrackOptions,
+    used: OptionsUsed,
+    /// The mesh's edges: the normal equations' block pattern.
+    pattern: Vec<[u32; 2]>,
+    regularisers: Vec<Box<dyn Regulariser>>,
+    two_sided: bool,
+    cancel: Option<Arc<AtomicBool>>,
+    /// Anchor patches per level (built once from the first frame).
+    anchor: Vec<PatchSet>,
+    prev: Template,
+    before_prev: Option<Vec<Point3<f64>>>,
+}
+
+fn level_projection(p: &Projection, level: usize) -> Projection {
+    if level == 0 {
+        p.clone()
+    } else {
+        p.downscaled(1 << level)
+    }
+}
+
+impl Tracker {
+    /// A tracker whose mesh lines up with `images` (one per camera) at `frame`.
+    pub fn new(
+        mesh: &Mesh,
+        cameras: Vec<Camera>,
+        frame: u32,
+        images: &[RgbImage],
+        opts: TrackOptions,
+    ) -> Result<Self> {
+        if images.len() != cameras.len() {
+            return Err(Error::mismatch(
+                "images",
+                format!("{} (one per camera)", cameras.len()),
+                images.len(),
+            ));
+        }
+        let used = opts.used(mesh);
+        let opts = used.options;
+        let levels = opts.levels;
+        let pyramids = build_pyramids(images, levels, opts.blur);
+        let edges = Arc::new(EdgeSet::new(mesh.edges(), &mesh.positions));
+        let mut t = Tracker {
+            triangles: mesh.triangles.clone(),
+            cameras,
+            opts,
+            used,
+            pattern: edges.edges.clone(),
+            regularisers: regularise::build(mesh, &edges, &opts.regularisation),
+            two_sided: !mesh.is_closed(),
+            cancel: None,
+            anchor: Vec::new(),
+            prev: Template {
+                positions: mesh.positions.clone(),
+                pyramids,
+                frame,
+            },
+            before_prev: None,
+        };
+        // The anchor keeps every other pixel (checkerboard) at twice the weight: the same total
+        // pull for half the work.
+        if opts.anchor_weight > 0.0 {
+            t.anchor = (0..levels)
+                .map(|l| t.template_patches(&t.prev, l, 2.0 * opts.anchor_weight as f32, true))
+                .collect();
+        }
+        Ok(t)
+    }
+
+    /// Replaces the current frame's vertex positions (e.g. a corrected shape from an artist, or
+    /// ground truth in an experiment); the next step starts from them, with no velocity.
+    pub fn set_positions(&mut self, positions: Vec<Point3<f64>>) -> Result<()> {
+        self.check_positions(&positions)?;
+        self.prev.positions = positions;
+        self.before_prev = None;
+        Ok(())
+    }
+
+    /// Puts the tracker in the state it had right after solving `frame`: the frame's images
+    /// (as [`prepare`]d), its solved positions and, when there is one, the solved positions of
+    /// the frame before it (for the constant-velocity prediction). Continuing from here gives
+    /// exactly what an uninterrupted run gives (how `--resume` continues a run).
+    pub fn restore(
+        &mut self,
+        frame: u32,
+        prepared: Prepared,
+        positions: Vec<Point3<f64>>,
+        before: Option<Vec<Point3<f64>>>,
+    ) -> Result<()> {
+        self.check_prepared(&prepared)?;
+        self.check_positions(&positions)?;
+        if let Some(b) = &before {
+            self.check_positions(b)?;
+        }
+        self.prev = Template {
+            positions,
+            pyramids: prepared.pyramids,
+            frame,
+        };
+        self.before_prev = before;
+        Ok(())
+    }
+
+    /// A flag that, once set (e.g. on Ctrl-C), makes the current and every later step stop
+    /// within one solver iteration with `Error::Interrupted`, leaving the tracker as it was.
+    pub fn set_cancel(&mut self, cancel: Arc<AtomicBool>) {
+        self.cancel = Some(cancel);
+    }
+
+    /// The options as used: the given ones resolved, with what they imply.
+    pub fn options_used(&self) -> &OptionsUsed {
+        &self.used
+    }
+
+    fn check_positions(&self, positions: &[Point3<f64>]) -> Result<()> {
+        if positions.len() != self.prev.positions.len() {
+            return Err(Error::mismatch(
+                "positions",
+                format!("{} (one per mesh vertex)", self.prev.positions.len()),
+                positions.len(),
+            ));
+        }
+        Ok(())
+    }
+
+    fn check_prepared(&self, prepared: &Prepared) -> Result<()> {
+        if prepared.pyramids.len() != self.cameras.len() {
+            return Err(Error::mismatch(
+                "images",
+                format!("{} (one per camera)", self.cameras.len()),
+                prepared.pyramids.len(),
+            ));
+        }
+        let levels = self.opts.levels;
+        if prepared.pyramids.iter().any(|p| p.levels.len() < levels)
+            || prepared.blur != self.opts.blur
+        {
+            return Err(Error::mismatch(
+                "prepared images",
+                format!(
+                    "the tracker's options ({levels} pyramid levels, blur {} px)",
+                    self.opts.blur
+                ),
+                format!("images prepared with blur {} px", prepared.blur),
+            ));
+        }
+        Ok(())
+    }
+
+    /// Current vertex positions (the last solved frame).
+    pub fn positions(&self) -> &[Point3<f64>] {
+        &self.prev.positions
+    }
+
+    fn patch_options(&self) -> PatchOptions {
+        PatchOptions {
+            margin: self.opts.margin,
+            min_cos: self.opts.min_cos,
+            two_sided: self.two_sided,
+            checkerboard: false,
+        }
+    }
+
+    fn template_patches(
+        &self,
+        tpl: &Template,
+        level: usize,
+        weight: f32,
+        checkerboard: bool,
+    ) -> PatchSet {
+        let popts = PatchOptions {
+            checkerboard,
+            ..self.patch_options()
+        };
+        let per_cam: Vec<PatchSet> = self
+            .cameras
+            .par_iter()
+            .enumerate()
+            .map(|(c, cam)| {
+                let mut set = PatchSet::default();
+                let proj = level_projection(cam.at(tpl.frame), level);
+                set.add_camera(
+                    &tpl.positions,
+                    &self.triangles,
+                    &proj,
+                    &tpl.pyramids[c].levels[level],
+                    c as u16,
+                    weight,
+                    &popts,
+                    None,
+                );
+                set
+            })
+            .collect();
+        merge(per_cam)
+    }
+
+    /// Solves for `frame` given its images (one per camera) and makes it the new template.
+    pub fn step(&mut self, frame: u32, images: &[RgbImage]) -> Result<FrameReport> {
+        let prepared = prepare(images, &self.opts);
+        self.step_prepared(frame, prepared)
+    }
+
+    /// [`Tracker::step`] with the frame's images already prepared by [`prepare`] (which needs
+    /// no tracker, so it can run while the previous frame is being solved).
+    pub fn step_prepared(&mut self, frame: u32, prepared: Prepared) -> Result<FrameReport> {
+        self.check_prepared(&prepared)?;
+        let levels = self.opts.levels;
+        let next = prepared.pyramids;
+        let mut timing = StepTiming {
+            pyramids: prepared.seconds,
+            ..Default::default()
+        };
+        let ncam = self.cameras.len();
+        let mut x = self.prev.positions.clone();
+        let mut summaries = Vec::with_capacity(levels);
+        let mut predicted = false;
+        let mut cost_before = 0.0;
+        let mut cost_after = 0.0;
+        let mut pixels = 0;
+        let mut stop = StopReason::NoData;
+        // The constant-velocity prediction when there is a velocity, the previous shape
+        // otherwise: the membrane's reference (it penalises changes of the deformation's rate).
+        let predicted_shape: Vec<Point3<f64>> = match &self.before_prev {
+            Some(pp) => self
+                .prev
+                .positions
+                .iter()
+                .zip(pp)
+                .map(|(a, b)| a + (a - b))
+                .collect(),
+            None => self.prev.positions.clone(),
+        };
+        let context = FrameContext {
+            previous: &self.prev.positions,
+            predicted: &predicted_shape,
+        };
+        for r in &mut self.regularisers {
+            r.begin_frame(&context);
+        }
+        for level in (0..levels).rev() {
+            let tp = Instant::now();
+            let cb = level == 0 && self.opts.checkerboard;
+            let weight = if cb { 2.0 } else { 1.0 };
+            let mut set = self.template_patches(&self.prev, level, weight, cb);
+            if let Some(anchor) = self.anchor.get(level) {
+                // Anchor patches only where the triangle is seen in the previous frame too
+                // (otherwise it has turned away or been covered since the first frame).
+                let cover = set.coverage(self.triangles.len(), ncam);
+                for p in &anchor.patches {
+                    if cover[p.triangle as usize * ncam + p.camera as usize] {
+                        let start = set.pixels.len() as u32;
+                        set.pixels
+                            .extend_from_slice(&anchor.pixels[p.start as usize..p.end as usize]);
+                        set.patches.push(crate::tracker::patch::Patch {
+                            start,
+                            end: set.pixels.len() as u32,
+                            ..*p
+                        });
+                    }
+                }
+            }
+            let by_triangle = set.by_triangle();
+            timing.patches += tp.elapsed().as_secs_f64();
+            let ts = Instant::now();
+            let sopts = SolverOptions {
+                interpolation: self.used.interpolation_per_level[level],
+                ..self.opts.solver
+            };
+            let problem = Problem {
+                triangles: &self.triangles,
+                patches: &set.patches,
+                pixels: &set.pixels,
+                by_triangle: &by_triangle,
+                targets: next.iter().map(|p| &p.levels[level]).collect(),
+                projections: self
+                    .cameras
+                    .iter()
+                    .map(|c| level_projection(c.at(frame), level))
+                    .collect(),
+                pattern: &self.pattern,
+                regularisers: &self.regularisers,
+                cancel: self.cancel.as_deref(),
+            };
+            if level == levels - 1 && self.opts.predict {
+                if let Some(pp) = &self.before_prev {
+                    let guess: Vec<Point3<f64>> =
+                        x.iter().zip(pp).map(|(a, b)| a + (a - b)).collect();
+                    if problem.cost(&guess, &sopts) < problem.cost(&x, &sopts) {
+                        x = guess;
+                        predicted = true;
+                    }
+                }
+            }
+            if level == 0 {
+                cost_before = problem.cost(&self.prev.positions, &sopts);
+            }
+            let (sol, summary) = problem.solve(&x, &sopts);
+            if summary.stop == StopReason::Cancelled {
+                // The tracker stays at the previous frame: nothing of this step is kept.
+                return Err(Error::Interrupted {
+                    last_complete: self.prev.frame,
+                });
+            }
+            x = sol;
+            if level == 0 {
+                cost_after = summary.final_cost;
+                pixels = summary.pixels;
+                stop = summary.stop;
+            }
+            summaries.push(summary);
+            timing.solve += ts.elapsed().as_secs_f64();
+        }
+        let iterations = summaries.iter().map(|s| s.iterations.len()).sum();
+        let old = std::mem::replace(
+            &mut self.prev,
+            Template {
+                positions: x,
+                pyramids: next,
+                frame,
+            },
+        );
+        self.before_prev = Some(old.positions);
+        Ok(FrameReport {
+            iterations,
+            cost_before,
+            cost_after,
+            pixels,
+            stop,
+            predicted,
+            timing,
+            levels: summaries,
+        })
+    }
+}
+
+/// One frame's images made ready for [`Tracker::step_prepared`]: each camera's smoothed pyramid.
+pub struct Prepared {
+    pyramids: Vec<Pyramid>,
+    /// The smoothing they were built with (must be the tracker's).
+    blur: f64,
+    /// Time it took, seconds (reported as the step's `timing.pyramids`).
+    seconds: f64,
+}
+
+impl Prepared {
+    /// Time it took to build the pyramids, seconds.
+    pub fn seconds(&self) -> f64 {
+        self.seconds
+    }
+}
+
+/// Builds the pyramids the tracker with `opts` needs from one frame's images (one per camera).
+pub fn prepare(images: &[RgbImage], opts: &TrackOptions) -> Prepared {
+    let t = Instant::now();
+    let pyramids = build_pyramids(images, opts.levels.max(1), opts.blur);
+    // (`levels.max(1)` is `TrackOptions::used`'s resolution of the level count.)
+    Prepared {
+        pyramids,
+        blur: opts.blur,
+        seconds: t.elapsed().as_secs_f64(),
+    }
+}
+
+fn build_pyramids(images: &[RgbImage], levels: usize, blur: f64) -> Vec<Pyramid> {
+    images
+        .par_iter()
+        .map(|img| Pyramid::new(img, levels, blur))
+        .collect()
+}
+
+fn merge(sets: Vec<PatchSet>) -> PatchSet {
+    let mut out = PatchSet::default();
+    for s in sets {
+        let off = out.pixels.len() as u32;
+        out.pixels.extend(s.pixels);
+        out.patches
+            .extend(s.patches.into_iter().map(|p| crate::tracker::patch::Patch {
+                start: p.start + off,
+                end: p.end + off,
+                ..p
+            }));
+    }
+    out
+}

@@ -1,0 +1,196 @@
+//! A whole shot: drives the [`Tracker`] over a scene on disk and writes a run folder (`run`): one
+//! mesh per frame, one log line per solved frame, the manifest. The next frame's images are read,
+//! and their pyramids built, while the current frame is solved. A run can be resumed from its
+//! last complete frame, with results identical to an uninterrupted run, and stopped cleanly
+//! between solver iterations by a cancel flag.
+
+use crate::error::{Error, Result};
+use crate::input::scene::Scene;
+use crate::run::{
+    FrameDetail, FrameLog, Manifest, Method, Opened, Options, RunFolder, RunOptions, Status,
+};
+use crate::tracker::options::TrackOptions;
+use crate::tracker::sequence::{prepare, Tracker};
+use serde::Serialize;
+use std::path::Path;
+use std::time::Instant;
+
+/// Summary of a tracked shot.
+#[derive(Clone, Debug, Serialize)]
+pub struct TrackSummary {
+    /// Frames in the run folder, the first (the input mesh) included.
+    pub frames: usize,
+    /// Frames solved by this call (fewer than `frames - 1` when it resumed a run).
+    pub solved: usize,
+    /// The last complete frame the run was resumed from, if it was.
+    pub resumed_from: Option<u32>,
+    pub total_seconds: f64,
+    /// Median wall time per frame solved by this call, image loading included.
+    pub median_frame_seconds: f64,
+    pub median_iterations: f64,
+}
+
+/// Tracks a whole scene into the run folder `out_dir` (see `run` for the layout and the rules
+/// that protect existing files), calling `on_frame` after each solved frame.
+pub fn track_scene(
+    scene: &Scene,
+    opts: &TrackOptions,
+    out_dir: &Path,
+    run: &RunOptions,
+    on_frame: &mut dyn FnMut(&FrameLog),
+) -> Result<TrackSummary> {
+    let t_start = Instant::now();
+    let used = opts.used(&scene.mesh);
+    let manifest = Manifest::new(
+        Method::ModelFlow,
+        scene,
+        run.command.clone(),
+        Options {
+            given: run.given.clone(),
+            used: serde_json::to_value(&used)
+                .map_err(|e| Error::invalid(out_dir, "options", e.to_string()))?,
+        },
+    )?;
+    let Opened {
+        mut folder,
+        resumed,
+    } = RunFolder::open(out_dir, manifest, run.mode)?;
+    let result = track_into(
+        &mut folder,
+        resumed.map(|(f, _)| f),
+        scene,
+        opts,
+        run,
+        on_frame,
+    );
+    let status = match &result {
+        Ok(_) => Status::Complete,
+        Err(Error::Interrupted { .. }) => Status::Interrupted,
+        Err(_) => Status::Failed,
+    };
+    let finished = folder.finish(status);
+    let last_complete = folder.last_complete().unwrap_or(scene.first);
+    match result {
+        Ok(mut summary) => {
+            finished?;
+            summary.total_seconds = t_start.elapsed().as_secs_f64();
+            Ok(summary)
+        }
+        Err(Error::Interrupted { .. }) => Err(Error::Interrupted { last_complete }),
+        Err(e) => Err(e),
+    }
+}
+
+fn track_into(
+    folder: &mut RunFolder,
+    resumed: Option<u32>,
+    scene: &Scene,
+    opts: &TrackOptions,
+    run: &RunOptions,
+    on_frame: &mut dyn FnMut(&FrameLog),
+) -> Result<TrackSummary> {
+    let first_images = scene.load_images(scene.first)?;
+    let mut tracker = Tracker::new(
+        &scene.mesh,
+        scene.cameras.clone(),
+        scene.first,
+        &first_images,
+        *opts,
+    )?;
+    drop(first_images);
+    if let Some(c) = &run.cancel {
+        tracker.set_cancel(c.clone());
+    }
+    let start = match resumed {
+        None => {
+            folder.write_first(&scene.mesh)?;
+            scene.first
+        }
+        Some(last) if last == scene.first => last,
+        Some(last) => {
+            // The state right after `last` was solved: its images, its positions and those of
+            // the frame before (the velocity), read back exactly from the meshes written.
+            let prepared = prepare(&scene.load_images(last)?, opts);
+            let positions = folder.read_positions(last)?;
+            let before = folder.read_positions(last - 1)?;
+            tracker.restore(last, prepared, positions, Some(before))?;
+            last
+        }
+    };
+    let mut walls = Vec::new();
+    let mut iters = Vec::new();
+    // Reads a frame's images and builds their pyramids; runs while the previous frame is solved.
+    let load = |frame: u32| {
+        let t = Instant::now();
+        scene.load_images(frame).map(|imgs| {
+            let load_seconds = t.elapsed().as_secs_f64();
+            (prepare(&imgs, opts), load_seconds)
+        })
+    };
+    let mut pending = (start < scene.last).then(|| load(start + 1));
+    let mut t_frame = Instant::now();
+    for frame in start + 1..=scene.last {
+        if run.cancelled() {
+            return Err(Error::Interrupted {
+                last_complete: frame - 1,
+            });
+        }
+        let Some(loaded) = pending.take() else {
+            break;
+        };
+        let (prepared, load_seconds) = loaded?;
+        let has_next = frame < scene.last;
+        let (stepped, next) = rayon::join(
+            || {
+                let t = Instant::now();
+                let pyramids = prepared.seconds();
+                tracker
+                    .step_prepared(frame, prepared)
+                    .map(|r| (r, pyramids + t.elapsed().as_secs_f64()))
+            },
+            || has_next.then(|| load(frame + 1)),
+        );
+        let (report, seconds) = stepped?;
+        iters.push(report.iterations as f64);
+        folder.write_mesh(
+            frame,
+            &scene.mesh.with_positions(tracker.positions().to_vec()),
+        )?;
+        let wall_seconds = t_frame.elapsed().as_secs_f64();
+        let line = FrameLog {
+            frame,
+            seconds,
+            load_seconds,
+            wall_seconds,
+            detail: FrameDetail::ModelFlow(report),
+        };
+        folder.append(&line)?;
+        t_frame = Instant::now();
+        walls.push(wall_seconds);
+        on_frame(&line);
+        pending = next;
+    }
+    Ok(TrackSummary {
+        frames: (scene.last - scene.first + 1) as usize,
+        solved: walls.len(),
+        resumed_from: resumed,
+        total_seconds: 0.0,
+        median_frame_seconds: median(&walls),
+        median_iterations: median(&iters),
+    })
+}
+
+/// Median of a list (0 if empty).
+pub fn median(v: &[f64]) -> f64 {
+    if v.is_empty() {
+        return 0.0;
+    }
+    let mut s = v.to_vec();
+    s.sort_by(|a, b| a.total_cmp(b));
+    let n = s.len();
+    if n % 2 == 1 {
+        s[n / 2]
+    } else {
+        0.5 * (s[n / 2 - 1] + s[n / 2])
+    }
+}

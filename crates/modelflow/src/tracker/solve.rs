@@ -1,0 +1,570 @@
+//! The per-frame solver (thesis §5.2, §6.4, §6.6): given template patches, the next frame's
+//! images and cameras, and a starting guess, find the vertex positions that minimise
+//!
+//! `E(X) = Σ_patches w·Σ_pixels ρ(|I_next(W(X)·s) − I_template(s)|²) / N  +  Σ_terms R_k(X)`
+//!
+//! (the `R_k` are the regularisers of `regularise`, which the solver sees only through their
+//! trait) by Gauss–Newton with Levenberg–Marquardt damping: the normal equations are accumulated
+//! straight into the block-sparse matrix (J is never stored), solved by preconditioned conjugate
+//! gradients, and a step is accepted only if the cost falls; otherwise the positions roll back and
+//! the damping grows. `ρ` is a Huber loss on the RGB residual, so that pixels that changed for
+//! reasons the warp does not explain (occlusion, specular light) do not dominate.
+//!
+//! Invariant: this module does no I/O. It reports per iteration, like Ceres' summary: cost, its
+//! change, the step, the CG work, the time, and why it stopped.
+
+// The inner kernels index small fixed arrays (RGB channels, the three vertices, the six vertex
+// pairs) by position on purpose: it reads like the equations.
+#![allow(clippy::needless_range_loop)]
+
+use crate::base::camera::Projection;
+use crate::base::image::RgbImage;
+use crate::tracker::patch::{Patch, PixelSample};
+use crate::tracker::regularise::Regulariser;
+use crate::tracker::sparse::{solve_pcg, BlockSparse};
+use crate::tracker::warp::warp_h;
+use nalgebra::{Matrix3, Point3, Vector3};
+use rayon::prelude::*;
+use serde::{Deserialize, Serialize};
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::time::Instant;
+
+/// Solver settings.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct SolverOptions {
+    /// Gauss–Newton iterations at most (per pyramid level).
+    pub max_iterations: usize,
+    /// Stop when an accepted step lowers the cost by less than this fraction.
+    pub min_relative_decrease: f64,
+    /// Huber threshold on the RGB residual norm (image values are 0..1).
+    pub huber: f64,
+    /// Initial Levenberg–Marquardt damping (relative to the diagonal).
+    pub damping: f64,
+    /// Rejected steps in a row before giving up.
+    pub max_rejections: usize,
+    pub cg_tolerance: f64,
+    pub cg_max_iterations: usize,
+    /// Brightness gain compensated per (triangle, camera) (diffuse shading changes as the
+    /// surface turns).
+    pub gain: GainModel,
+    /// How the next frame is sampled at warped positions (the tracker uses it at the finest
+    /// pyramid level and bilinear at coarser ones, which only bring the mesh near the solution).
+    pub interpolation: Interpolation,
+}
+
+/// How the next frame's image is sampled between pixel centres (the derivatives used are always
+/// the interpolant's own, so the Jacobian is exact for the cost evaluated).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Interpolation {
+    /// Bilinear, four taps (`RgbImage::sample_exact`).
+    Linear,
+    /// Catmull–Rom bicubic, sixteen taps (`RgbImage::sample_cubic`): a smaller sub-pixel bias,
+    /// for about a fifth more time per frame (used at the finest level only).
+    Cubic,
+}
+
+/// How the template's brightness may change in the next frame.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum GainModel {
+    /// Plain brightness constancy, as in the thesis.
+    Off,
+    /// One gain per (triangle, camera).
+    Constant,
+    /// A gain varying linearly over the triangle (three per (triangle, camera)).
+    Linear,
+}
+
+impl Default for SolverOptions {
+    fn default() -> Self {
+        SolverOptions {
+            max_iterations: 10,
+            min_relative_decrease: 5e-3,
+            huber: 0.1,
+            damping: 1e-4,
+            max_rejections: 4,
+            cg_tolerance: 1e-3,
+            cg_max_iterations: 100,
+            gain: GainModel::Linear,
+            interpolation: Interpolation::Cubic,
+        }
+    }
+}
+
+/// What the solver needs about one frame pair at one pyramid level.
+pub(crate) struct Problem<'a> {
+    pub triangles: &'a [[u32; 3]],
+    /// Patches ordered by triangle (see `PatchSet::by_triangle`) and their pixels.
+    pub patches: &'a [Patch],
+    pub pixels: &'a [PixelSample],
+    pub by_triangle: &'a [(u32, std::ops::Range<usize>)],
+    /// Next-frame image and projection of each camera, at this level.
+    pub targets: Vec<&'a RgbImage>,
+    pub projections: Vec<Projection>,
+    /// The mesh's edges: the vertex pairs whose 3×3 blocks the normal equations hold.
+    pub pattern: &'a [[u32; 2]],
+    /// The regularisers, added to the photometric cost in this order.
+    pub regularisers: &'a [Box<dyn Regulariser>],
+    /// Checked before every iteration: when set, the solve stops (`StopReason::Cancelled`).
+    pub cancel: Option<&'a AtomicBool>,
+}
+
+/// Why the solver stopped.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum StopReason {
+    /// The last accepted step lowered the cost by less than `min_relative_decrease`.
+    Converged,
+    /// No step lowered the cost any more (rolled back to the best positions).
+    CostRose,
+    /// `max_iterations` reached.
+    MaxIterations,
+    /// No pixel could be compared (nothing visible).
+    NoData,
+    /// Stopped on request (the run was interrupted); the positions are not a solution.
+    Cancelled,
+}
+
+/// One Gauss–Newton iteration.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct IterationSummary {
+    pub iteration: usize,
+    /// Cost after the iteration (the best so far).
+    pub cost: f64,
+    /// Cost change of the tried step (negative = decrease).
+    pub cost_change: f64,
+    /// Largest vertex displacement of the tried step, in scene units.
+    pub step: f64,
+    pub accepted: bool,
+    pub damping: f64,
+    pub cg_iterations: usize,
+    pub seconds: f64,
+}
+
+/// Result of one solve.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct SolveSummary {
+    /// How the next frame was sampled in this solve (the option as used at this level).
+    pub interpolation: Interpolation,
+    pub initial_cost: f64,
+    pub final_cost: f64,
+    /// Pixels compared at the final positions.
+    pub pixels: usize,
+    /// Pixel comparisons made in all (each is three RGB residuals), over every evaluation.
+    pub pixel_evaluations: u64,
+    /// Wall time of the solve, seconds.
+    pub seconds: f64,
+    pub stop: StopReason,
+    pub iterations: Vec<IterationSummary>,
+}
+
+#[derive(Clone, Copy)]
+struct TriAccum {
+    cost: f64,
+    pixels: u32,
+    h: [Matrix3<f64>; 6],
+    g: [Vector3<f64>; 3],
+}
+
+/// A pixel of a patch after warping: its index in the patch, warped position, `1/h_z`, and the
+/// next image's colour and gradients there.
+struct Warped {
+    index: u32,
+    u: f64,
+    v: f64,
+    inv: f64,
+    s: [f32; 9],
+}
+
+const PAIRS: [(usize, usize); 6] = [(0, 0), (1, 1), (2, 2), (0, 1), (0, 2), (1, 2)];
+
+impl Problem<'_> {
+    fn weighted_pixels(&self) -> f64 {
+        self.patches
+            .iter()
+            .map(|p| p.weight as f64 * (p.end - p.start) as f64)
+            .sum()
+    }
+
+    /// Photometric cost and (optionally) its normal-equation contribution of one triangle.
+    fn triangle(
+        &self,
+        t: u32,
+        range: &std::ops::Range<usize>,
+        x: &[Point3<f64>],
+        opts: &SolverOptions,
+        system: bool,
+        scratch: &mut Vec<Warped>,
+    ) -> TriAccum {
+        let huber = opts.huber;
+        let tri = self.triangles[t as usize];
+        let xs = tri.map(|v| x[v as usize]);
+        let mut acc = TriAccum {
+            cost: 0.0,
+            pixels: 0,
+            h: [Matrix3::zeros(); 6],
+            g: [Vector3::zeros(); 3],
+        };
+        let hub2 = huber * huber;
+        for patch in &self.patches[range.clone()] {
+            let cam = patch.camera as usize;
+            let proj = &self.projections[cam];
+            let img = self.targets[cam];
+            let y = xs.map(|p| proj.project_h(&p));
+            let pm = proj.matrix();
+            let m = [
+                [pm[(0, 0)], pm[(0, 1)], pm[(0, 2)]],
+                [pm[(1, 0)], pm[(1, 1)], pm[(1, 2)]],
+                [pm[(2, 0)], pm[(2, 1)], pm[(2, 2)]],
+            ];
+            let pw = patch.weight as f64;
+            // Per-patch sums of the six distinct 3×3 vertex-pair blocks, each kept as its six
+            // distinct entries (every block is symmetric), folded into the triangle once.
+            let mut hp = [[0.0f64; 6]; 6];
+            let mut gp = [[0.0f64; 3]; 3];
+            // Pass 1: warp and sample every pixel of the patch.
+            scratch.clear();
+            // Normal equations of the shading fit: gain(λ) = Σ_i λ_i·g_i (linear over the triangle).
+            let mut gm = Matrix3::<f64>::zeros();
+            let mut gr = Vector3::<f64>::zeros();
+            let pixels = &self.pixels[patch.start as usize..patch.end as usize];
+            for (i, px) in pixels.iter().enumerate() {
+                let l = [
+                    px.lambda[0] as f64,
+                    px.lambda[1] as f64,
+                    px.lambda[2] as f64,
+                ];
+                let h = warp_h(&l, &y);
+                if h.z.is_nan() || h.z <= 0.0 {
+                    continue;
+                }
+                let inv = 1.0 / h.z;
+                let (u, v) = (h.x * inv, h.y * inv);
+                let sample = match opts.interpolation {
+                    Interpolation::Linear => img.sample_exact(u, v),
+                    Interpolation::Cubic => img.sample_cubic(u, v),
+                };
+                let Some(s) = sample else {
+                    continue;
+                };
+                let mut sc = 0.0f64;
+                let mut cc = 0.0f64;
+                for k in 0..3 {
+                    sc += (s[k] * px.color[k]) as f64;
+                    cc += (px.color[k] * px.color[k]) as f64;
+                }
+                let lv = Vector3::from(l);
+                gm += lv * lv.transpose() * cc;
+                gr += lv * sc;
+                scratch.push(Warped {
+                    index: i as u32,
+                    u,
+                    v,
+                    inv,
+                    s,
+                });
+            }
+            // Shading changes as the surface turns: compare up to a brightness gain per
+            // (triangle, camera), fitted by least squares to the warped pixels — constant, or
+            // linear over the triangle (smooth shading). Because the gain is optimal for the
+            // current positions, the gradient with respect to them is unchanged (envelope theorem).
+            let gains: [f32; 3] = match opts.gain {
+                GainModel::Off => [1.0; 3],
+                _ if gm.trace() <= 0.0 => [1.0; 3],
+                GainModel::Linear if scratch.len() >= 12 => match gm.try_inverse() {
+                    Some(inv) if (inv * gm).iter().all(|v| v.is_finite()) => {
+                        let g = inv * gr;
+                        [g.x, g.y, g.z].map(|v| v.clamp(0.5, 2.0) as f32)
+                    }
+                    _ => [(gr.sum() / gm.sum()).clamp(0.5, 2.0) as f32; 3],
+                },
+                _ => [(gr.sum() / gm.sum()).clamp(0.5, 2.0) as f32; 3],
+            };
+            // Pass 2: residuals, loss, normal equations.
+            for wp in scratch.iter() {
+                let px = &pixels[wp.index as usize];
+                let l = [
+                    px.lambda[0] as f64,
+                    px.lambda[1] as f64,
+                    px.lambda[2] as f64,
+                ];
+                let (u, v, inv, s) = (wp.u, wp.v, wp.inv, wp.s);
+                let gain =
+                    px.lambda[0] * gains[0] + px.lambda[1] * gains[1] + px.lambda[2] * gains[2];
+                let r = [
+                    (s[0] - gain * px.color[0]) as f64,
+                    (s[1] - gain * px.color[1]) as f64,
+                    (s[2] - gain * px.color[2]) as f64,
+                ];
+                let e2 = r[0] * r[0] + r[1] * r[1] + r[2] * r[2];
+                // Huber: ρ(e²) = e² below the threshold, 2δe − δ² above; IRLS weight ρ'.
+                let (rho, w) = if e2 <= hub2 {
+                    (e2, 1.0)
+                } else {
+                    let e = e2.sqrt();
+                    (2.0 * huber * e - hub2, huber / e)
+                };
+                acc.cost += pw * rho;
+                acc.pixels += 1;
+                if !system {
+                    continue;
+                }
+                let gx = [s[3] as f64, s[4] as f64, s[5] as f64];
+                let gy = [s[6] as f64, s[7] as f64, s[8] as f64];
+                let aa = gx[0] * gx[0] + gx[1] * gx[1] + gx[2] * gx[2];
+                let ab = gx[0] * gy[0] + gx[1] * gy[1] + gx[2] * gy[2];
+                let bb = gy[0] * gy[0] + gy[1] * gy[1] + gy[2] * gy[2];
+                let ra = gx[0] * r[0] + gx[1] * r[1] + gx[2] * r[2];
+                let rb = gy[0] * r[0] + gy[1] * r[1] + gy[2] * r[2];
+                // ∂û/∂X_i = λ_i·da, ∂v̂/∂X_i = λ_i·db (see `warp::pixel_derivatives`).
+                let mut da = [0.0; 3];
+                let mut db = [0.0; 3];
+                for k in 0..3 {
+                    da[k] = (m[0][k] - u * m[2][k]) * inv;
+                    db[k] = (m[1][k] - v * m[2][k]) * inv;
+                }
+                // Σ_c J_cᵀJ_c per unit λ_i·λ_j (Eq. 5.10 summed over RGB): G = p·daᵀ + q·dbᵀ.
+                let p = [
+                    aa * da[0] + ab * db[0],
+                    aa * da[1] + ab * db[1],
+                    aa * da[2] + ab * db[2],
+                ];
+                let q = [
+                    ab * da[0] + bb * db[0],
+                    ab * da[1] + bb * db[1],
+                    ab * da[2] + bb * db[2],
+                ];
+                let g = [
+                    p[0] * da[0] + q[0] * db[0],
+                    p[1] * da[1] + q[1] * db[1],
+                    p[2] * da[2] + q[2] * db[2],
+                    p[0] * da[1] + q[0] * db[1],
+                    p[0] * da[2] + q[0] * db[2],
+                    p[1] * da[2] + q[1] * db[2],
+                ];
+                let r3 = [
+                    ra * da[0] + rb * db[0],
+                    ra * da[1] + rb * db[1],
+                    ra * da[2] + rb * db[2],
+                ];
+                let wl = [w * l[0], w * l[1], w * l[2]];
+                for (k, &(i, j)) in PAIRS.iter().enumerate() {
+                    let c = wl[i] * l[j];
+                    for e in 0..6 {
+                        hp[k][e] += c * g[e];
+                    }
+                }
+                for i in 0..3 {
+                    for k in 0..3 {
+                        gp[i][k] += wl[i] * r3[k];
+                    }
+                }
+            }
+            if system {
+                for k in 0..6 {
+                    let e = hp[k];
+                    acc.h[k] +=
+                        Matrix3::new(e[0], e[3], e[4], e[3], e[1], e[5], e[4], e[5], e[2]) * pw;
+                }
+                for i in 0..3 {
+                    acc.g[i] += Vector3::from(gp[i]) * pw;
+                }
+            }
+        }
+        acc
+    }
+
+    /// Cost at `x`; with `system`, also fills `a` and `b` (= −Jᵀr) of the normal equations.
+    fn evaluate(
+        &self,
+        x: &[Point3<f64>],
+        opts: &SolverOptions,
+        system: Option<(&mut BlockSparse, &mut Vec<Vector3<f64>>)>,
+    ) -> (f64, usize) {
+        let want = system.is_some();
+        let parts: Vec<TriAccum> = self
+            .by_triangle
+            .par_iter()
+            .with_min_len(16)
+            .map_init(Vec::new, |scratch, (t, r)| {
+                self.triangle(*t, r, x, opts, want, scratch)
+            })
+            .collect();
+        let n = self.weighted_pixels().max(1.0);
+        let inv_n = 1.0 / n;
+        let mut cost = 0.0;
+        let mut pixels = 0usize;
+        let mut sys = system;
+        if let Some((a, b)) = sys.as_mut() {
+            a.clear();
+            b.iter_mut().for_each(|v| *v = Vector3::zeros());
+        }
+        for ((t, _), acc) in self.by_triangle.iter().zip(&parts) {
+            cost += acc.cost * inv_n;
+            pixels += acc.pixels as usize;
+            if let Some((a, b)) = sys.as_mut() {
+                let tri = self.triangles[*t as usize].map(|v| v as usize);
+                for (k, &(i, j)) in PAIRS.iter().enumerate() {
+                    a.add_pair(tri[i], tri[j], &(acc.h[k] * inv_n));
+                }
+                for i in 0..3 {
+                    b[tri[i]] -= acc.g[i] * inv_n;
+                }
+            }
+        }
+        for r in self.regularisers {
+            cost += r.accumulate(x, sys.as_mut().map(|(a, b)| (&mut **a, &mut b[..])));
+        }
+        (cost, pixels)
+    }
+
+    /// Cost at `x` and the normal equations there: `(cost, JᵀJ, −Jᵀr)` (for tests: the solver
+    /// accumulates them in place). The cost's gradient is
+    /// `2·Jᵀr`.
+    #[cfg(test)]
+    pub fn linearize(
+        &self,
+        x: &[Point3<f64>],
+        opts: &SolverOptions,
+    ) -> (f64, BlockSparse, Vec<Vector3<f64>>) {
+        let mut a = BlockSparse::new(x.len(), self.pattern);
+        let mut b = vec![Vector3::zeros(); x.len()];
+        let (cost, _) = self.evaluate(x, opts, Some((&mut a, &mut b)));
+        (cost, a, b)
+    }
+
+    /// Cost at `x` (no system).
+    pub fn cost(&self, x: &[Point3<f64>], opts: &SolverOptions) -> f64 {
+        self.evaluate(x, opts, None).0
+    }
+
+    /// Minimises the cost starting from `start` (the outer loop of §6.6).
+    pub fn solve(
+        &self,
+        start: &[Point3<f64>],
+        opts: &SolverOptions,
+    ) -> (Vec<Point3<f64>>, SolveSummary) {
+        let nv = start.len();
+        let mut a = BlockSparse::new(nv, self.pattern);
+        let mut b = vec![Vector3::zeros(); nv];
+        let mut x = start.to_vec();
+        let t_solve = Instant::now();
+        let (mut cost, mut pixels) = self.evaluate(&x, opts, Some((&mut a, &mut b)));
+        let mut pixel_evaluations = pixels as u64;
+        let initial_cost = cost;
+        let mut iterations = Vec::new();
+        if pixels == 0 && self.regularisers.is_empty() {
+            return (
+                x,
+                SolveSummary {
+                    interpolation: opts.interpolation,
+                    initial_cost,
+                    final_cost: cost,
+                    pixels,
+                    pixel_evaluations,
+                    seconds: t_solve.elapsed().as_secs_f64(),
+                    stop: StopReason::NoData,
+                    iterations,
+                },
+            );
+        }
+        let mut lm = opts.damping;
+        let mut rejections = 0;
+        let mut stop = StopReason::MaxIterations;
+        // Levenberg–Marquardt damping adds lm·(diag(A) + mean diagonal): the relative part
+        // respects each vertex's own scale, the absolute part tames directions the images barely
+        // see (depth along a narrow baseline, sliding along an edge of the texture) and keeps
+        // vertices without any data well posed.
+        let mean_diag =
+            (0..nv).map(|i| a.diagonal(i).trace()).sum::<f64>() / (3 * nv.max(1)) as f64;
+        let mean_diag = mean_diag.max(1e-30);
+        let mut ad = vec![Vector3::zeros(); nv];
+        // The trial point's system is built here and swapped in when the step is accepted.
+        let mut a_new = a.clone();
+        let mut b_new = vec![Vector3::zeros(); nv];
+        for it in 0..opts.max_iterations {
+            if self.cancel.is_some_and(|c| c.load(Ordering::Relaxed)) {
+                stop = StopReason::Cancelled;
+                break;
+            }
+            let t0 = Instant::now();
+            let mut damped = a.clone();
+            damped.damp(lm * mean_diag, lm);
+            let (delta, cg) = solve_pcg(&damped, &b, opts.cg_tolerance, opts.cg_max_iterations);
+            let step = delta.iter().map(|d| d.norm()).fold(0.0, f64::max);
+            // Decrease predicted by the Gauss–Newton model: 2·δᵀ(−Jᵀr) − δᵀ·JᵀJ·δ.
+            a.mul(&delta, &mut ad);
+            let predicted: f64 = delta
+                .iter()
+                .zip(&b)
+                .zip(&ad)
+                .map(|((d, b), ad)| 2.0 * d.dot(b) - d.dot(ad))
+                .sum();
+            if predicted <= opts.min_relative_decrease * cost {
+                iterations.push(IterationSummary {
+                    iteration: it + 1,
+                    cost,
+                    cost_change: 0.0,
+                    step,
+                    accepted: false,
+                    damping: lm,
+                    cg_iterations: cg.iterations,
+                    seconds: t0.elapsed().as_secs_f64(),
+                });
+                stop = StopReason::Converged;
+                break;
+            }
+            let trial: Vec<Point3<f64>> = x.iter().zip(&delta).map(|(p, d)| p + d).collect();
+            let (new_cost, new_pixels) =
+                self.evaluate(&trial, opts, Some((&mut a_new, &mut b_new)));
+            pixel_evaluations += new_pixels as u64;
+            let change = new_cost - cost;
+            let accepted = new_cost < cost;
+            let prev_cost = cost;
+            if accepted {
+                x = trial;
+                std::mem::swap(&mut a, &mut a_new);
+                std::mem::swap(&mut b, &mut b_new);
+                pixels = new_pixels;
+                cost = new_cost;
+                rejections = 0;
+                lm = (lm / 3.0).max(1e-7);
+            } else {
+                rejections += 1;
+                lm = (lm * 10.0).max(1e-3);
+            }
+            iterations.push(IterationSummary {
+                iteration: it + 1,
+                cost,
+                cost_change: change,
+                step,
+                accepted,
+                damping: lm,
+                cg_iterations: cg.iterations,
+                seconds: t0.elapsed().as_secs_f64(),
+            });
+            if accepted && -change < opts.min_relative_decrease * prev_cost {
+                stop = StopReason::Converged;
+                break;
+            }
+            if rejections >= opts.max_rejections {
+                stop = StopReason::CostRose;
+                break;
+            }
+        }
+        (
+            x,
+            SolveSummary {
+                interpolation: opts.interpolation,
+                initial_cost,
+                final_cost: cost,
+                pixels,
+                pixel_evaluations,
+                seconds: t_solve.elapsed().as_secs_f64(),
+                stop,
+                iterations,
+            },
+        )
+    }
+}

@@ -1,0 +1,489 @@
+//! Tracker behaviour on exactly rendered planar footage (ray-traced analytically here, so the
+//! test does not depend on the project's own renderer): zero motion stays put, a rigid motion is
+//! recovered, a moving camera is handled.
+
+use crate::base::camera::{look_at, Camera, Projection};
+use crate::base::image::RgbImage;
+use crate::base::mesh::{grid, Mesh};
+use crate::tracker::patch::{PatchOptions, PatchSet};
+use crate::tracker::pyramid::Pyramid;
+use crate::tracker::regularise::{self, EdgeSet, FrameContext, Regularisation};
+use crate::tracker::solve::{Interpolation, Problem, SolverOptions};
+use crate::tracker::{TrackOptions, Tracker};
+use nalgebra::{Matrix3, Point3, Vector3};
+use std::sync::Arc;
+
+/// A smooth, colourful, non-periodic texture on the unit square.
+fn texture(s: f64, t: f64) -> [f32; 3] {
+    let f = |a: f64, b: f64, c: f64, d: f64| {
+        (a * s * std::f64::consts::TAU + b * t * std::f64::consts::TAU + c).sin() * d
+    };
+    let r = 0.5 + f(7.3, 2.1, 0.3, 0.2) + f(3.1, 11.7, 1.1, 0.15) + f(17.0, 5.3, 2.0, 0.1);
+    let g = 0.5 + f(2.9, 8.3, 0.7, 0.2) + f(13.1, 3.7, 2.1, 0.15) + f(6.0, 19.3, 0.4, 0.1);
+    let b = 0.5 + f(9.7, 6.1, 1.7, 0.2) + f(4.3, 15.1, 0.2, 0.15) + f(21.0, 9.0, 1.3, 0.1);
+    [r as f32, g as f32, b as f32]
+}
+
+struct Plane {
+    origin: Point3<f64>,
+    u: Vector3<f64>,
+    v: Vector3<f64>,
+}
+
+impl Plane {
+    fn at(&self, s: f64, t: f64) -> Point3<f64> {
+        self.origin + self.u * s + self.v * t
+    }
+}
+
+/// Ray-traces the plane with 3×3 supersampling (pixel centres at integer coordinates).
+fn render(
+    plane: &Plane,
+    k: &Matrix3<f64>,
+    r: &Matrix3<f64>,
+    t: &Vector3<f64>,
+    w: usize,
+    h: usize,
+) -> RgbImage {
+    let kinv = k.try_inverse().unwrap();
+    let c = -(r.transpose() * t);
+    let n = plane.u.cross(&plane.v);
+    RgbImage::from_fn(w, h, |x, y| {
+        let mut acc = [0.0f32; 3];
+        for sy in 0..3 {
+            for sx in 0..3 {
+                let px = x as f64 + (sx as f64 - 1.0) / 3.0;
+                let py = y as f64 + (sy as f64 - 1.0) / 3.0;
+                let d = r.transpose() * (kinv * Vector3::new(px, py, 1.0));
+                let lam = (plane.origin - Point3::from(c)).dot(&n) / d.dot(&n);
+                let p = Point3::from(c) + d * lam - plane.origin;
+                let s = p.dot(&plane.u) / plane.u.norm_squared();
+                let tt = p.dot(&plane.v) / plane.v.norm_squared();
+                let col = if (0.0..=1.0).contains(&s) && (0.0..=1.0).contains(&tt) {
+                    texture(s, tt)
+                } else {
+                    [0.1, 0.1, 0.1]
+                };
+                for ch in 0..3 {
+                    acc[ch] += col[ch] / 9.0;
+                }
+            }
+        }
+        acc
+    })
+}
+
+struct Rig {
+    k: Matrix3<f64>,
+    poses: Vec<(Matrix3<f64>, Vector3<f64>)>,
+}
+
+impl Rig {
+    fn new(eyes: &[Point3<f64>]) -> Self {
+        let k = Matrix3::new(300.0, 0.0, 79.5, 0.0, 300.0, 59.5, 0.0, 0.0, 1.0);
+        let poses = eyes
+            .iter()
+            .map(|e| look_at(e, &Point3::new(0.0, 0.0, 0.0), &Vector3::z()))
+            .collect();
+        Rig { k, poses }
+    }
+    fn cameras(&self) -> Vec<Camera> {
+        self.poses
+            .iter()
+            .enumerate()
+            .map(|(i, (r, t))| {
+                Camera::fixed(
+                    format!("cam{i}"),
+                    160,
+                    120,
+                    Projection::from_krt(&self.k, r, t).unwrap(),
+                )
+            })
+            .collect()
+    }
+    fn images(&self, plane: &Plane) -> Vec<RgbImage> {
+        self.poses
+            .iter()
+            .map(|(r, t)| render(plane, &self.k, r, t, 160, 120))
+            .collect()
+    }
+}
+
+fn plane_at(offset: Vector3<f64>) -> Plane {
+    Plane {
+        origin: Point3::new(-0.3, 0.0, -0.25) + offset,
+        u: Vector3::new(0.6, 0.0, 0.0),
+        v: Vector3::new(0.0, 0.1, 0.5),
+    }
+}
+
+fn mesh_of(plane: &Plane) -> Mesh {
+    grid(9, 9, |s, t| plane.at(s, t))
+}
+
+fn rms(a: &[Point3<f64>], b: &[Point3<f64>]) -> f64 {
+    (a.iter()
+        .zip(b)
+        .map(|(p, q)| (p - q).norm_squared())
+        .sum::<f64>()
+        / a.len() as f64)
+        .sqrt()
+}
+
+fn rig() -> Rig {
+    Rig::new(&[Point3::new(-0.15, -1.5, 0.2), Point3::new(0.15, -1.5, 0.25)])
+}
+
+#[test]
+fn zero_motion_stays_put() {
+    let rig = rig();
+    let plane = plane_at(Vector3::zeros());
+    let mesh = mesh_of(&plane);
+    let imgs = rig.images(&plane);
+    let mut tr = Tracker::new(&mesh, rig.cameras(), 0, &imgs, TrackOptions::default()).unwrap();
+    for f in 1..3 {
+        let rep = tr.step(f, &imgs).unwrap();
+        assert!(rep.pixels > 5000, "{}", rep.pixels);
+    }
+    let err = rms(tr.positions(), &mesh.positions);
+    assert!(err < 1e-4, "drifted {err} m with no motion");
+}
+
+#[test]
+fn images_prepared_ahead_give_the_same_step_and_must_match_the_levels() {
+    // `track_scene` builds the next frame's pyramids while the current one is solved; that must
+    // not change the result.
+    let rig = rig();
+    let plane0 = plane_at(Vector3::zeros());
+    let mesh = mesh_of(&plane0);
+    let imgs0 = rig.images(&plane0);
+    let imgs1 = rig.images(&plane_at(Vector3::new(0.004, 0.0, -0.003)));
+    let opts = TrackOptions::default();
+    let mut a = Tracker::new(&mesh, rig.cameras(), 0, &imgs0, opts).unwrap();
+    let mut b = Tracker::new(&mesh, rig.cameras(), 0, &imgs0, opts).unwrap();
+    a.step(1, &imgs1).unwrap();
+    b.step_prepared(1, crate::tracker::prepare(&imgs1, &opts))
+        .unwrap();
+    assert_eq!(a.positions(), b.positions());
+    let fewer = TrackOptions { levels: 1, ..opts };
+    let err = b
+        .step_prepared(2, crate::tracker::prepare(&imgs1, &fewer))
+        .unwrap_err()
+        .to_string();
+    assert!(err.contains("pyramid levels"), "{err}");
+    let blurrier = TrackOptions { blur: 2.0, ..opts };
+    let err = b
+        .step_prepared(2, crate::tracker::prepare(&imgs1, &blurrier))
+        .unwrap_err()
+        .to_string();
+    assert!(err.contains("blur"), "{err}");
+}
+
+#[test]
+fn rigid_motion_is_recovered() {
+    let rig = rig();
+    let motion = Vector3::new(0.006, -0.004, 0.005);
+    let plane0 = plane_at(Vector3::zeros());
+    let mesh = mesh_of(&plane0);
+    let mut tr = Tracker::new(
+        &mesh,
+        rig.cameras(),
+        0,
+        &rig.images(&plane0),
+        TrackOptions::default(),
+    )
+    .unwrap();
+    for f in 1..=4u32 {
+        let plane = plane_at(motion * f as f64);
+        tr.step(f, &rig.images(&plane)).unwrap();
+        let truth = mesh_of(&plane).positions;
+        let err = rms(tr.positions(), &truth);
+        eprintln!("frame {f}: rms error {err:.2e} m");
+        // 0.6 m plane; 1 pixel at 1.5 m is 5 mm. Ask for a small fraction of a pixel.
+        assert!(err < 1.0e-3, "frame {f}: rms {err}");
+    }
+}
+
+#[test]
+fn assembled_gradient_matches_finite_differences_of_the_cost() {
+    let rig = rig();
+    let plane0 = plane_at(Vector3::zeros());
+    let plane1 = plane_at(Vector3::new(0.004, 0.0, -0.003));
+    let mesh = grid(4, 4, |s, t| plane0.at(s, t));
+    let cams = rig.cameras();
+    let src: Vec<Pyramid> = rig
+        .images(&plane0)
+        .iter()
+        .map(|i| Pyramid::new(i, 1, 1.0))
+        .collect();
+    let dst: Vec<Pyramid> = rig
+        .images(&plane1)
+        .iter()
+        .map(|i| Pyramid::new(i, 1, 1.0))
+        .collect();
+    let popts = PatchOptions {
+        margin: 1,
+        min_cos: 0.1,
+        two_sided: true,
+        checkerboard: false,
+    };
+    let mut set = PatchSet::default();
+    for (c, cam) in cams.iter().enumerate() {
+        set.add_camera(
+            &mesh.positions,
+            &mesh.triangles,
+            cam.at(0),
+            &src[c].levels[0],
+            c as u16,
+            1.0,
+            &popts,
+            None,
+        );
+    }
+    let by_triangle = set.by_triangle();
+    let edges = Arc::new(EdgeSet::new(mesh.edges(), &mesh.positions));
+    // A stretched spring (k = 5) and a membrane term are included too.
+    let reg = Regularisation {
+        spring_k: 5.0,
+        bending: 0.0,
+        ..Regularisation::default()
+    };
+    let mut regularisers = regularise::build(&mesh, &edges, &reg);
+    for r in &mut regularisers {
+        r.begin_frame(&FrameContext {
+            previous: &mesh.positions,
+            predicted: &mesh.positions,
+        });
+    }
+    let problem = Problem {
+        triangles: &mesh.triangles,
+        patches: &set.patches,
+        pixels: &set.pixels,
+        by_triangle: &by_triangle,
+        targets: dst.iter().map(|p| &p.levels[0]).collect(),
+        projections: cams.iter().map(|c| c.at(1).clone()).collect(),
+        pattern: &edges.edges,
+        regularisers: &regularisers,
+        cancel: None,
+    };
+    // Huber off (huge threshold) so the cost is the plain sum of squares whose gradient is 2·Jᵀr.
+    // Both ways of sampling the next frame: the Jacobian is each interpolant's own derivative.
+    let mut checked = 0;
+    for interpolation in [Interpolation::Cubic, Interpolation::Linear] {
+        let opts = SolverOptions {
+            huber: 1e3,
+            interpolation,
+            ..SolverOptions::default()
+        };
+        let mut x = mesh.positions.clone();
+        x[5].x += 0.02;
+        x[6].z -= 0.01;
+        let (_, _, b) = problem.linearize(&x, &opts);
+        // Image values are f32: a step of 0.1 mm keeps the difference well above their rounding.
+        let eps = 1e-4;
+        for v in [5usize, 6, 9, 10] {
+            for k in 0..3 {
+                let mut xp = x.clone();
+                xp[v][k] += eps;
+                let mut xm = x.clone();
+                xm[v][k] -= eps;
+                let fd = (problem.cost(&xp, &opts) - problem.cost(&xm, &opts)) / (2.0 * eps);
+                let analytic = -2.0 * b[v][k];
+                assert!(
+                    (fd - analytic).abs() <= 1e-2 * fd.abs().max(analytic.abs()) + 1e-9,
+                    "{interpolation:?}: vertex {v} axis {k}: fd {fd} vs analytic {analytic}"
+                );
+                checked += 1;
+            }
+        }
+    }
+    assert_eq!(checked, 24);
+}
+
+#[test]
+fn springs_alone_relax_a_stretched_mesh() {
+    let rest = grid(6, 6, |s, t| Point3::new(s, t, 0.0));
+    let stretched: Vec<Point3<f64>> = rest
+        .positions
+        .iter()
+        .map(|p| Point3::new(p.x * 1.3, p.y * 1.25, 0.0))
+        .collect();
+    let edges = Arc::new(EdgeSet::new(rest.edges(), &rest.positions));
+    let reg = Regularisation {
+        membrane: 0.0,
+        bending: 0.0,
+        ..Regularisation::default()
+    };
+    let regularisers = regularise::build(&rest, &edges, &reg);
+    let problem = Problem {
+        triangles: &rest.triangles,
+        patches: &[],
+        pixels: &[],
+        by_triangle: &[],
+        targets: vec![],
+        projections: vec![],
+        pattern: &edges.edges,
+        regularisers: &regularisers,
+        cancel: None,
+    };
+    let opts = SolverOptions {
+        max_iterations: 60,
+        min_relative_decrease: 1e-6,
+        ..SolverOptions::default()
+    };
+    let strain = |x: &[Point3<f64>]| {
+        edges
+            .edges
+            .iter()
+            .zip(&edges.rest)
+            .map(|([a, b], r)| ((x[*b as usize] - x[*a as usize]).norm() / r - 1.0).abs())
+            .fold(0.0, f64::max)
+    };
+    assert!(strain(&stretched) > 0.25);
+    let (x, summary) = problem.solve(&stretched, &opts);
+    assert!(
+        summary.final_cost < 1e-3 * summary.initial_cost,
+        "{summary:?}"
+    );
+    assert!(
+        strain(&x) < 0.05,
+        "largest strain after relaxing: {}",
+        strain(&x)
+    );
+}
+
+#[test]
+fn moving_camera_is_handled() {
+    // The plane moves and so does the first camera; each frame must use that frame's pose.
+    let k = Matrix3::new(300.0, 0.0, 79.5, 0.0, 300.0, 59.5, 0.0, 0.0, 1.0);
+    let eye0 = |f: u32| Point3::new(-0.15 + 0.03 * f as f64, -1.5 + 0.02 * f as f64, 0.2);
+    let eye1 = Point3::new(0.15, -1.5, 0.25);
+    let pose = |e: &Point3<f64>| look_at(e, &Point3::origin(), &Vector3::z());
+    let frames = 4u32;
+    let cam0 = Camera::moving(
+        "cam0",
+        160,
+        120,
+        0,
+        (0..=frames)
+            .map(|f| {
+                let (r, t) = pose(&eye0(f));
+                Projection::from_krt(&k, &r, &t).unwrap()
+            })
+            .collect(),
+    );
+    let (r1, t1) = pose(&eye1);
+    let cam1 = Camera::fixed(
+        "cam1",
+        160,
+        120,
+        Projection::from_krt(&k, &r1, &t1).unwrap(),
+    );
+    let motion = Vector3::new(0.004, 0.0, 0.003);
+    let images = |f: u32| {
+        let plane = plane_at(motion * f as f64);
+        let (r0, t0) = pose(&eye0(f));
+        vec![
+            render(&plane, &k, &r0, &t0, 160, 120),
+            render(&plane, &k, &r1, &t1, 160, 120),
+        ]
+    };
+    let mesh = mesh_of(&plane_at(Vector3::zeros()));
+    let mut tr = Tracker::new(
+        &mesh,
+        vec![cam0, cam1],
+        0,
+        &images(0),
+        TrackOptions::default(),
+    )
+    .unwrap();
+    for f in 1..=frames {
+        tr.step(f, &images(f)).unwrap();
+    }
+    let truth = mesh_of(&plane_at(motion * frames as f64)).positions;
+    let err = rms(tr.positions(), &truth);
+    assert!(
+        err < 1.5e-3,
+        "rms {err} m after {frames} frames with a moving camera"
+    );
+}
+
+#[test]
+fn a_hidden_triangle_contributes_no_pixels() {
+    // Two parallel squares, the front one hiding the back one's centre from camera 0.
+    let k = Matrix3::new(300.0, 0.0, 79.5, 0.0, 300.0, 59.5, 0.0, 0.0, 1.0);
+    let cam = Projection::from_krt(&k, &Matrix3::identity(), &Vector3::zeros()).unwrap();
+    let quad = |z: f64, s: f64| {
+        vec![
+            Point3::new(-s, -s, z),
+            Point3::new(s, -s, z),
+            Point3::new(s, s, z),
+            Point3::new(-s, s, z),
+        ]
+    };
+    let mut positions = quad(2.0, 0.3); // back
+    positions.extend(quad(1.0, 0.2)); // front, covering the back one entirely in this view
+    let triangles = vec![[0, 1, 2], [0, 2, 3], [4, 5, 6], [4, 6, 7]];
+    let img = RgbImage::from_fn(160, 120, |x, y| texture(x as f64 / 160.0, y as f64 / 120.0));
+    let popts = PatchOptions {
+        margin: 1,
+        min_cos: 0.1,
+        two_sided: true,
+        checkerboard: false,
+    };
+    let mut set = PatchSet::default();
+    set.add_camera(&positions, &triangles, &cam, &img, 0, 1.0, &popts, None);
+    let tris: Vec<u32> = set.patches.iter().map(|p| p.triangle).collect();
+    assert!(
+        tris.contains(&2) && tris.contains(&3),
+        "front triangles have pixels"
+    );
+    assert!(
+        !tris.contains(&0) && !tris.contains(&1),
+        "hidden triangles have none: {tris:?}"
+    );
+    // Seen from the side where nothing hides it, the back square does contribute.
+    let mut set = PatchSet::default();
+    set.add_camera(
+        &positions[..4],
+        &triangles[..2],
+        &cam,
+        &img,
+        0,
+        1.0,
+        &popts,
+        None,
+    );
+    assert_eq!(set.patches.len(), 2);
+}
+
+#[test]
+fn results_do_not_depend_on_the_thread_count() {
+    let rig = rig();
+    let motion = Vector3::new(0.005, -0.003, 0.004);
+    let plane0 = plane_at(Vector3::zeros());
+    let mesh = mesh_of(&plane0);
+    let frames: Vec<Vec<RgbImage>> = (0..3)
+        .map(|f| rig.images(&plane_at(motion * f as f64)))
+        .collect();
+    let run = |threads: usize| {
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap();
+        pool.install(|| {
+            let mut tr =
+                Tracker::new(&mesh, rig.cameras(), 0, &frames[0], TrackOptions::default()).unwrap();
+            for (f, images) in frames.iter().enumerate().skip(1) {
+                tr.step(f as u32, images).unwrap();
+            }
+            tr.positions().to_vec()
+        })
+    };
+    let one = run(1);
+    let three = run(3);
+    assert!(
+        one.iter().zip(&three).all(|(a, b)| a == b),
+        "bitwise identical results"
+    );
+}
