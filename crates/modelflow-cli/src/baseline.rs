@@ -2,7 +2,7 @@
 //! scene, written like `track`'s output so that `eval` can score it.
 
 use crate::progress::Progress;
-use crate::runfolder::{run_options, OutArgs};
+use crate::runfolder::{run_options, Invocation, OutArgs};
 use anyhow::Context;
 use modelflow::baseline::{self, BaselineOptions, LkOptions, Seeding};
 use modelflow::input::Scene;
@@ -33,7 +33,7 @@ pub struct Args {
     pub max_reprojection: f64,
 }
 
-pub fn run(args: Args, matches: &clap::ArgMatches) -> anyhow::Result<()> {
+pub fn run(args: Args, invocation: &Invocation) -> anyhow::Result<()> {
     if args.window < 3 || args.window % 2 == 0 {
         anyhow::bail!(
             "--window must be an odd number of pixels >= 3, got {}",
@@ -60,7 +60,7 @@ pub fn run(args: Args, matches: &clap::ArgMatches) -> anyhow::Result<()> {
         max_reprojection_error: args.max_reprojection,
         ..defaults
     };
-    let run = run_options(args.out.mode(false), matches);
+    let run = run_options(args.out.mode(false), invocation);
     let progress = Progress::new("baseline", (scene.last - scene.first) as u64);
     let result = baseline::run(&scene, &opts, &args.out.out, &run, &|f| {
         progress.at(

@@ -44,16 +44,19 @@ enum Command {
 }
 
 fn main() -> std::process::ExitCode {
-    let matches = Cli::command().get_matches();
+    let definition = Cli::command();
+    let matches = definition.clone().get_matches();
     let cli = match Cli::from_arg_matches(&matches) {
         Ok(cli) => cli,
         Err(e) => e.exit(),
     };
-    // The subcommand's own matches tell which options the user set (for run manifests).
-    let sub = matches
-        .subcommand()
-        .map(|(_, m)| m.clone())
-        .unwrap_or_default();
+    // The subcommand's definition and matches tell which options the user set (for manifests).
+    let (name, sub_matches) = matches.subcommand().unwrap_or(("", &matches));
+    let sub_command = definition.find_subcommand(name).unwrap_or(&definition);
+    let sub = runfolder::Invocation {
+        command: sub_command,
+        matches: sub_matches,
+    };
     let result: anyhow::Result<()> = match cli.command {
         Command::Baseline(args) => baseline::run(args, &sub),
         Command::Bench(a) => bench::run(a),

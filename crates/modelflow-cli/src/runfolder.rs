@@ -32,11 +32,12 @@ impl OutArgs {
     }
 }
 
-/// The options set on the command line, as written (`--name` -> value; flags -> `true`).
-pub fn given_options(matches: &clap::ArgMatches) -> BTreeMap<String, String> {
+/// The options of `cmd` set on the command line, as written (`--name` -> value; flags ->
+/// `true`).
+pub fn given_options(cmd: &clap::Command, matches: &clap::ArgMatches) -> BTreeMap<String, String> {
     let mut given = BTreeMap::new();
-    for id in matches.ids() {
-        let id = id.as_str();
+    for arg in cmd.get_arguments() {
+        let id = arg.get_id().as_str();
         if matches.value_source(id) != Some(ValueSource::CommandLine) {
             continue;
         }
@@ -49,18 +50,27 @@ pub fn given_options(matches: &clap::ArgMatches) -> BTreeMap<String, String> {
             })
             .filter(|v| !v.is_empty())
             .unwrap_or_else(|| "true".into());
-        given.insert(format!("--{}", id.replace('_', "-")), value);
+        let name = arg
+            .get_long()
+            .map_or_else(|| id.to_string(), |l| format!("--{l}"));
+        given.insert(name, value);
     }
     given
 }
 
+/// What the command line said: the subcommand's definition and what the user gave it.
+pub struct Invocation<'a> {
+    pub command: &'a clap::Command,
+    pub matches: &'a clap::ArgMatches,
+}
+
 /// The run options for a command: the folder mode, the command line, the options as given, and
 /// a cancel flag set by Ctrl-C.
-pub fn run_options(mode: OpenMode, matches: &clap::ArgMatches) -> RunOptions {
+pub fn run_options(mode: OpenMode, invocation: &Invocation) -> RunOptions {
     RunOptions {
         mode,
         command: std::env::args().collect(),
-        given: given_options(matches),
+        given: given_options(invocation.command, invocation.matches),
         cancel: Some(ctrl_c()),
     }
 }

@@ -2,7 +2,7 @@
 //! JSON-lines log, with a progress bar (plain lines when stderr is not a terminal).
 
 use crate::progress::Progress;
-use crate::runfolder::{run_options, OutArgs};
+use crate::runfolder::{run_options, Invocation, OutArgs};
 use modelflow::input::Scene;
 use modelflow::tracker::{
     track_scene, Interpolation, Regularisation, SolverOptions, TrackOptions, TrackSummary,
@@ -103,9 +103,9 @@ pub struct Args {
     track: TrackArgs,
 }
 
-pub fn run(args: Args, matches: &clap::ArgMatches) -> anyhow::Result<()> {
+pub fn run(args: Args, invocation: &Invocation) -> anyhow::Result<()> {
     let scene = Scene::load(&args.scene)?;
-    let run = run_options(args.out.mode(args.resume), matches);
+    let run = run_options(args.out.mode(args.resume), invocation);
     let summary = run_scene(&scene, &args.track.options(), &args.out.out, &run)?;
     let resumed = match summary.resumed_from {
         Some(f) => format!(", resumed after frame {f}"),

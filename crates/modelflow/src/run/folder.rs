@@ -118,9 +118,18 @@ impl RunFolder {
                     return Err(Error::run_folder(
                         dir,
                         format!(
-                            "the run was made with other options ({}); resume it with the \
-                             same options, or add --force to start it again",
-                            differences(&old.options.used, &manifest.options.used)
+                            "the run was made with other options ({}; it was started with: {}); \
+                             resume it with the same options, or add --force to start it again",
+                            differences(&old.options.used, &manifest.options.used),
+                            old.options
+                                .given
+                                .iter()
+                                .map(|(k, v)| match v.as_str() {
+                                    "true" => k.clone(),
+                                    _ => format!("{k} {v}"),
+                                })
+                                .collect::<Vec<_>>()
+                                .join(" ")
                         ),
                     ));
                 }
@@ -301,22 +310,39 @@ fn refusal_reason(listing: &Listing, existing: &Option<Manifest>) -> String {
     )
 }
 
-/// The top-level keys in which two option sets differ, as `key: old -> new`.
+/// Where two option sets differ, as `path: old -> new` (dotted paths to the leaves).
 fn differences(old: &serde_json::Value, new: &serde_json::Value) -> String {
-    let (Some(a), Some(b)) = (old.as_object(), new.as_object()) else {
-        return "options".into();
-    };
-    let mut keys: Vec<&String> = a.keys().chain(b.keys()).collect();
-    keys.sort();
-    keys.dedup();
-    keys.into_iter()
-        .filter(|k| a.get(*k) != b.get(*k))
-        .map(|k| {
-            let show = |v: Option<&serde_json::Value>| v.map_or("none".into(), |v| v.to_string());
-            format!("{k}: {} -> {}", show(a.get(k)), show(b.get(k)))
-        })
-        .collect::<Vec<_>>()
-        .join("; ")
+    fn walk(
+        path: &str,
+        a: Option<&serde_json::Value>,
+        b: Option<&serde_json::Value>,
+        out: &mut Vec<String>,
+    ) {
+        match (a, b) {
+            (Some(serde_json::Value::Object(x)), Some(serde_json::Value::Object(y))) => {
+                let mut keys: Vec<&String> = x.keys().chain(y.keys()).collect();
+                keys.sort();
+                keys.dedup();
+                for k in keys {
+                    let p = if path.is_empty() {
+                        k.clone()
+                    } else {
+                        format!("{path}.{k}")
+                    };
+                    walk(&p, x.get(k), y.get(k), out);
+                }
+            }
+            (a, b) if a != b => {
+                let show =
+                    |v: Option<&serde_json::Value>| v.map_or("none".into(), |v| v.to_string());
+                out.push(format!("{path}: {} -> {}", show(a), show(b)));
+            }
+            _ => {}
+        }
+    }
+    let mut out = Vec::new();
+    walk("", Some(old), Some(new), &mut out);
+    out.join("; ")
 }
 
 /// Finds the last complete frame of the run in `dir` (mesh and log line written, every frame

@@ -1,0 +1,295 @@
+//! The run folder as a user relies on it: an interrupted run resumes to exactly the files of an
+//! uninterrupted one (also after a crash left a torn log line, a mesh without its line and a
+//! temporary file), a folder holding anything but a run of the same scene is refused and left as
+//! it was, `Force` replaces only run files, and the manifest records what made the run.
+
+use modelflow::input::Scene;
+use modelflow::run::{read_frame_log, FrameDetail, FrameLog, Manifest, Status};
+use modelflow::synth::{write_dataset, SynthOptions};
+use modelflow::tracker::{track_scene, Regularisation, TrackOptions, Tracker};
+use modelflow::{Error, OpenMode, RunOptions};
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::{Arc, OnceLock};
+
+/// A small synthetic cloth (160×120, 2 cameras, 8 frames) and its uninterrupted run, made once.
+fn shot() -> &'static (tempfile::TempDir, PathBuf, PathBuf) {
+    static SHOT: OnceLock<(tempfile::TempDir, PathBuf, PathBuf)> = OnceLock::new();
+    SHOT.get_or_init(|| {
+        let dir = tempfile::tempdir().unwrap();
+        let opts = SynthOptions {
+            width: 160,
+            height: 120,
+            frames: 8,
+            ..SynthOptions::default()
+        };
+        let scene = write_dataset(&opts, &dir.path().join("footage"), &|_, _| {}).unwrap();
+        let reference = dir.path().join("reference");
+        track(&scene, &reference, &RunOptions::default()).unwrap();
+        (dir, scene, reference)
+    })
+}
+
+fn track(scene: &Path, out: &Path, run: &RunOptions) -> modelflow::Result<usize> {
+    let scene = Scene::load(scene).unwrap();
+    track_scene(&scene, &TrackOptions::default(), out, run, &mut |_| {}).map(|s| s.solved)
+}
+
+/// Every file of a folder with its bytes.
+fn contents(dir: &Path) -> BTreeMap<String, Vec<u8>> {
+    std::fs::read_dir(dir)
+        .unwrap()
+        .map(|e| {
+            let e = e.unwrap();
+            (
+                e.file_name().to_string_lossy().into_owned(),
+                std::fs::read(e.path()).unwrap(),
+            )
+        })
+        .collect()
+}
+
+/// The frame meshes of a run folder.
+fn meshes(dir: &Path) -> BTreeMap<String, Vec<u8>> {
+    contents(dir)
+        .into_iter()
+        .filter(|(n, _)| n.ends_with(".obj"))
+        .collect()
+}
+
+/// A log line with its measured times zeroed: what must be identical between two runs.
+fn without_times(mut l: FrameLog) -> FrameLog {
+    l.seconds = 0.0;
+    l.load_seconds = 0.0;
+    l.wall_seconds = 0.0;
+    if let FrameDetail::ModelFlow(r) = &mut l.detail {
+        r.timing = Default::default();
+        for s in &mut r.levels {
+            s.seconds = 0.0;
+            s.iterations.iter_mut().for_each(|i| i.seconds = 0.0);
+        }
+    }
+    l
+}
+
+fn logs_without_times(dir: &Path) -> Vec<FrameLog> {
+    read_frame_log(dir)
+        .unwrap()
+        .into_iter()
+        .map(without_times)
+        .collect()
+}
+
+/// Runs into `out` and stops it (as Ctrl-C does) once `frame` is written.
+fn interrupted_after(scene: &Path, out: &Path, frame: u32) -> Error {
+    let cancel = Arc::new(AtomicBool::new(false));
+    let run = RunOptions {
+        cancel: Some(cancel.clone()),
+        ..RunOptions::default()
+    };
+    let scene = Scene::load(scene).unwrap();
+    track_scene(&scene, &TrackOptions::default(), out, &run, &mut |l| {
+        if l.frame == frame {
+            cancel.store(true, Ordering::Relaxed);
+        }
+    })
+    .unwrap_err()
+}
+
+fn resume() -> RunOptions {
+    RunOptions {
+        mode: OpenMode::Resume,
+        ..RunOptions::default()
+    }
+}
+
+#[test]
+fn an_interrupted_run_resumes_to_the_files_of_an_uninterrupted_one() {
+    let (tmp, scene, reference) = shot();
+    let out = tmp.path().join("interrupted");
+    let err = interrupted_after(scene, &out, 3);
+    assert!(
+        matches!(err, Error::Interrupted { last_complete: 3 }),
+        "{err}"
+    );
+    let m = Manifest::read(&out.join("run.json")).unwrap();
+    assert_eq!(m.status, Status::Interrupted);
+    assert_eq!(m.last_complete, Some(3));
+    assert_eq!(m.frames_completed, 4);
+    assert_eq!(meshes(&out).len(), 4, "frames 0..=3");
+
+    // A rerun without --resume or --force is refused and changes nothing.
+    let before = contents(&out);
+    let err = track(scene, &out, &RunOptions::default())
+        .unwrap_err()
+        .to_string();
+    assert!(
+        err.contains("holds a run of this scene") && err.contains("--resume"),
+        "{err}"
+    );
+    assert_eq!(contents(&out), before);
+
+    assert_eq!(track(scene, &out, &resume()).unwrap(), 4, "frames 4..=7");
+    assert_eq!(meshes(&out), meshes(reference), "byte-identical meshes");
+    assert_eq!(logs_without_times(&out), logs_without_times(reference));
+    let m = Manifest::read(&out.join("run.json")).unwrap();
+    assert_eq!(m.status, Status::Complete);
+    assert_eq!(m.resumed.len(), 1);
+    assert_eq!(m.resumed[0].from_frame, 3);
+}
+
+#[test]
+fn a_crash_s_leftovers_are_dropped_on_resume() {
+    let (tmp, scene, reference) = shot();
+    let out = tmp.path().join("crashed");
+    interrupted_after(scene, &out, 4);
+    // What a kill in the middle of frame 5 can leave: frame 5's mesh without its log line, a
+    // torn log line, and a temporary file of the next write.
+    std::fs::copy(reference.join("0005.obj"), out.join("0005.obj")).unwrap();
+    let full = std::fs::read_to_string(reference.join("log.jsonl")).unwrap();
+    let line5 = full.lines().nth(4).unwrap();
+    let mut log = std::fs::OpenOptions::new()
+        .append(true)
+        .open(out.join("log.jsonl"))
+        .unwrap();
+    std::io::Write::write_all(&mut log, &line5.as_bytes()[..line5.len() / 2]).unwrap();
+    std::fs::write(out.join(".0006.obj.4242.tmp"), "half a mesh").unwrap();
+
+    assert_eq!(track(scene, &out, &resume()).unwrap(), 3, "frames 5..=7");
+    assert_eq!(meshes(&out), meshes(reference));
+    assert_eq!(logs_without_times(&out), logs_without_times(reference));
+    let names: Vec<String> = contents(&out).into_keys().collect();
+    assert!(
+        names.iter().all(|n| !n.ends_with(".tmp")),
+        "no temporary file is left: {names:?}"
+    );
+}
+
+#[test]
+fn a_folder_of_other_files_is_refused_and_force_replaces_only_run_files() {
+    let (tmp, scene, _) = shot();
+    let out = tmp.path().join("truth-by-mistake");
+    std::fs::create_dir_all(&out).unwrap();
+    // A ground truth folder and a user's note.
+    let truth = Scene::load(scene).unwrap();
+    for f in truth.frames() {
+        let m = truth.ground_truth(f).unwrap().unwrap();
+        modelflow::input::write_obj(&out.join(format!("{f:04}.obj")), &m).unwrap();
+    }
+    std::fs::write(out.join("notes.txt"), "mine").unwrap();
+    let before = contents(&out);
+    for mode in [OpenMode::New, OpenMode::Resume] {
+        let run = RunOptions {
+            mode,
+            ..RunOptions::default()
+        };
+        let err = track(scene, &out, &run).unwrap_err().to_string();
+        assert!(
+            err.contains("not a modelflow run") && err.contains("--force"),
+            "{mode:?}: {err}"
+        );
+        assert_eq!(contents(&out), before, "{mode:?}: nothing in it changes");
+    }
+    let force = RunOptions {
+        mode: OpenMode::Force,
+        ..RunOptions::default()
+    };
+    assert_eq!(track(scene, &out, &force).unwrap(), 7);
+    assert_eq!(std::fs::read(out.join("notes.txt")).unwrap(), b"mine");
+    assert!(out.join("run.json").is_file());
+}
+
+#[test]
+fn another_scene_s_run_and_other_options_are_refused() {
+    let (tmp, scene, reference) = shot();
+    // Resuming with other options than the run's.
+    let out = tmp.path().join("other-options");
+    interrupted_after(scene, &out, 2);
+    let before = contents(&out);
+    let mut s = Scene::load(scene).unwrap();
+    let stiffer = TrackOptions {
+        regularisation: Regularisation {
+            spring_k: 2.0,
+            ..Regularisation::default()
+        },
+        ..TrackOptions::default()
+    };
+    let err = track_scene(&s, &stiffer, &out, &resume(), &mut |_| {})
+        .unwrap_err()
+        .to_string();
+    assert!(
+        err.contains("other options") && err.contains("regularisation.spring_k: 1.0 -> 2.0"),
+        "{err}"
+    );
+    assert_eq!(contents(&out), before);
+    // The same folder for a shorter shot is another scene's run.
+    s.last -= 1;
+    let err = track_scene(
+        &s,
+        &TrackOptions::default(),
+        reference,
+        &resume(),
+        &mut |_| {},
+    )
+    .unwrap_err()
+    .to_string();
+    assert!(
+        err.contains("another scene") && err.contains("nothing to resume"),
+        "{err}"
+    );
+}
+
+#[test]
+fn the_manifest_records_what_made_the_run() {
+    let (_, scene, reference) = shot();
+    let m = Manifest::read(&reference.join("run.json")).unwrap();
+    assert_eq!(m.format, "modelflow-run/1");
+    assert_eq!(m.tool, format!("modelflow {}", env!("CARGO_PKG_VERSION")));
+    assert_eq!(m.status, Status::Complete);
+    assert_eq!((m.scene.first, m.scene.last), (0, 7));
+    assert_eq!(m.frames_completed, 8);
+    assert!(m.scene.path.is_absolute() && m.scene.path.ends_with("scene.json"));
+    let s = Scene::load(scene).unwrap();
+    assert_eq!(
+        m.scene.checksum,
+        modelflow::run::inputs_checksum(&s).unwrap()
+    );
+    assert!(m.scene.checksum.starts_with("sha256:") && m.scene.checksum.len() == 7 + 64);
+    assert!(m.ended.is_some() && m.started.ends_with('Z'));
+    // Options as used: every tracker option, resolved, with what it implies.
+    let used = &m.options.used;
+    assert_eq!(used["options"]["levels"], 2);
+    assert_eq!(used["options"]["regularisation"]["spring_k"], 1.0);
+    assert_eq!(
+        used["interpolation_per_level"],
+        serde_json::json!(["cubic", "linear"])
+    );
+    assert_eq!(
+        used["regularisers"],
+        serde_json::json!(["cubic_springs", "membrane", "bending"])
+    );
+}
+
+#[test]
+fn a_cancelled_step_leaves_the_tracker_where_it_was() {
+    let (_, scene, _) = shot();
+    let s = Scene::load(scene).unwrap();
+    let mut t = Tracker::new(
+        &s.mesh,
+        s.cameras.clone(),
+        0,
+        &s.load_images(0).unwrap(),
+        TrackOptions::default(),
+    )
+    .unwrap();
+    t.step(1, &s.load_images(1).unwrap()).unwrap();
+    let at_1 = t.positions().to_vec();
+    t.set_cancel(Arc::new(AtomicBool::new(true)));
+    let err = t.step(2, &s.load_images(2).unwrap()).unwrap_err();
+    assert!(
+        matches!(err, Error::Interrupted { last_complete: 1 }),
+        "{err}"
+    );
+    assert_eq!(t.positions(), &at_1[..]);
+}
