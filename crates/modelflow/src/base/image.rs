@@ -131,7 +131,7 @@ impl RgbImage {
     /// the cost it evaluates, so Gauss–Newton's fixed point is the cost's own stationary point
     /// rather than one shifted by a gradient approximation. It reads only the four colours around
     /// `(u, v)`, so the tracker's images need no stored gradients.
-    #[inline]
+    #[inline(always)]
     pub fn sample_exact(&self, u: f64, v: f64) -> Option<[f32; 9]> {
         if !self.inside(u, v) {
             return None;
@@ -159,7 +159,7 @@ impl RgbImage {
     /// in the solved positions (on the Blender sample it shows as depth error across the narrow
     /// baseline). It reads the 4×4 pixels around `(u, v)`; beyond the border the edge pixels are
     /// repeated.
-    #[inline]
+    #[inline(always)]
     pub fn sample_cubic(&self, u: f64, v: f64) -> Option<[f32; 9]> {
         if !self.inside(u, v) {
             return None;
@@ -207,7 +207,7 @@ impl RgbImage {
     }
 
     /// The four pixels around a point inside the image and the fractional position between them.
-    #[inline]
+    #[inline(always)]
     fn taps(&self, u: f64, v: f64) -> ([[f32; 3]; 4], f32, f32) {
         let x0 = (u as usize).min(self.width.saturating_sub(2));
         let y0 = (v as usize).min(self.height.saturating_sub(2));

@@ -2,11 +2,9 @@
 //! [`OptionsUsed`], the same resolved and with what they imply, which the tracker runs with and
 //! a run's manifest records (like Ceres' summary, which reports options as given and as used).
 
-use crate::base::mesh::Mesh;
-use crate::tracker::regularise::{self, EdgeSet, Regularisation};
+use crate::tracker::regularise::{self, Regularisation};
 use crate::tracker::solve::{Interpolation, SolverOptions};
 use serde::{Deserialize, Serialize};
-use std::sync::Arc;
 
 /// Tracker settings. `Default` is what `modelflow track` uses.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
@@ -63,8 +61,8 @@ pub struct OptionsUsed {
 }
 
 impl TrackOptions {
-    /// These options as a tracker of `mesh` uses them.
-    pub fn used(&self, mesh: &Mesh) -> OptionsUsed {
+    /// These options as a tracker uses them.
+    pub fn used(&self) -> OptionsUsed {
         let options = TrackOptions {
             levels: self.levels.max(1),
             ..*self
@@ -78,10 +76,9 @@ impl TrackOptions {
                 }
             })
             .collect();
-        let edges = Arc::new(EdgeSet::new(mesh.edges(), &mesh.positions));
-        let regularisers = regularise::build(mesh, &edges, &options.regularisation)
-            .iter()
-            .map(|r| r.name().to_string())
+        let regularisers = regularise::names(&options.regularisation)
+            .into_iter()
+            .map(String::from)
             .collect();
         OptionsUsed {
             options,

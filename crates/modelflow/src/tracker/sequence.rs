@@ -108,7 +108,7 @@ impl Tracker {
                 images.len(),
             ));
         }
-        let used = opts.used(mesh);
+        let used = opts.used();
         let opts = used.options;
         let levels = opts.levels;
         let pyramids = build_pyramids(images, levels, opts.blur);

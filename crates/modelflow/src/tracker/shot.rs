@@ -40,7 +40,7 @@ pub fn track_scene(
     on_frame: &mut dyn FnMut(&FrameLog),
 ) -> Result<TrackSummary> {
     let t_start = Instant::now();
-    let used = opts.used(&scene.mesh);
+    let used = opts.used();
     let manifest = Manifest::new(
         Method::ModelFlow,
         scene,

@@ -103,6 +103,9 @@ pub struct BlockSparse {
     cols: Vec<u32>,
     blocks: Vec<Matrix3<f64>>,
     diag: Vec<usize>,
+    /// For each pattern edge `[a, b]` given to [`BlockSparse::new`], the positions of its blocks
+    /// (a, b) and (b, a): edge terms are added without a search (shared by clones).
+    edge_slots: Arc<[[u32; 2]]>,
     scalar: Option<(Arc<ScalarSparse>, f64)>,
 }
 
@@ -128,13 +131,22 @@ impl BlockSparse {
             row_ptr.push(cols.len());
         }
         let blocks = vec![Matrix3::zeros(); cols.len()];
-        BlockSparse {
+        let mut m = BlockSparse {
             row_ptr,
             cols,
             blocks,
             diag,
+            edge_slots: Arc::new([]),
             scalar: None,
-        }
+        };
+        m.edge_slots = edges
+            .iter()
+            .map(|&[a, b]| {
+                let (a, b) = (a as usize, b as usize);
+                [m.find(a, b) as u32, m.find(b, a) as u32]
+            })
+            .collect();
+        m
     }
 
     pub fn dim(&self) -> usize {
@@ -185,6 +197,19 @@ impl BlockSparse {
             let k = self.find(j, i);
             self.blocks[k] += b.transpose();
         }
+    }
+
+    /// Adds an edge term for pattern edge `e` = `[a, b]` (the `e`-th edge given to
+    /// [`BlockSparse::new`]): the symmetric `h` at (a, a) and (b, b), `−h` at (a, b) and (b, a).
+    #[inline]
+    pub fn add_edge(&mut self, e: usize, [a, b]: [usize; 2], h: &Matrix3<f64>) {
+        let [ab, ba] = self.edge_slots[e].map(|k| k as usize);
+        debug_assert_eq!(self.cols[ab] as usize, b, "edge {e} is not [{a}, {b}]");
+        debug_assert_eq!(self.cols[ba] as usize, a, "edge {e} is not [{a}, {b}]");
+        self.blocks[self.diag[a]] += h;
+        self.blocks[self.diag[b]] += h;
+        self.blocks[ab] -= h;
+        self.blocks[ba] -= h;
     }
 
     /// The diagonal block of vertex `i` (scalar part included).

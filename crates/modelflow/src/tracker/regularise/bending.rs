@@ -150,10 +150,6 @@ impl Bending {
         self.centre.len()
     }
 
-    pub fn is_empty(&self) -> bool {
-        self.centre.is_empty()
-    }
-
     fn stencil(&self, k: usize) -> (usize, &[u32]) {
         (
             self.centre[k] as usize,

@@ -45,12 +45,12 @@ impl Regulariser for Membrane {
         let (s, prev) = (self.scale, &self.reference);
         let h = Matrix3::identity() * s;
         let mut cost = 0.0;
-        for e in &self.edges.edges {
-            let [a, b] = e.map(|v| v as usize);
+        for (e, edge) in self.edges.edges.iter().enumerate() {
+            let [a, b] = edge.map(|v| v as usize);
             let r = (x[b] - x[a]) - (prev[b] - prev[a]);
             cost += s * r.norm_squared();
             if let Some(sys) = system.as_mut() {
-                EdgeSet::add_edge(sys, [a, b], &h, &(r * s));
+                EdgeSet::add_edge(sys, e, [a, b], &h, &(r * s));
             }
         }
         cost

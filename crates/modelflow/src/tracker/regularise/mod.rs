@@ -71,7 +71,8 @@ pub(crate) trait Regulariser: Send + Sync {
 }
 
 /// The edges of a mesh with their rest lengths (taken from the first frame), shared by the edge
-/// terms.
+/// terms. They are the normal equations' block pattern too (`BlockSparse::new` is given
+/// `edges`), so an edge term is added by its index.
 #[derive(Clone, Debug)]
 pub(crate) struct EdgeSet {
     pub edges: Vec<[u32; 2]>,
@@ -97,18 +98,17 @@ impl EdgeSet {
         }
     }
 
-    /// Adds an edge term whose Hessian blocks are `h` on (a,a), (b,b) and `−h` on (a,b), and
-    /// whose gradient with respect to `b` is `g_b` (and `−g_b` with respect to `a`).
+    /// Adds the term of edge `e` = `[a, b]`: symmetric Hessian blocks `h` on (a,a), (b,b) and
+    /// `−h` on (a,b), (b,a), and gradient `g_b` with respect to `b` (`−g_b` with respect to `a`).
     pub fn add_edge(
         system: &mut System<'_>,
+        e: usize,
         [a, b]: [usize; 2],
         h: &nalgebra::Matrix3<f64>,
         g_b: &Vector3<f64>,
     ) {
         let (m, rhs) = system;
-        m.add_pair(a, a, h);
-        m.add_pair(b, b, h);
-        m.add_pair(a, b, &(-h));
+        m.add_edge(e, [a, b], h);
         rhs[b] -= g_b;
         rhs[a] += g_b;
     }
@@ -137,9 +137,24 @@ pub(crate) fn build(
     }
     if reg.bending > 0.0 {
         let b = bending::Bending::new(&mesh.triangles, &mesh.positions);
-        if !b.is_empty() {
-            out.push(Box::new(bending::BendingTerm::new(b, reg.bending)));
-        }
+        out.push(Box::new(bending::BendingTerm::new(b, reg.bending)));
     }
+    debug_assert_eq!(
+        out.iter().map(|r| r.name()).collect::<Vec<_>>(),
+        names(reg),
+        "names() lists what build() builds"
+    );
     out
+}
+
+/// The names of the regularisers [`build`] builds for `reg`, in order, without building them.
+pub(crate) fn names(reg: &Regularisation) -> Vec<&'static str> {
+    [
+        (reg.spring_k > 0.0, "cubic_springs"),
+        (reg.membrane > 0.0, "membrane"),
+        (reg.bending > 0.0, "bending"),
+    ]
+    .into_iter()
+    .filter_map(|(on, name)| on.then_some(name))
+    .collect()
 }

@@ -60,16 +60,16 @@ impl Regulariser for CubicSprings {
     fn accumulate(&self, x: &[Point3<f64>], mut system: Option<System<'_>>) -> f64 {
         let w = self.weight;
         let mut cost = 0.0;
-        for (e, &rest) in self.edges.edges.iter().zip(&self.edges.rest) {
+        for (e, (edge, &rest)) in self.edges.edges.iter().zip(&self.edges.rest).enumerate() {
             if rest <= 0.0 {
                 continue;
             }
-            let [a, b] = e.map(|v| v as usize);
+            let [a, b] = edge.map(|v| v as usize);
             let (f, grad) = cubic_spring(&x[a], &x[b], rest, rest, self.k, self.t);
             cost += w * f * f;
             if let Some(sys) = system.as_mut() {
                 let h = grad * grad.transpose() * w;
-                EdgeSet::add_edge(sys, [a, b], &h, &(grad * (f * w)));
+                EdgeSet::add_edge(sys, e, [a, b], &h, &(grad * (f * w)));
             }
         }
         cost
