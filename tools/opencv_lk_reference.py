@@ -8,7 +8,8 @@ eps 0.01, minEigThreshold 1e-4: OpenCV's defaults) starting from the reprojectio
 with a forward-backward check of 1 px; each vertex tracked by two or more cameras is triangulated
 (cv2.triangulatePoints for two cameras, the linear DLT for more) with each camera's projection at
 frame t+1; the others keep their position. One OBJ per frame ({frame:04}.obj, the first = input
-mesh, same faces) and log.jsonl are written like `modelflow baseline`, so `modelflow eval` scores it.
+mesh, same faces) and log.jsonl (the run-folder log schema) are written like `modelflow baseline`, so
+`modelflow eval` and `modelflow report` read it.
 
     pip install opencv-python-headless numpy
     python3 tools/opencv_lk_reference.py --scene S/scene.json --out DIR [--chained] [--no-fb]
@@ -174,10 +175,12 @@ def run(args):
 
     prev = [grey(c, first) for c in cams]
     chained = [dict() for _ in cams]
-    log = []
+    log_path = os.path.join(args.out, "log.jsonl")
+    open(log_path, "w").close()
     for frame in range(first + 1, last + 1):
         t0 = time.time()
         cur = [grey(c, frame) for c in cams]
+        t_load = time.time() - t0
         tracks = []
         for ci, cam in enumerate(cams):
             P = proj_at(cam, frame - 1, first)
@@ -223,9 +226,13 @@ def run(args):
             tri += len(vs)
         secs = time.time() - t0
         write_obj(os.path.join(args.out, f"{frame:04d}.obj"), X, faces)
-        log.append({"frame": frame, "seconds": secs, "tracked": ntracked, "triangulated": tri})
-        with open(os.path.join(args.out, "log.jsonl"), "w") as f:
-            f.writelines(json.dumps(e) + "\n" for e in log)
+        wall = time.time() - t0
+        # One line per frame, appended, in the run-folder log schema (docs/run-folder.md).
+        line = {"frame": frame, "seconds": secs - t_load, "load_seconds": t_load,
+                "wall_seconds": wall, "method": "baseline", "tracked": ntracked,
+                "triangulated": tri}
+        with open(log_path, "a") as f:
+            f.write(json.dumps(line) + "\n")
         prev = cur
         print(f"frame {frame}: {ntracked} tracks, {tri} triangulated, {secs:.3f} s", file=sys.stderr)
 

@@ -27,10 +27,7 @@ use crate::baseline::triangulate::triangulate;
 use crate::baseline::visibility::visible_vertices;
 use crate::error::{Error, Result};
 use crate::input::scene::Scene;
-use crate::run::{
-    FrameDetail, FrameLog, Manifest, Method, OpenMode, Opened, Options, RunFolder, RunOptions,
-    Status,
-};
+use crate::run::{write_run, FrameDetail, FrameLog, Method, OpenMode, RunFolder, RunOptions};
 use nalgebra::{Point2, Point3};
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
@@ -276,31 +273,14 @@ pub fn run(
             "a new run: the baseline cannot resume (its 2D tracks are not in the run folder)",
         ));
     }
-    let manifest = Manifest::new(
-        Method::Baseline,
-        scene,
-        run.command.clone(),
-        Options {
-            given: run.given.clone(),
-            used: serde_json::to_value(opts)
-                .map_err(|e| Error::invalid(out_dir, "options", e.to_string()))?,
-        },
-    )?;
-    let Opened { mut folder, .. } = RunFolder::open(out_dir, manifest, run.mode)?;
     let mut summary = BaselineSummary {
         frames: Vec::new(),
         seconds: Vec::new(),
         out_dir: out_dir.to_path_buf(),
     };
-    let result = run_into(&mut folder, &mut summary, scene, opts, run, on_frame);
-    let status = match &result {
-        Ok(()) => Status::Complete,
-        Err(Error::Interrupted { .. }) => Status::Interrupted,
-        Err(_) => Status::Failed,
-    };
-    let finished = folder.finish(status);
-    result?;
-    finished?;
+    write_run(out_dir, Method::Baseline, scene, opts, run, |folder, _| {
+        run_into(folder, &mut summary, scene, opts, run, on_frame)
+    })?;
     Ok(summary)
 }
 

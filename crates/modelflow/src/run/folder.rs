@@ -13,10 +13,11 @@
 
 use super::layout::{self, frame_file, LOG, MANIFEST};
 use super::log::{read_log, FrameLog, LogWriter};
-use super::manifest::{now, Manifest, Resumption, Status};
+use super::manifest::{now, Manifest, Method, Options, Resumption, Status};
 use crate::base::mesh::Mesh;
 use crate::error::{Error, Result};
 use crate::input::meshio::{read_mesh_with, Checks};
+use crate::input::scene::Scene;
 use nalgebra::Point3;
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
@@ -68,11 +69,50 @@ pub struct RunFolder {
     last_complete: Option<u32>,
 }
 
+/// Writes a run of `method` on `scene` into `dir`: opens the folder by the rules of `run.mode`
+/// with a manifest of the options `used`, runs `body` on it (given the last complete frame when
+/// resuming), and records in the manifest how it ended: complete, interrupted (the body returned
+/// `Error::Interrupted`, which then names the folder's last complete frame) or failed.
+pub fn write_run<T>(
+    dir: &Path,
+    method: Method,
+    scene: &Scene,
+    used: &impl serde::Serialize,
+    run: &RunOptions,
+    body: impl FnOnce(&mut RunFolder, Option<u32>) -> Result<T>,
+) -> Result<T> {
+    let used =
+        serde_json::to_value(used).map_err(|e| Error::invalid(dir, "options", e.to_string()))?;
+    let options = Options {
+        given: run.given.clone(),
+        used,
+    };
+    let manifest = Manifest::new(method, scene, run.command.clone(), options)?;
+    let Opened {
+        mut folder,
+        resumed,
+    } = RunFolder::open(dir, manifest, run.mode)?;
+    let result = body(&mut folder, resumed);
+    let status = match &result {
+        Ok(_) => Status::Complete,
+        Err(Error::Interrupted { .. }) => Status::Interrupted,
+        Err(_) => Status::Failed,
+    };
+    let finished = folder.finish(status);
+    match result {
+        Ok(value) => finished.map(|()| value),
+        Err(Error::Interrupted { .. }) => Err(Error::Interrupted {
+            last_complete: folder.last_complete.unwrap_or(scene.first),
+        }),
+        Err(e) => Err(e),
+    }
+}
+
 /// What an opened folder already holds.
 pub struct Opened {
     pub folder: RunFolder,
-    /// When resuming: the last complete frame and the log lines up to it.
-    pub resumed: Option<(u32, Vec<FrameLog>)>,
+    /// When resuming: the last complete frame.
+    pub resumed: Option<u32>,
 }
 
 impl RunFolder {
@@ -133,7 +173,7 @@ impl RunFolder {
                         ),
                     ));
                 }
-                let (last, lines) = truncate_to_complete(dir, &old)?;
+                let last = truncate_to_complete(dir, &old)?;
                 listing.remove_temporaries(dir)?;
                 let command = std::mem::take(&mut manifest.command);
                 manifest = Manifest {
@@ -146,12 +186,12 @@ impl RunFolder {
                     from_frame: last.unwrap_or(manifest.scene.first),
                     command,
                 });
-                resumed = last.map(|l| (l, lines));
+                resumed = last;
             }
         }
         manifest.write(&dir.join(MANIFEST))?;
         let log = LogWriter::append_to(&dir.join(LOG))?;
-        let last_complete = resumed.as_ref().map(|(l, _)| *l);
+        let last_complete = resumed;
         Ok(Opened {
             folder: RunFolder {
                 dir: dir.to_path_buf(),
@@ -347,8 +387,8 @@ fn differences(old: &serde_json::Value, new: &serde_json::Value) -> String {
 
 /// Finds the last complete frame of the run in `dir` (mesh and log line written, every frame
 /// before it too), cuts the log to it and removes the meshes past it. Returns it (`None` if not
-/// even the first frame was written) with the log's lines up to it.
-fn truncate_to_complete(dir: &Path, m: &Manifest) -> Result<(Option<u32>, Vec<FrameLog>)> {
+/// even the first frame was written).
+fn truncate_to_complete(dir: &Path, m: &Manifest) -> Result<Option<u32>> {
     let log_path = dir.join(LOG);
     let read = read_log(&log_path)?;
     let first = m.scene.first;
@@ -391,7 +431,5 @@ fn truncate_to_complete(dir: &Path, m: &Manifest) -> Result<(Option<u32>, Vec<Fr
             std::fs::remove_file(&p).map_err(|e| Error::io(&p, e))?;
         }
     }
-    let mut lines = read.lines;
-    lines.truncate(kept);
-    Ok((last, lines))
+    Ok(last)
 }

@@ -10,7 +10,7 @@ mod layout;
 mod log;
 mod manifest;
 
-pub use folder::{OpenMode, Opened, RunFolder, RunOptions};
+pub use folder::{write_run, OpenMode, Opened, RunFolder, RunOptions};
 pub use layout::{frame_file, frame_number, read_run, LOG, MANIFEST};
 pub use log::{read_frame_log, FrameDetail, FrameLog};
 pub use manifest::{

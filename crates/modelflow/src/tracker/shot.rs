@@ -6,9 +6,7 @@
 
 use crate::error::{Error, Result};
 use crate::input::scene::Scene;
-use crate::run::{
-    FrameDetail, FrameLog, Manifest, Method, Opened, Options, RunFolder, RunOptions, Status,
-};
+use crate::run::{write_run, FrameDetail, FrameLog, Method, RunFolder, RunOptions};
 use crate::tracker::options::TrackOptions;
 use crate::tracker::sequence::{prepare, Tracker};
 use serde::Serialize;
@@ -40,45 +38,16 @@ pub fn track_scene(
     on_frame: &mut dyn FnMut(&FrameLog),
 ) -> Result<TrackSummary> {
     let t_start = Instant::now();
-    let used = opts.used();
-    let manifest = Manifest::new(
+    let mut summary = write_run(
+        out_dir,
         Method::ModelFlow,
         scene,
-        run.command.clone(),
-        Options {
-            given: run.given.clone(),
-            used: serde_json::to_value(&used)
-                .map_err(|e| Error::invalid(out_dir, "options", e.to_string()))?,
-        },
-    )?;
-    let Opened {
-        mut folder,
-        resumed,
-    } = RunFolder::open(out_dir, manifest, run.mode)?;
-    let result = track_into(
-        &mut folder,
-        resumed.map(|(f, _)| f),
-        scene,
-        opts,
+        &opts.used(),
         run,
-        on_frame,
-    );
-    let status = match &result {
-        Ok(_) => Status::Complete,
-        Err(Error::Interrupted { .. }) => Status::Interrupted,
-        Err(_) => Status::Failed,
-    };
-    let finished = folder.finish(status);
-    let last_complete = folder.last_complete().unwrap_or(scene.first);
-    match result {
-        Ok(mut summary) => {
-            finished?;
-            summary.total_seconds = t_start.elapsed().as_secs_f64();
-            Ok(summary)
-        }
-        Err(Error::Interrupted { .. }) => Err(Error::Interrupted { last_complete }),
-        Err(e) => Err(e),
-    }
+        |folder, resumed| track_into(folder, resumed, scene, opts, run, on_frame),
+    )?;
+    summary.total_seconds = t_start.elapsed().as_secs_f64();
+    Ok(summary)
 }
 
 fn track_into(
