@@ -8,12 +8,12 @@ use std::path::{Path, PathBuf};
 #[derive(Debug, thiserror::Error)]
 #[non_exhaustive]
 pub enum Error {
-    /// A file or folder could not be read or written.
-    #[error("{}: {source}", path.display())]
+    /// A file or folder could not be read or written. (The OS error is part of the message and
+    /// deliberately not a `source`, so that a printed chain does not repeat it.)
+    #[error("{}: {error}", path.display())]
     Io {
         path: PathBuf,
-        #[source]
-        source: std::io::Error,
+        error: std::io::Error,
     },
     /// A file was read but its content is not what the format requires.
     #[error("{}: {field}: {message}", path.display())]
@@ -45,13 +45,13 @@ pub enum Error {
     /// resume. `reason` says which and what to do.
     #[error("run folder {}: {reason}", dir.display())]
     RunFolder { dir: PathBuf, reason: String },
-    /// Something went wrong with one run of several (in a report).
-    #[error("run {name} ({}): {source}", dir.display())]
+    /// Something went wrong with one run of several (in a report); the inner error is part of
+    /// the message.
+    #[error("run {name} ({}): {error}", dir.display())]
     InRun {
         name: String,
         dir: PathBuf,
-        #[source]
-        source: Box<Error>,
+        error: Box<Error>,
     },
     /// The run was stopped on request (e.g. Ctrl-C); every frame up to `last_complete` is
     /// complete (a run folder holding them can be resumed).
@@ -60,10 +60,10 @@ pub enum Error {
 }
 
 impl Error {
-    pub fn io(path: impl AsRef<Path>, source: std::io::Error) -> Self {
+    pub fn io(path: impl AsRef<Path>, error: std::io::Error) -> Self {
         Error::Io {
             path: path.as_ref().to_path_buf(),
-            source,
+            error,
         }
     }
 

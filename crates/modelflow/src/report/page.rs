@@ -273,7 +273,7 @@ fn context(name: &str, dir: &Path, e: Error) -> Error {
     Error::InRun {
         name: name.to_string(),
         dir: dir.to_path_buf(),
-        source: Box::new(e),
+        error: Box::new(e),
     }
 }
 
