@@ -77,10 +77,36 @@ fn main() -> std::process::ExitCode {
                     Some(modelflow::Error::Interrupted { .. })
                 )
             });
-            std::process::ExitCode::from(if interrupted { 130 } else { 1 })
+            let code = e
+                .chain()
+                .find_map(|c| c.downcast_ref::<Failure>().map(|f| f.code))
+                .unwrap_or(if interrupted { 130 } else { 1 });
+            std::process::ExitCode::from(code)
         }
     }
 }
+
+/// An error that asks for a particular exit status (e.g. `track --strict`: 3 when frames
+/// stalled).
+#[derive(Debug)]
+pub struct Failure {
+    pub code: u8,
+    message: String,
+}
+
+impl Failure {
+    pub fn new(code: u8, message: String) -> Self {
+        Failure { code, message }
+    }
+}
+
+impl std::fmt::Display for Failure {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(&self.message)
+    }
+}
+
+impl std::error::Error for Failure {}
 
 #[cfg(test)]
 mod tests {

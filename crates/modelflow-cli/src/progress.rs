@@ -77,6 +77,14 @@ impl Progress {
         }
     }
 
+    /// A line printed above the bar (or on its own when not on a terminal): warnings.
+    pub fn println(&self, line: &str) {
+        match &self.bar {
+            Some(b) => b.println(line),
+            None => eprintln!("{line}"),
+        }
+    }
+
     pub fn finish(&self) {
         if let Some(b) = &self.bar {
             b.finish_and_clear();

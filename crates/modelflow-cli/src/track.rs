@@ -11,9 +11,14 @@ use modelflow::RunOptions;
 
 #[derive(clap::Args, Clone, Debug)]
 pub struct TrackArgs {
-    /// Pyramid levels solved coarse to fine (1 = full resolution only).
-    #[arg(long, default_value_t = TrackOptions::default().levels)]
+    /// Pyramid levels solved coarse to fine: a number (1 = full resolution only), or auto:
+    /// as many as keep the coarsest level's short side at least 80 px (720 p: 4, 480 p: 3).
+    #[arg(long, default_value = "auto", value_parser = parse_levels)]
     pub levels: usize,
+    /// Solve each pyramid level per vertex only, without first solving for one rigid motion of
+    /// the whole mesh.
+    #[arg(long)]
+    pub no_rigid_stage: bool,
     /// Weight of the first frame as a second template (0 = compare with the previous frame only, as in the thesis).
     #[arg(long, default_value_t = TrackOptions::default().anchor_weight)]
     pub anchor_weight: f64,
@@ -59,6 +64,19 @@ pub enum InterpolationArg {
     Linear,
 }
 
+/// `--levels`: `auto` (0 in `TrackOptions`) or a number of levels from 1 to 12.
+fn parse_levels(s: &str) -> Result<usize, String> {
+    if s == "auto" {
+        return Ok(0);
+    }
+    match s.parse::<usize>() {
+        Ok(n) if (1..=12).contains(&n) => Ok(n),
+        _ => Err(format!(
+            "expected auto or a number of levels from 1 to 12, got {s}"
+        )),
+    }
+}
+
 impl TrackArgs {
     pub fn options(&self) -> TrackOptions {
         let d = TrackOptions::default();
@@ -67,6 +85,7 @@ impl TrackArgs {
             anchor_weight: self.anchor_weight,
             blur: self.blur,
             checkerboard: !self.all_pixels,
+            rigid_first: !self.no_rigid_stage,
             regularisation: Regularisation {
                 spring_k: self.spring_k,
                 spring_t: self.spring_t,
@@ -99,6 +118,10 @@ pub struct Args {
     /// result is identical to an uninterrupted run.
     #[arg(long, conflicts_with = "force")]
     resume: bool,
+    /// Exit with an error (status 3) when any frame stalled: the solver could not lower the
+    /// cost at all, so the mesh kept the previous frame's shape (a warning otherwise).
+    #[arg(long)]
+    strict: bool,
     #[command(flatten)]
     track: TrackArgs,
 }
@@ -111,8 +134,15 @@ pub fn run(args: Args, invocation: &Invocation) -> anyhow::Result<()> {
         Some(f) => format!(", resumed after frame {f}"),
         None => String::new(),
     };
+    let stalled = match summary.stalled_frames.len() {
+        0 => String::new(),
+        n => format!(
+            ", {n} STALLED (the mesh did not move): frames {}",
+            list_frames(&summary.stalled_frames)
+        ),
+    };
     eprintln!(
-        "tracked frames {}..={} ({} solved now{resumed}) in {:.1} s ({:.0} ms per frame, median; {} iterations per frame, median) -> {}",
+        "tracked frames {}..={} ({} solved now{resumed}{stalled}) in {:.1} s ({:.0} ms per frame, median; {} iterations per frame, median) -> {}",
         scene.first,
         scene.last,
         summary.solved,
@@ -121,7 +151,27 @@ pub fn run(args: Args, invocation: &Invocation) -> anyhow::Result<()> {
         summary.median_iterations,
         args.out.out.display()
     );
+    if args.strict && !summary.stalled_frames.is_empty() {
+        return Err(crate::Failure::new(
+            3,
+            format!(
+                "--strict: {} frame(s) stalled ({})",
+                summary.stalled_frames.len(),
+                list_frames(&summary.stalled_frames)
+            ),
+        )
+        .into());
+    }
     Ok(())
+}
+
+/// Frame numbers for a message: all of them up to ten, then a count.
+fn list_frames(frames: &[u32]) -> String {
+    let shown: Vec<String> = frames.iter().take(10).map(|f| f.to_string()).collect();
+    match frames.len() {
+        n if n > 10 => format!("{} and {} more", shown.join(", "), n - 10),
+        _ => shown.join(", "),
+    }
 }
 
 /// Tracks with a progress bar; shared by `track` and `demo`. An interrupted run says how to
@@ -136,6 +186,12 @@ pub fn run_scene(
     let progress = Progress::new("track", total);
     let result = track_scene(scene, opts, out, run, &mut |f| {
         let r = f.model_flow();
+        if r.is_some_and(|r| r.stalled) {
+            progress.println(&format!(
+                "warning: frame {}: no step lowered the cost (every step, shortened down to 1/64, raised it); the mesh kept the previous frame's shape",
+                f.frame
+            ));
+        }
         progress.at(
             (f.frame - scene.first) as u64,
             &format!(

@@ -147,6 +147,50 @@ fn exr_floats_are_kept_as_they_are() {
 }
 
 #[test]
+fn non_finite_pixels_are_refused_with_their_place() {
+    let dir = tempfile::tempdir().unwrap();
+    let img = ImageBuffer::<Rgb<f32>, _>::from_fn(W, H, |x, y| {
+        Rgb(if (x, y) == (3, 2) {
+            [0.5, f32::NAN, 0.5]
+        } else {
+            [0.5; 3]
+        })
+    });
+    let p = save(
+        dir.path(),
+        "nan.exr",
+        DynamicImage::ImageRgb32F(img),
+        ImageFormat::OpenExr,
+    );
+    let msg = read_rgb(&p).unwrap_err().to_string();
+    for part in ["nan.exr", "pixel (3, 2)", "not a finite number"] {
+        assert!(msg.contains(part), "{msg:?} should contain {part:?}");
+    }
+}
+
+#[test]
+fn a_truncated_jpeg_is_refused() {
+    // JPEG decoders fill the missing part with grey without an error; the reader must not.
+    let dir = tempfile::tempdir().unwrap();
+    let img = ImageBuffer::from_fn(64, 48, |x, y| Rgb([(x * 4) as u8, (y * 5) as u8, 90u8]));
+    let p = save(
+        dir.path(),
+        "whole.jpg",
+        DynamicImage::ImageRgb8(img),
+        ImageFormat::Jpeg,
+    );
+    assert!(read_rgb(&p).is_ok());
+    let bytes = std::fs::read(&p).unwrap();
+    let cut = dir.path().join("cut.jpg");
+    std::fs::write(&cut, &bytes[..bytes.len() * 2 / 3]).unwrap();
+    let msg = read_rgb(&cut).unwrap_err().to_string();
+    assert!(
+        msg.contains("cut.jpg") && msg.contains("truncated"),
+        "{msg:?}"
+    );
+}
+
+#[test]
 fn jpeg_reads_close_to_what_was_written() {
     let dir = tempfile::tempdir().unwrap();
     let img = ImageBuffer::from_fn(16, 16, |_, _| Rgb([200u8, 100, 50]));

@@ -66,8 +66,8 @@ fn obj_face_forms_quads_and_negative_indices() {
     assert_eq!(m.uvs.unwrap()[0], [0.5, 0.0]);
 
     // vt not 1:1 onto v (a seam: vertex 1 has two texture coordinates).
-    let text = "v 0 0 0\nv 1 0 0\nv 1 1 0\nvt 0 0\nvt 1 0\nvt 1 1\nvt 0.2 0\n\
-                f 1/1 2/2 3/3\nf 1/4 3/3 2/2\n";
+    let text = "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nvt 0 0\nvt 1 0\nvt 1 1\nvt 0.2 0\n\
+                f 1/1 2/2 3/3\nf 1/4 3/3 4/2\n";
     let m = read_mesh(&write(dir.path(), "s.obj", text.as_bytes())).unwrap();
     assert!(m.uvs.is_none());
 }
@@ -84,6 +84,10 @@ fn obj_errors_name_file_and_line() {
         ("f 1 2 x\n", &["line 5", "not a number"]),
         ("f 1 2\n", &["line 5", "at least 3"]),
         ("f 1 2 2\n", &["line 5", "degenerate", "repeated vertex"]),
+        (
+            "f 1 2 3\nf 2 4 3\nf 3 2 1\n",
+            &["line 7", "duplicate triangle", "at line 5"],
+        ),
         ("v 2 0 0\nf 1 2 5\n", &["line 6", "degenerate", "zero area"]),
         ("v nan 0 0\nf 1 2 3\n", &["line 5", "non-finite"]),
         ("v 1 2\n", &["line 5", "expected `v x y z`"]),

@@ -259,11 +259,12 @@ fn the_manifest_records_what_made_the_run() {
     assert!(m.ended.is_some() && m.started.ends_with('Z'));
     // Options as used: every tracker option, resolved, with what it implies.
     let used = &m.options.used;
-    assert_eq!(used["options"]["levels"], 2);
+    // `levels` is automatic by default and resolved from the image size: 160×120 → 1 level.
+    assert_eq!(used["options"]["levels"], 1);
     assert_eq!(used["options"]["regularisation"]["spring_k"], 1.0);
     assert_eq!(
         used["interpolation_per_level"],
-        serde_json::json!(["cubic", "linear"])
+        serde_json::json!(["cubic"])
     );
     assert_eq!(
         used["regularisers"],

@@ -17,6 +17,32 @@ fn decode_error(path: &Path, e: image::ImageError) -> Error {
     }
 }
 
+/// JPEG decoders fill a file that ends early with grey and report no error; a frame like that
+/// would pull the mesh towards nothing. A complete JPEG has an end-of-image marker (FF D9) after
+/// its last start-of-scan marker (FF DA); inside entropy-coded data FF is only ever followed by
+/// 00 or a restart marker, so the check cannot be fooled by the image data. (Hand-written: no
+/// crate reports truncation.)
+fn check_jpeg_complete(path: &Path) -> Result<()> {
+    let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
+    let last_scan = bytes.windows(2).rposition(|w| w == [0xFF, 0xDA]);
+    let complete = match last_scan {
+        Some(s) => bytes[s..].windows(2).any(|w| w == [0xFF, 0xD9]),
+        None => false,
+    };
+    if complete {
+        Ok(())
+    } else {
+        Err(Error::invalid(
+            path,
+            "image",
+            format!(
+                "the JPEG ends before its end-of-image marker ({} bytes): the file is truncated or still being written",
+                bytes.len()
+            ),
+        ))
+    }
+}
+
 fn open(path: &Path) -> Result<ImageReader<std::io::BufReader<std::fs::File>>> {
     ImageReader::open(path)
         .map_err(|e| Error::io(path, e))?
@@ -26,7 +52,11 @@ fn open(path: &Path) -> Result<ImageReader<std::io::BufReader<std::fs::File>>> {
 
 /// Reads an image file as RGB `f32` (see the module doc for the value convention).
 pub fn read_rgb(path: &Path) -> Result<RgbImage> {
-    let img = open(path)?.decode().map_err(|e| decode_error(path, e))?;
+    let reader = open(path)?;
+    if reader.format() == Some(image::ImageFormat::Jpeg) {
+        check_jpeg_complete(path)?;
+    }
+    let img = reader.decode().map_err(|e| decode_error(path, e))?;
     let (w, h) = (img.width() as usize, img.height() as usize);
     if w == 0 || h == 0 {
         return Err(Error::invalid(path, "size", "the image is empty"));
@@ -57,6 +87,18 @@ pub fn read_rgb(path: &Path) -> Result<RgbImage> {
         // Any layout added to `image` later: its own conversion (same scaling).
         other => other.to_rgb32f().pixels().map(|p| p.0).collect(),
     };
+    // A NaN or infinite value (possible in EXR) would make every cost that samples it
+    // non-finite, and the tracker could not lower it: refused here, with where it is.
+    if let Some(i) = data.iter().position(|p| p.iter().any(|c| !c.is_finite())) {
+        return Err(Error::invalid(
+            path,
+            format!("pixel ({}, {})", i % w, i / w),
+            format!(
+                "value {:?} is not a finite number (NaN or infinity); the tracker needs finite values in every pixel",
+                data[i]
+            ),
+        ));
+    }
     RgbImage::from_pixels(w, h, data)
         .ok_or_else(|| Error::invalid(path, "size", "decoded pixel count does not match its size"))
 }

@@ -87,6 +87,9 @@ pub fn validate(
             "the mesh has no triangles (a mesh needs at least one face)",
         ));
     }
+    // Each triangle's sorted vertices, to find one given twice (the same pixels would be
+    // compared twice, and the two copies fight over the warp where their windings differ).
+    let mut seen: std::collections::HashMap<[u32; 3], usize> = std::collections::HashMap::new();
     for (i, t) in mesh.triangles.iter().enumerate() {
         if let Some(&bad) = t.iter().find(|&&v| v as usize >= n) {
             return Err(Error::invalid(
@@ -113,6 +116,22 @@ pub fn validate(
                 ),
             ));
         }
+        let mut key = *t;
+        key.sort_unstable();
+        if let Some(&first) = seen.get(&key) {
+            return Err(Error::invalid(
+                path,
+                locate(i),
+                format!(
+                    "duplicate triangle: vertices {} {} {} already form the triangle at {}",
+                    t[0] as u64 + base,
+                    t[1] as u64 + base,
+                    t[2] as u64 + base,
+                    locate(first)
+                ),
+            ));
+        }
+        seen.insert(key, i);
         let [a, b, c] = t.map(|v| mesh.positions[v as usize]);
         let (e1, e2) = (b - a, c - a);
         let longest = e1.norm().max(e2.norm()).max((c - b).norm());

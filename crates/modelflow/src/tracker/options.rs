@@ -2,6 +2,7 @@
 //! [`OptionsUsed`], the same resolved and with what they imply, which the tracker runs with and
 //! a run's manifest records (like Ceres' summary, which reports options as given and as used).
 
+use crate::tracker::pyramid::auto_levels;
 use crate::tracker::regularise::{self, Regularisation};
 use crate::tracker::solve::{Interpolation, SolverOptions};
 use serde::{Deserialize, Serialize};
@@ -12,7 +13,8 @@ pub struct TrackOptions {
     pub solver: SolverOptions,
     /// The regularisers' weights.
     pub regularisation: Regularisation,
-    /// Pyramid levels solved, coarse to fine (1 = full resolution only).
+    /// Pyramid levels solved, coarse to fine (1 = full resolution only; 0 = chosen from the
+    /// image size, see `pyramid::auto_levels`).
     pub levels: usize,
     /// Gaussian smoothing (pixels, at each level's own scale) before gradients are taken.
     pub blur: f64,
@@ -29,6 +31,15 @@ pub struct TrackOptions {
     /// nearly the same information, so this halves the finest level's work for no measurable
     /// loss of accuracy (the first-frame anchor is always a checkerboard).
     pub checkerboard: bool,
+    /// Solve each pyramid level for one rigid motion of the whole mesh first, then per vertex
+    /// (a hierarchy of motion models: large motion is caught by six unknowns that every
+    /// triangle's pixels constrain together).
+    #[serde(default = "yes")]
+    pub rigid_first: bool,
+}
+
+fn yes() -> bool {
+    true
 }
 
 impl Default for TrackOptions {
@@ -36,13 +47,14 @@ impl Default for TrackOptions {
         TrackOptions {
             solver: SolverOptions::default(),
             regularisation: Regularisation::default(),
-            levels: 2,
+            levels: 0,
             blur: 1.0,
             anchor_weight: 2.0,
             margin: 1,
             min_cos: 0.1,
             predict: true,
             checkerboard: true,
+            rigid_first: true,
         }
     }
 }
@@ -61,7 +73,21 @@ pub struct OptionsUsed {
 }
 
 impl TrackOptions {
-    /// These options as a tracker uses them.
+    /// These options with `levels = 0` (automatic) resolved for images of the given sizes
+    /// (width, height): the smallest image decides.
+    pub fn resolved_for(&self, sizes: impl IntoIterator<Item = (u32, u32)>) -> TrackOptions {
+        if self.levels > 0 {
+            return *self;
+        }
+        let short = sizes.into_iter().map(|(w, h)| w.min(h)).min().unwrap_or(0);
+        TrackOptions {
+            levels: auto_levels(short),
+            ..*self
+        }
+    }
+
+    /// These options as a tracker uses them (automatic levels must be resolved first with
+    /// [`TrackOptions::resolved_for`]; left at 0 they count as 1).
     pub fn used(&self) -> OptionsUsed {
         let options = TrackOptions {
             levels: self.levels.max(1),

@@ -7,6 +7,24 @@
 
 use crate::base::image::RgbImage;
 
+/// The shortest side, in pixels, that the coarsest automatically chosen level keeps.
+pub const AUTO_COARSEST_PIXELS: u32 = 80;
+/// Most levels chosen automatically.
+pub const AUTO_MAX_LEVELS: usize = 6;
+
+/// Pyramid levels for images whose shortest side is `short_side` pixels: as many as keep the
+/// coarsest level at least [`AUTO_COARSEST_PIXELS`] on its short side (720 → 4 levels down to
+/// 90 px, 480 → 3, 240 → 2, 120 → 1). A motion of `m` pixels is `m/2^(L−1)` at the coarsest
+/// level, where the smoothed image's basin of convergence is a pixel or two: 4 levels bring
+/// 40 px at 1280×720 down to 5 px, which the rigid stage there (see `solve::Motion`) catches.
+pub fn auto_levels(short_side: u32) -> usize {
+    let mut levels = 1;
+    while levels < AUTO_MAX_LEVELS && short_side >> levels >= AUTO_COARSEST_PIXELS {
+        levels += 1;
+    }
+    levels
+}
+
 /// The tracker's pyramid of one camera's image at one frame: smoothed colour per level.
 #[derive(Clone, Debug)]
 pub struct Pyramid {

@@ -19,7 +19,7 @@ use crate::tracker::options::{OptionsUsed, TrackOptions};
 use crate::tracker::patch::{PatchOptions, PatchSet};
 use crate::tracker::pyramid::Pyramid;
 use crate::tracker::regularise::{self, EdgeSet, FrameContext, Regulariser};
-use crate::tracker::solve::{Problem, SolveSummary, SolverOptions, StopReason};
+use crate::tracker::solve::{Motion, Problem, SolveSummary, SolverOptions, StopReason};
 use nalgebra::Point3;
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
@@ -43,6 +43,11 @@ pub struct FrameReport {
     pub stop: StopReason,
     /// Whether the constant-velocity prediction was used as the start.
     pub predicted: bool,
+    /// The solver could not lower the cost at any level (every step, shortened down to 1/64,
+    /// raised it, or the cost was not finite): the mesh kept its starting positions although
+    /// the images asked for a change. Reported as a warning; `--strict` fails the run.
+    #[serde(default)]
+    pub stalled: bool,
     /// Where the time went: building pyramids, building patches, solving (seconds).
     pub timing: StepTiming,
     /// Per-level solver summaries, coarse to fine.
@@ -108,6 +113,7 @@ impl Tracker {
                 images.len(),
             ));
         }
+        let opts = opts.resolved_for(cameras.iter().map(|c| (c.width, c.height)));
         let used = opts.used();
         let opts = used.options;
         let levels = opts.levels;
@@ -368,7 +374,19 @@ impl Tracker {
             if level == 0 {
                 cost_before = problem.cost(&self.prev.positions, &sopts);
             }
-            let (sol, summary) = problem.solve(&x, &sopts);
+            let mut linearised = None;
+            if self.opts.rigid_first {
+                let (sol, summary, lin) = problem.solve_motion(&x, None, &sopts, Motion::Rigid);
+                if summary.stop == StopReason::Cancelled {
+                    return Err(Error::Interrupted {
+                        last_complete: self.prev.frame,
+                    });
+                }
+                x = sol;
+                linearised = Some(lin);
+                summaries.push(summary);
+            }
+            let (sol, summary, _) = problem.solve_motion(&x, linearised, &sopts, Motion::Free);
             if summary.stop == StopReason::Cancelled {
                 // The tracker stays at the previous frame: nothing of this step is kept.
                 return Err(Error::Interrupted {
@@ -385,15 +403,25 @@ impl Tracker {
             timing.solve += ts.elapsed().as_secs_f64();
         }
         let iterations = summaries.iter().map(|s| s.iterations.len()).sum();
-        let old = std::mem::replace(
-            &mut self.prev,
-            Template {
-                positions: x,
-                pyramids: next,
-                frame,
-            },
-        );
-        self.before_prev = Some(old.positions);
+        let stalled = !summaries
+            .iter()
+            .any(|s| s.iterations.iter().any(|i| i.accepted))
+            && summaries
+                .iter()
+                .any(|s| matches!(s.stop, StopReason::CostRose | StopReason::NonFinite));
+        if !stalled {
+            let old = std::mem::replace(
+                &mut self.prev,
+                Template {
+                    positions: x,
+                    pyramids: next,
+                    frame,
+                },
+            );
+            self.before_prev = Some(old.positions);
+        }
+        // A stalled frame's images are not made the template: the next frame is compared with
+        // the last frame that was solved (its positions are what this frame reports).
         Ok(FrameReport {
             iterations,
             cost_before,
@@ -401,6 +429,7 @@ impl Tracker {
             pixels,
             stop,
             predicted,
+            stalled,
             timing,
             levels: summaries,
         })
@@ -426,6 +455,7 @@ impl Prepared {
 /// Builds the pyramids the tracker with `opts` needs from one frame's images (one per camera).
 pub fn prepare(images: &[RgbImage], opts: &TrackOptions) -> Prepared {
     let t = Instant::now();
+    let opts = opts.resolved_for(images.iter().map(|i| (i.width() as u32, i.height() as u32)));
     let pyramids = build_pyramids(images, opts.levels.max(1), opts.blur);
     // (`levels.max(1)` is `TrackOptions::used`'s resolution of the level count.)
     Prepared {

@@ -26,6 +26,9 @@ pub struct TrackSummary {
     /// Median wall time per frame solved by this call, image loading included.
     pub median_frame_seconds: f64,
     pub median_iterations: f64,
+    /// Frames solved by this call in which the solver could not lower the cost at all (see
+    /// `FrameReport::stalled`), in order.
+    pub stalled_frames: Vec<u32>,
 }
 
 /// Tracks a whole scene into the run folder `out_dir` (see `run` for the layout and the rules
@@ -38,6 +41,7 @@ pub fn track_scene(
     on_frame: &mut dyn FnMut(&FrameLog),
 ) -> Result<TrackSummary> {
     let t_start = Instant::now();
+    let opts = &opts.resolved_for(scene.cameras.iter().map(|c| (c.width, c.height)));
     let mut summary = write_run(
         out_dir,
         Method::ModelFlow,
@@ -88,6 +92,7 @@ fn track_into(
     };
     let mut walls = Vec::new();
     let mut iters = Vec::new();
+    let mut stalled_frames = Vec::new();
     // Reads a frame's images and builds their pyramids; runs while the previous frame is solved.
     let load = |frame: u32| {
         let t = Instant::now();
@@ -121,6 +126,9 @@ fn track_into(
         );
         let (report, seconds) = stepped?;
         iters.push(report.iterations as f64);
+        if report.stalled {
+            stalled_frames.push(frame);
+        }
         folder.write_mesh(
             frame,
             &scene.mesh.with_positions(tracker.positions().to_vec()),
@@ -146,6 +154,7 @@ fn track_into(
         total_seconds: 0.0,
         median_frame_seconds: median(&walls),
         median_iterations: median(&iters),
+        stalled_frames,
     })
 }
 

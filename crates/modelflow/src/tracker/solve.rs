@@ -79,8 +79,8 @@ pub enum GainModel {
 impl Default for SolverOptions {
     fn default() -> Self {
         SolverOptions {
-            max_iterations: 10,
-            min_relative_decrease: 5e-3,
+            max_iterations: 25,
+            min_relative_decrease: 1e-3,
             huber: 0.1,
             damping: 1e-4,
             max_rejections: 4,
@@ -122,6 +122,9 @@ pub enum StopReason {
     MaxIterations,
     /// No pixel could be compared (nothing visible).
     NoData,
+    /// The cost is not a finite number at the start (e.g. non-finite positions): nothing was
+    /// tried.
+    NonFinite,
     /// Stopped on request (the run was interrupted); the positions are not a solution.
     Cancelled,
 }
@@ -147,6 +150,8 @@ pub struct IterationSummary {
 pub struct SolveSummary {
     /// How the next frame was sampled in this solve (the option as used at this level).
     pub interpolation: Interpolation,
+    /// How the mesh was allowed to move.
+    pub motion: Motion,
     pub initial_cost: f64,
     pub final_cost: f64,
     /// Pixels compared at the final positions.
@@ -439,37 +444,79 @@ impl Problem<'_> {
         self.evaluate(x, opts, None).0
     }
 
-    /// Minimises the cost starting from `start` (the outer loop of §6.6).
+    /// Minimises the cost starting from `start` over every vertex (the outer loop of §6.6).
+    #[cfg(test)]
     pub fn solve(
         &self,
         start: &[Point3<f64>],
         opts: &SolverOptions,
     ) -> (Vec<Point3<f64>>, SolveSummary) {
+        let (x, summary, _) = self.solve_motion(start, None, opts, Motion::Free);
+        (x, summary)
+    }
+
+    /// Minimises the cost starting from `start`, moving the mesh as `motion` allows.
+    ///
+    /// Each iteration solves the damped normal equations for a step, predicts the decrease the
+    /// Gauss–Newton model promises, and tries the step. A step that raises the cost is not just
+    /// retried with more damping: the next try is also shortened (×¼ per rejection). Damping
+    /// alone cannot shorten a step against a term whose curvature the model does not see (the
+    /// cubic springs have none at rest), and since the step is a descent direction of the true
+    /// cost (the gradient is exact; only the curvature is approximate), a short enough step
+    /// always lowers it: this backtracking is what makes "a step that lowers the model lowers
+    /// the cost" hold for every regulariser.
+    ///
+    /// `at_start` is the problem already linearised at `start` (what a previous solve of the
+    /// same problem returned), which saves one evaluation; the solve returns the linearisation
+    /// at its result.
+    pub fn solve_motion(
+        &self,
+        start: &[Point3<f64>],
+        at_start: Option<Linearised>,
+        opts: &SolverOptions,
+        motion: Motion,
+    ) -> (Vec<Point3<f64>>, SolveSummary, Linearised) {
         let nv = start.len();
-        let mut a = BlockSparse::new(nv, self.pattern);
-        let mut b = vec![Vector3::zeros(); nv];
         let mut x = start.to_vec();
         let t_solve = Instant::now();
-        let (mut cost, mut pixels) = self.evaluate(&x, opts, Some((&mut a, &mut b)));
-        let mut pixel_evaluations = pixels as u64;
+        let (mut a, mut b, mut cost, mut pixels, mut pixel_evaluations) = match at_start {
+            Some(l) => (l.a, l.b, l.cost, l.pixels, 0u64),
+            None => {
+                let mut a = BlockSparse::new(nv, self.pattern);
+                let mut b = vec![Vector3::zeros(); nv];
+                let (cost, pixels) = self.evaluate(&x, opts, Some((&mut a, &mut b)));
+                (a, b, cost, pixels, pixels as u64)
+            }
+        };
         let initial_cost = cost;
         let mut iterations = Vec::new();
-        if pixels == 0 && self.regularisers.is_empty() {
-            return (
+        let summary = |x, a, b, cost, pixels, pixel_evaluations, stop, iterations| {
+            (
                 x,
                 SolveSummary {
                     interpolation: opts.interpolation,
+                    motion,
                     initial_cost,
                     final_cost: cost,
                     pixels,
                     pixel_evaluations,
                     seconds: t_solve.elapsed().as_secs_f64(),
-                    stop: StopReason::NoData,
+                    stop,
                     iterations,
                 },
-            );
+                Linearised { a, b, cost, pixels },
+            )
+        };
+        if (pixels == 0 && self.regularisers.is_empty()) || !cost.is_finite() {
+            let stop = if cost.is_finite() {
+                StopReason::NoData
+            } else {
+                StopReason::NonFinite
+            };
+            return summary(x, a, b, cost, pixels, pixel_evaluations, stop, iterations);
         }
         let mut lm = opts.damping;
+        let mut shrink = 1.0f64;
         let mut rejections = 0;
         let mut stop = StopReason::MaxIterations;
         // Levenberg–Marquardt damping adds lm·(diag(A) + mean diagonal): the relative part
@@ -483,15 +530,34 @@ impl Problem<'_> {
         // The trial point's system is built here and swapped in when the step is accepted.
         let mut a_new = a.clone();
         let mut b_new = vec![Vector3::zeros(); nv];
+        let mut trial = x.clone();
         for it in 0..opts.max_iterations {
             if self.cancel.is_some_and(|c| c.load(Ordering::Relaxed)) {
                 stop = StopReason::Cancelled;
                 break;
             }
             let t0 = Instant::now();
-            let mut damped = a.clone();
-            damped.damp(lm * mean_diag, lm);
-            let (delta, cg) = solve_pcg(&damped, &b, opts.cg_tolerance, opts.cg_max_iterations);
+            // The step (linearised, per vertex) and the trial positions.
+            let (delta, cg_iterations) = match motion {
+                Motion::Free => {
+                    let mut damped = a.clone();
+                    damped.damp(lm * mean_diag, lm);
+                    let (mut delta, cg) =
+                        solve_pcg(&damped, &b, opts.cg_tolerance, opts.cg_max_iterations);
+                    delta.iter_mut().for_each(|d| *d *= shrink);
+                    for ((t, p), d) in trial.iter_mut().zip(&x).zip(&delta) {
+                        *t = p + d;
+                    }
+                    (delta, cg.iterations)
+                }
+                Motion::Rigid => {
+                    let rigid = RigidStep::solve(&a, &b, &x, lm);
+                    let xi = rigid.xi * shrink;
+                    let delta = rigid.linear(&x, &xi);
+                    rigid.apply(&x, &xi, &mut trial);
+                    (delta, 0)
+                }
+            };
             let step = delta.iter().map(|d| d.norm()).fold(0.0, f64::max);
             // Decrease predicted by the Gauss–Newton model: 2·δᵀ(−Jᵀr) − δᵀ·JᵀJ·δ.
             a.mul(&delta, &mut ad);
@@ -501,7 +567,11 @@ impl Problem<'_> {
                 .zip(&ad)
                 .map(|((d, b), ad)| 2.0 * d.dot(b) - d.dot(ad))
                 .sum();
-            if predicted <= opts.min_relative_decrease * cost {
+            // A full step that promises almost nothing means convergence; a shortened one only
+            // means it is time to stop shortening.
+            // (NaN counts as "promises nothing".)
+            let promising = predicted > opts.min_relative_decrease * cost;
+            if !promising {
                 iterations.push(IterationSummary {
                     iteration: it + 1,
                     cost,
@@ -509,13 +579,16 @@ impl Problem<'_> {
                     step,
                     accepted: false,
                     damping: lm,
-                    cg_iterations: cg.iterations,
+                    cg_iterations,
                     seconds: t0.elapsed().as_secs_f64(),
                 });
-                stop = StopReason::Converged;
+                stop = if shrink < 1.0 {
+                    StopReason::CostRose
+                } else {
+                    StopReason::Converged
+                };
                 break;
             }
-            let trial: Vec<Point3<f64>> = x.iter().zip(&delta).map(|(p, d)| p + d).collect();
             let (new_cost, new_pixels) =
                 self.evaluate(&trial, opts, Some((&mut a_new, &mut b_new)));
             pixel_evaluations += new_pixels as u64;
@@ -523,16 +596,18 @@ impl Problem<'_> {
             let accepted = new_cost < cost;
             let prev_cost = cost;
             if accepted {
-                x = trial;
+                std::mem::swap(&mut x, &mut trial);
                 std::mem::swap(&mut a, &mut a_new);
                 std::mem::swap(&mut b, &mut b_new);
                 pixels = new_pixels;
                 cost = new_cost;
                 rejections = 0;
                 lm = (lm / 3.0).max(1e-7);
+                shrink = (shrink * 4.0).min(1.0);
             } else {
                 rejections += 1;
                 lm = (lm * 10.0).max(1e-3);
+                shrink *= 0.25;
             }
             iterations.push(IterationSummary {
                 iteration: it + 1,
@@ -541,7 +616,7 @@ impl Problem<'_> {
                 step,
                 accepted,
                 damping: lm,
-                cg_iterations: cg.iterations,
+                cg_iterations,
                 seconds: t0.elapsed().as_secs_f64(),
             });
             if accepted && -change < opts.min_relative_decrease * prev_cost {
@@ -553,18 +628,97 @@ impl Problem<'_> {
                 break;
             }
         }
-        (
-            x,
-            SolveSummary {
-                interpolation: opts.interpolation,
-                initial_cost,
-                final_cost: cost,
-                pixels,
-                pixel_evaluations,
-                seconds: t_solve.elapsed().as_secs_f64(),
-                stop,
-                iterations,
-            },
-        )
+        summary(x, a, b, cost, pixels, pixel_evaluations, stop, iterations)
+    }
+}
+
+/// The problem linearised at some positions: the normal equations there, the cost and the
+/// pixels compared.
+pub(crate) struct Linearised {
+    a: BlockSparse,
+    b: Vec<Vector3<f64>>,
+    cost: f64,
+    pixels: usize,
+}
+
+/// How the mesh may move in one solve.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Motion {
+    /// One rotation and translation of the whole mesh (6 unknowns): the images of every
+    /// triangle pull together, so large motion is caught before any vertex moves on its own.
+    Rigid,
+    /// Every vertex on its own (3 unknowns each), held together by the regularisers.
+    Free,
+}
+
+/// A rigid step (rotation ω about the centroid `c`, translation v), from the vertex normal
+/// equations projected onto the six rigid motions: with `G` the 3N×6 map from (ω, v) to vertex
+/// displacements `ω×(X_i − c) + v`, it solves `(GᵀAG + λ·diag)·ξ = Gᵀb`. `GᵀAG` is formed from
+/// six products `A·g_k` (written by hand: 6×6, no crate needed beyond nalgebra's solve).
+struct RigidStep {
+    c: Vector3<f64>,
+    xi: nalgebra::Vector6<f64>,
+}
+
+impl RigidStep {
+    fn generators(x: &[Point3<f64>], c: &Vector3<f64>) -> [Vec<Vector3<f64>>; 6] {
+        std::array::from_fn(|k| {
+            x.iter()
+                .map(|p| {
+                    if k < 3 {
+                        Vector3::ith(k, 1.0).cross(&(p.coords - c))
+                    } else {
+                        Vector3::ith(k - 3, 1.0)
+                    }
+                })
+                .collect()
+        })
+    }
+
+    fn solve(a: &BlockSparse, b: &[Vector3<f64>], x: &[Point3<f64>], lm: f64) -> Self {
+        let n = x.len().max(1) as f64;
+        let c = x.iter().map(|p| p.coords).sum::<Vector3<f64>>() / n;
+        let g = Self::generators(x, &c);
+        let mut ag = vec![Vector3::zeros(); x.len()];
+        let mut m = nalgebra::Matrix6::<f64>::zeros();
+        let mut r = nalgebra::Vector6::<f64>::zeros();
+        for l in 0..6 {
+            a.mul(&g[l], &mut ag);
+            for k in 0..6 {
+                m[(k, l)] = g[k].iter().zip(&ag).map(|(u, v)| u.dot(v)).sum();
+            }
+            r[l] = g[l].iter().zip(b).map(|(u, v)| u.dot(v)).sum();
+        }
+        let m = (m + m.transpose()) * 0.5;
+        let tr = m.trace().max(1e-300);
+        let mut damped = m;
+        for k in 0..6 {
+            damped[(k, k)] += lm * m[(k, k)] + 1e-12 * tr;
+        }
+        let xi = damped
+            .cholesky()
+            .map(|ch| ch.solve(&r))
+            .filter(|v| v.iter().all(|e| e.is_finite()))
+            .unwrap_or_else(nalgebra::Vector6::zeros);
+        RigidStep { c, xi }
+    }
+
+    /// The step's first-order vertex displacements (for the model's predicted decrease).
+    fn linear(&self, x: &[Point3<f64>], xi: &nalgebra::Vector6<f64>) -> Vec<Vector3<f64>> {
+        let w = Vector3::new(xi[0], xi[1], xi[2]);
+        let v = Vector3::new(xi[3], xi[4], xi[5]);
+        x.iter()
+            .map(|p| w.cross(&(p.coords - self.c)) + v)
+            .collect()
+    }
+
+    /// The exact rigid motion: `c + R(ω)(X − c) + v` (edge lengths unchanged).
+    fn apply(&self, x: &[Point3<f64>], xi: &nalgebra::Vector6<f64>, out: &mut [Point3<f64>]) {
+        let r = nalgebra::Rotation3::new(Vector3::new(xi[0], xi[1], xi[2]));
+        let v = Vector3::new(xi[3], xi[4], xi[5]);
+        for (o, p) in out.iter_mut().zip(x) {
+            *o = Point3::from(self.c + r * (p.coords - self.c) + v);
+        }
     }
 }

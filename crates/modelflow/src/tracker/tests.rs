@@ -158,7 +158,10 @@ fn images_prepared_ahead_give_the_same_step_and_must_match_the_levels() {
     let mesh = mesh_of(&plane0);
     let imgs0 = rig.images(&plane0);
     let imgs1 = rig.images(&plane_at(Vector3::new(0.004, 0.0, -0.003)));
-    let opts = TrackOptions::default();
+    let opts = TrackOptions {
+        levels: 2,
+        ..TrackOptions::default()
+    };
     let mut a = Tracker::new(&mesh, rig.cameras(), 0, &imgs0, opts).unwrap();
     let mut b = Tracker::new(&mesh, rig.cameras(), 0, &imgs0, opts).unwrap();
     a.step(1, &imgs1).unwrap();
@@ -202,6 +205,55 @@ fn rigid_motion_is_recovered() {
         // 0.6 m plane; 1 pixel at 1.5 m is 5 mm. Ask for a small fraction of a pixel.
         assert!(err < 1.0e-3, "frame {f}: rms {err}");
     }
+}
+
+#[test]
+fn a_large_motion_is_caught() {
+    // 2 cm per frame along the image rows and 1 cm in depth: about 4 px per frame in 160×120
+    // images whose automatic pyramid has one level; the rigid stage catches it, the free stage
+    // refines it.
+    let rig = rig();
+    let motion = Vector3::new(0.02, 0.01, -0.008);
+    let plane0 = plane_at(Vector3::zeros());
+    let mesh = mesh_of(&plane0);
+    let mut tr = Tracker::new(
+        &mesh,
+        rig.cameras(),
+        0,
+        &rig.images(&plane0),
+        TrackOptions::default(),
+    )
+    .unwrap();
+    for f in 1..=3u32 {
+        let plane = plane_at(motion * f as f64);
+        let rep = tr.step(f, &rig.images(&plane)).unwrap();
+        assert!(!rep.stalled);
+        let err = rms(tr.positions(), &mesh_of(&plane).positions);
+        assert!(err < 1.5e-3, "frame {f}: rms {err} m for a 2.4 cm motion");
+    }
+}
+
+#[test]
+fn a_frame_that_cannot_be_improved_is_reported_as_stalled() {
+    // A NaN in the next image (the file readers refuse them; a library user might not) makes
+    // every cost that samples it NaN: no step can lower it, and the report must say so.
+    let rig = rig();
+    let plane0 = plane_at(Vector3::zeros());
+    let mesh = mesh_of(&plane0);
+    let imgs0 = rig.images(&plane0);
+    let mut tr = Tracker::new(&mesh, rig.cameras(), 0, &imgs0, TrackOptions::default()).unwrap();
+    let mut imgs1 = rig.images(&plane_at(Vector3::new(0.004, 0.0, 0.0)));
+    let w = imgs1[0].width();
+    let h = imgs1[0].height();
+    imgs1[0].pixels_mut()[(h / 2) * w + w / 2] = [f32::NAN; 3];
+    let rep = tr.step(1, &imgs1).unwrap();
+    assert!(rep.stalled, "{rep:?}");
+    assert_eq!(tr.positions(), &mesh.positions[..]);
+    // The next, clean frame is tracked again.
+    let rep = tr
+        .step(2, &rig.images(&plane_at(Vector3::new(0.004, 0.0, 0.0))))
+        .unwrap();
+    assert!(!rep.stalled);
 }
 
 #[test]
