@@ -22,8 +22,7 @@ fn decode_error(path: &Path, e: image::ImageError) -> Error {
 /// its last start-of-scan marker (FF DA); inside entropy-coded data FF is only ever followed by
 /// 00 or a restart marker, so the check cannot be fooled by the image data. (Hand-written: no
 /// crate reports truncation.)
-fn check_jpeg_complete(path: &Path) -> Result<()> {
-    let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
+fn check_jpeg_complete(path: &Path, bytes: &[u8]) -> Result<()> {
     let last_scan = bytes.windows(2).rposition(|w| w == [0xFF, 0xDA]);
     let complete = match last_scan {
         Some(s) => bytes[s..].windows(2).any(|w| w == [0xFF, 0xD9]),
@@ -53,10 +52,15 @@ fn open(path: &Path) -> Result<ImageReader<std::io::BufReader<std::fs::File>>> {
 /// Reads an image file as RGB `f32` (see the module doc for the value convention).
 pub fn read_rgb(path: &Path) -> Result<RgbImage> {
     let reader = open(path)?;
-    if reader.format() == Some(image::ImageFormat::Jpeg) {
-        check_jpeg_complete(path)?;
+    let img = if reader.format() == Some(image::ImageFormat::Jpeg) {
+        // Read once: checked for completeness, then decoded from memory.
+        let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
+        check_jpeg_complete(path, &bytes)?;
+        ImageReader::with_format(std::io::Cursor::new(bytes), image::ImageFormat::Jpeg).decode()
+    } else {
+        reader.decode()
     }
-    let img = reader.decode().map_err(|e| decode_error(path, e))?;
+    .map_err(|e| decode_error(path, e))?;
     let (w, h) = (img.width() as usize, img.height() as usize);
     if w == 0 || h == 0 {
         return Err(Error::invalid(path, "size", "the image is empty"));
