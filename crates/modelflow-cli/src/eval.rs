@@ -34,18 +34,22 @@ pub fn run(args: Args) -> anyhow::Result<()> {
 
 fn table(r: &EvalReport) -> String {
     let mut s = format!(
-        "{:>6}  {:>12}  {:>8}  {:>12}\n",
-        "frame", "rms", "rms %", "max"
+        "{:>6}  {:>12}  {:>8}  {:>12}  {:>8}  {:>6}\n",
+        "frame", "rms", "rms %", "max", "seen %", "seen"
     );
     for e in &r.per_frame {
         s += &format!(
-            "{:>6}  {:>12.6}  {:>8.4}  {:>12.6}\n",
-            e.frame, e.rms, e.rms_pct, e.max
+            "{:>6}  {:>12.6}  {:>8.4}  {:>12.6}  {:>8.4}  {:>6}\n",
+            e.frame, e.rms, e.rms_pct, e.max, e.seen_rms_pct, e.seen
         );
     }
     s += &format!(
         "{} frames, scale (bbox diagonal) {:.6}\nrms mean  {:.6} ({:.4} %)\nrms final {:.6} ({:.4} %)\n",
         r.frames, r.scale, r.rms_mean, r.rms_mean_pct, r.rms_final, r.rms_final_pct
+    );
+    s += &format!(
+        "seen vertices (by some camera, in the truth): rms mean {:.6} ({:.4} %), final {:.6} ({:.4} %)\n",
+        r.seen_rms_mean, r.seen_rms_mean_pct, r.seen_rms_final, r.seen_rms_final_pct
     );
     s
 }

@@ -5,7 +5,8 @@ use crate::progress::Progress;
 use crate::runfolder::{run_options, Invocation, OutArgs};
 use modelflow::input::Scene;
 use modelflow::tracker::{
-    track_scene, Interpolation, Regularisation, SolverOptions, TrackOptions, TrackSummary,
+    track_scene, GainModel, Interpolation, Regularisation, SolverOptions, TrackOptions,
+    TrackSummary,
 };
 use modelflow::RunOptions;
 
@@ -55,6 +56,18 @@ pub struct TrackArgs {
     /// (about a fifth less time per frame, slightly less accurate).
     #[arg(long, value_enum, default_value_t = InterpolationArg::Cubic)]
     pub interpolation: InterpolationArg,
+    /// Brightness change allowed between frames per (triangle, camera): none (the thesis'
+    /// brightness constancy), one constant gain, or a gain varying linearly over the triangle.
+    #[arg(long, value_enum, default_value_t = GainArg::Linear)]
+    pub gain: GainArg,
+}
+
+/// `--gain`'s values (the library's `solve::GainModel`).
+#[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
+pub enum GainArg {
+    Off,
+    Constant,
+    Linear,
 }
 
 /// `--interpolation`'s values (the library's `solve::Interpolation`).
@@ -99,6 +112,11 @@ impl TrackArgs {
                 interpolation: match self.interpolation {
                     InterpolationArg::Cubic => Interpolation::Cubic,
                     InterpolationArg::Linear => Interpolation::Linear,
+                },
+                gain: match self.gain {
+                    GainArg::Off => GainModel::Off,
+                    GainArg::Constant => GainModel::Constant,
+                    GainArg::Linear => GainModel::Linear,
                 },
                 ..d.solver
             },

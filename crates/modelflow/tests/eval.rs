@@ -59,6 +59,9 @@ fn known_offset_is_measured() {
         assert!((e.rms - 0.05).abs() < 1e-12, "{e:?}");
         assert!((e.max - 0.05).abs() < 1e-12, "{e:?}");
         assert!((e.rms_pct - 5.0 / 2f64.sqrt()).abs() < 1e-9, "{e:?}");
+        // Both cameras see the whole sheet: the seen-vertex figure is the same.
+        assert_eq!(e.seen, 25, "{e:?}");
+        assert!((e.seen_rms - 0.05).abs() < 1e-12, "{e:?}");
     }
     assert!((r.rms_mean - 0.05).abs() < 1e-12 && (r.rms_final - 0.05).abs() < 1e-12);
     assert!((r.rms_final_pct - 5.0 / 2f64.sqrt()).abs() < 1e-9);
@@ -70,6 +73,8 @@ fn known_offset_is_measured() {
         "rms_final",
         "rms_mean_pct",
         "rms_final_pct",
+        "seen_rms_mean_pct",
+        "seen_rms_final_pct",
         "scale",
     ] {
         assert!(json.get(key).is_some(), "{key}");

@@ -1,8 +1,13 @@
 //! Scoring a run (its frame meshes, as `run::read_run` reads them) against a scene's ground
 //! truth: per frame, the RMS and maximum vertex distance to the ground-truth mesh, also as a
-//! percentage of the scene mesh's size (its bounding-box diagonal).
+//! percentage of the scene mesh's size (its bounding-box diagonal); and the same over the
+//! *seen* vertices only, those of a triangle that owns at least one pixel of some camera's
+//! z-buffered view of the ground truth at that frame (what the images can tell; the rest is the
+//! regularisers' guess).
 
+use crate::base::camera::Camera;
 use crate::base::mesh::Mesh;
+use crate::base::raster::{rasterize, NONE};
 use crate::error::{Error, Result};
 use crate::input::scene::Scene;
 use rayon::prelude::*;
@@ -17,6 +22,11 @@ pub struct FrameError {
     pub rms_pct: f64,
     /// Largest vertex distance.
     pub max: f64,
+    /// The RMS over the vertices seen by some camera in the ground truth (0 when none is).
+    pub seen_rms: f64,
+    pub seen_rms_pct: f64,
+    /// How many vertices that is.
+    pub seen: usize,
 }
 
 /// The score of a run.
@@ -30,6 +40,11 @@ pub struct EvalReport {
     pub rms_final: f64,
     pub rms_mean_pct: f64,
     pub rms_final_pct: f64,
+    /// Mean of the per-frame RMS over the seen vertices, and its last value.
+    pub seen_rms_mean: f64,
+    pub seen_rms_final: f64,
+    pub seen_rms_mean_pct: f64,
+    pub seen_rms_final_pct: f64,
     /// The bounding-box diagonal of the scene mesh (frame `first`), the 100 % of the `_pct` values.
     pub scale: f64,
 }
@@ -86,23 +101,34 @@ pub fn evaluate(scene: &Scene, run: &[(u32, Mesh)]) -> Result<EvalReport> {
                     format!("{} vertices", mesh.positions.len()),
                 ));
             }
-            let (mut sum, mut max) = (0.0f64, 0.0f64);
-            for (a, b) in mesh.positions.iter().zip(&truth.positions) {
+            let seen = seen_vertices(&scene.cameras, frame, &truth);
+            let (mut sum, mut max, mut seen_sum, mut seen_count) = (0.0f64, 0.0f64, 0.0, 0);
+            for ((a, b), &s) in mesh.positions.iter().zip(&truth.positions).zip(&seen) {
                 let d2 = (a - b).norm_squared();
                 sum += d2;
                 max = max.max(d2);
+                if s {
+                    seen_sum += d2;
+                    seen_count += 1;
+                }
             }
             let rms = (sum / mesh.positions.len() as f64).sqrt();
+            let seen_rms = (seen_sum / seen_count.max(1) as f64).sqrt();
             Ok(FrameError {
                 frame,
                 rms,
                 rms_pct: pct(rms, scale),
                 max: max.sqrt(),
+                seen_rms,
+                seen_rms_pct: pct(seen_rms, scale),
+                seen: seen_count,
             })
         })
         .collect::<Result<Vec<_>>>()?;
     let rms_mean = per_frame.iter().map(|e| e.rms).sum::<f64>() / per_frame.len() as f64;
     let rms_final = per_frame.last().map_or(0.0, |e| e.rms);
+    let seen_rms_mean = per_frame.iter().map(|e| e.seen_rms).sum::<f64>() / per_frame.len() as f64;
+    let seen_rms_final = per_frame.last().map_or(0.0, |e| e.seen_rms);
     Ok(EvalReport {
         frames: per_frame.len(),
         per_frame,
@@ -110,8 +136,37 @@ pub fn evaluate(scene: &Scene, run: &[(u32, Mesh)]) -> Result<EvalReport> {
         rms_final,
         rms_mean_pct: pct(rms_mean, scale),
         rms_final_pct: pct(rms_final, scale),
+        seen_rms_mean,
+        seen_rms_final,
+        seen_rms_mean_pct: pct(seen_rms_mean, scale),
+        seen_rms_final_pct: pct(seen_rms_final, scale),
         scale,
     })
+}
+
+/// Which vertices of `truth` (the mesh at `frame`) some camera sees: those of a triangle that
+/// owns at least one pixel of the camera's z-buffered index buffer.
+fn seen_vertices(cameras: &[Camera], frame: u32, truth: &Mesh) -> Vec<bool> {
+    let mut seen = vec![false; truth.positions.len()];
+    for cam in cameras {
+        let ib = rasterize(
+            &truth.positions,
+            &truth.triangles,
+            cam.at(frame),
+            cam.width as usize,
+            cam.height as usize,
+        );
+        let mut owns = vec![false; truth.triangles.len()];
+        for &t in ib.owner.iter().filter(|&&t| t != NONE) {
+            owns[t as usize] = true;
+        }
+        for (tri, _) in truth.triangles.iter().zip(&owns).filter(|(_, &o)| o) {
+            for &v in tri {
+                seen[v as usize] = true;
+            }
+        }
+    }
+    seen
 }
 
 fn pct(v: f64, scale: f64) -> f64 {
@@ -119,5 +174,47 @@ fn pct(v: f64, scale: f64) -> f64 {
         100.0 * v / scale
     } else {
         0.0
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::base::camera::{look_at, Projection};
+    use crate::base::mesh::grid;
+    use nalgebra::{Matrix3, Point3, Vector3};
+
+    #[test]
+    fn hidden_and_out_of_view_vertices_are_not_seen() {
+        // One camera 3 m in front of a 1 m sheet; a smaller sheet 1 m behind it (hidden) and
+        // another 5 m to the side (out of view).
+        let sheet = |size: f64, c: Vector3<f64>| {
+            grid(4, 4, move |u, v| {
+                Point3::new((u - 0.5) * size, (v - 0.5) * size, 0.0) + c
+            })
+        };
+        let parts = [
+            sheet(1.0, Vector3::zeros()),
+            sheet(0.5, Vector3::new(0.0, 0.0, -1.0)),
+            sheet(0.5, Vector3::new(5.0, 0.0, 0.0)),
+        ];
+        let mut positions = Vec::new();
+        let mut triangles = Vec::new();
+        for p in &parts {
+            let base = positions.len() as u32;
+            positions.extend_from_slice(&p.positions);
+            triangles.extend(p.triangles.iter().map(|t| t.map(|v| v + base)));
+        }
+        let mesh = Mesh::new(positions, triangles);
+        let (r, t) = look_at(
+            &Point3::new(0.0, 0.0, 3.0),
+            &Point3::origin(),
+            &Vector3::y(),
+        );
+        let k = Matrix3::new(200.0, 0.0, 99.5, 0.0, 200.0, 74.5, 0.0, 0.0, 1.0);
+        let cam = Camera::fixed("c", 200, 150, Projection::from_krt(&k, &r, &t).unwrap());
+        let seen = seen_vertices(&[cam], 0, &mesh);
+        assert_eq!(seen[..16], [true; 16]);
+        assert_eq!(seen[16..], [false; 32]);
     }
 }
