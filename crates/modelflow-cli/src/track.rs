@@ -5,7 +5,7 @@ use crate::progress::Progress;
 use crate::runfolder::{run_options, Invocation, OutArgs};
 use modelflow::input::Scene;
 use modelflow::tracker::{
-    track_scene, GainModel, Interpolation, Regularisation, SolverOptions, TrackOptions,
+    track_scene, GainModel, Interpolation, Loss, Regularisation, SolverOptions, TrackOptions,
     TrackSummary,
 };
 use modelflow::RunOptions;
@@ -45,6 +45,20 @@ pub struct TrackArgs {
     /// Huber threshold on the RGB residual (image values 0..1).
     #[arg(long, default_value_t = TrackOptions::default().solver.huber)]
     pub huber: f64,
+    /// Robust loss on each pixel's RGB residual: huber (fixed threshold --huber), or tukey
+    /// (rejects pixels beyond --tukey-k times the median residual, at least --tukey-min).
+    #[arg(long, value_enum, default_value_t = LossArg::from(TrackOptions::default().solver.loss))]
+    pub loss: LossArg,
+    /// With --loss tukey: the rejection threshold as a multiple of the median residual.
+    #[arg(long, default_value_t = TrackOptions::default().solver.tukey_k)]
+    pub tukey_k: f64,
+    /// With --loss tukey: the smallest rejection threshold (RGB residual, image values 0..1).
+    #[arg(long, default_value_t = TrackOptions::default().solver.tukey_min)]
+    pub tukey_min: f64,
+    /// With --loss tukey: the misalignment in pixels a pixel on an edge may have and still be
+    /// kept (the threshold grows by this times the local image gradient).
+    #[arg(long, default_value_t = TrackOptions::default().solver.tukey_px)]
+    pub tukey_px: f64,
     /// Gaussian smoothing of the images, in pixels.
     #[arg(long, default_value_t = TrackOptions::default().blur)]
     pub blur: f64,
@@ -60,6 +74,22 @@ pub struct TrackArgs {
     /// brightness constancy), one constant gain, or a gain varying linearly over the triangle.
     #[arg(long, value_enum, default_value_t = GainArg::Linear)]
     pub gain: GainArg,
+}
+
+/// `--loss`'s values (the library's `solve::Loss`).
+#[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
+pub enum LossArg {
+    Huber,
+    Tukey,
+}
+
+impl From<Loss> for LossArg {
+    fn from(l: Loss) -> Self {
+        match l {
+            Loss::Huber => LossArg::Huber,
+            Loss::Tukey => LossArg::Tukey,
+        }
+    }
 }
 
 /// `--gain`'s values (the library's `solve::GainModel`).
@@ -109,6 +139,13 @@ impl TrackArgs {
                 max_iterations: self.max_iterations,
                 min_relative_decrease: self.min_decrease,
                 huber: self.huber,
+                loss: match self.loss {
+                    LossArg::Huber => Loss::Huber,
+                    LossArg::Tukey => Loss::Tukey,
+                },
+                tukey_k: self.tukey_k,
+                tukey_min: self.tukey_min,
+                tukey_px: self.tukey_px,
                 interpolation: match self.interpolation {
                     InterpolationArg::Cubic => Interpolation::Cubic,
                     InterpolationArg::Linear => Interpolation::Linear,

@@ -71,7 +71,12 @@ fn shifted_run_scores_the_shift_in_a_table() {
     assert!(out.status.success(), "{}", text(&out.stderr));
     let table = text(&out.stdout);
     assert!(table.starts_with(" frame"), "{table}");
-    assert_eq!(table.matches("0.010000").count(), 2 * 12 + 2, "{table}");
+    // rms and max per frame, mean and final, and mean and final over the seen vertices.
+    assert_eq!(table.matches("0.010000").count(), 2 * 12 + 4, "{table}");
+    assert!(
+        table.contains("seen vertices (by some camera, in the truth): rms mean 0.010000"),
+        "{table}"
+    );
     assert!(table.contains("12 frames"), "{table}");
 
     let out = eval(&sample().join("scene.json"), dir.path(), true);

@@ -24,5 +24,5 @@ pub use regularise::Regularisation;
 pub use sequence::{prepare, FrameReport, Prepared, StepTiming, Tracker};
 pub use shot::{median, track_scene, TrackSummary};
 pub use solve::{
-    GainModel, Interpolation, IterationSummary, SolveSummary, SolverOptions, StopReason,
+    GainModel, Interpolation, IterationSummary, Loss, SolveSummary, SolverOptions, StopReason,
 };

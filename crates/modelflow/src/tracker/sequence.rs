@@ -19,7 +19,7 @@ use crate::tracker::options::{OptionsUsed, TrackOptions};
 use crate::tracker::patch::{PatchOptions, PatchSet};
 use crate::tracker::pyramid::Pyramid;
 use crate::tracker::regularise::{self, EdgeSet, FrameContext, Regulariser};
-use crate::tracker::solve::{Motion, Problem, SolveSummary, SolverOptions, StopReason};
+use crate::tracker::solve::{Loss, Motion, Problem, SolveSummary, SolverOptions, StopReason};
 use nalgebra::Point3;
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
@@ -118,7 +118,7 @@ impl Tracker {
         let opts = used.options;
         let levels = opts.levels;
         let pyramids = build_pyramids(images, levels, opts.blur);
-        let edges = Arc::new(EdgeSet::new(mesh.edges(), &mesh.positions));
+        let edges = Arc::new(EdgeSet::new(mesh));
         let mut t = Tracker {
             triangles: mesh.triangles.clone(),
             cameras,
@@ -342,10 +342,17 @@ impl Tracker {
             let by_triangle = set.by_triangle();
             timing.patches += tp.elapsed().as_secs_f64();
             let ts = Instant::now();
-            let sopts = SolverOptions {
+            // Every solve but the last one runs with the convex Huber loss; with `Loss::Tukey`
+            // a last free solve from the Huber solution rejects what it cannot explain.
+            let robust = SolverOptions {
                 interpolation: self.used.interpolation_per_level[level],
                 ..self.opts.solver
             };
+            let sopts = SolverOptions {
+                loss: Loss::Huber,
+                ..robust
+            };
+            let refine = robust.loss != Loss::Huber && level == 0;
             let problem = Problem {
                 triangles: &self.triangles,
                 patches: &set.patches,
@@ -394,6 +401,19 @@ impl Tracker {
                 });
             }
             x = sol;
+            let summary = if refine {
+                summaries.push(summary);
+                let (sol, summary, _) = problem.solve_motion(&x, None, &robust, Motion::Free);
+                if summary.stop == StopReason::Cancelled {
+                    return Err(Error::Interrupted {
+                        last_complete: self.prev.frame,
+                    });
+                }
+                x = sol;
+                summary
+            } else {
+                summary
+            };
             if level == 0 {
                 cost_after = summary.final_cost;
                 pixels = summary.pixels;

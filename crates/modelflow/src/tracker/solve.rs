@@ -38,6 +38,21 @@ pub struct SolverOptions {
     pub min_relative_decrease: f64,
     /// Huber threshold on the RGB residual norm (image values are 0..1).
     pub huber: f64,
+    /// The robust loss on each pixel's RGB residual.
+    #[serde(default)]
+    pub loss: Loss,
+    /// With [`Loss::Tukey`]: the rejection threshold as a multiple of the median residual norm
+    /// at the start of each solve.
+    #[serde(default = "default_tukey_k")]
+    pub tukey_k: f64,
+    /// With [`Loss::Tukey`]: the smallest threshold (image units), so that a near-perfect fit
+    /// does not reject its own sub-pixel misfits.
+    #[serde(default = "default_tukey_min")]
+    pub tukey_min: f64,
+    /// With [`Loss::Tukey`]: the misalignment in pixels (of the level solved) a pixel may have
+    /// and still be kept: the threshold grows by this times the image gradient's norm there.
+    #[serde(default = "default_tukey_px")]
+    pub tukey_px: f64,
     /// Initial Levenberg–Marquardt damping (relative to the diagonal).
     pub damping: f64,
     /// Rejected steps in a row before giving up.
@@ -64,6 +79,33 @@ pub enum Interpolation {
     Cubic,
 }
 
+fn default_tukey_k() -> f64 {
+    3.0
+}
+
+fn default_tukey_px() -> f64 {
+    1.0
+}
+
+fn default_tukey_min() -> f64 {
+    0.03
+}
+
+/// The robust loss `ρ(e²)` on a pixel's RGB residual norm `e` (both are `e²` for small `e`).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Loss {
+    /// Huber with the fixed threshold `huber`: quadratic, then linear (convex; every pixel keeps
+    /// some pull).
+    Huber,
+    /// Tukey's biweight with a threshold set at the start of every solve from the residuals
+    /// there (`tukey_k` × their median, within `[tukey_min, huber]`): pixels beyond it are
+    /// rejected (an occluder, a highlight), and the threshold is fixed within the solve so that
+    /// the cost the steps are judged by does not change under them.
+    #[default]
+    Tukey,
+}
+
 /// How the template's brightness may change in the next frame.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
@@ -82,6 +124,10 @@ impl Default for SolverOptions {
             max_iterations: 25,
             min_relative_decrease: 1e-3,
             huber: 0.1,
+            loss: Loss::Tukey,
+            tukey_k: default_tukey_k(),
+            tukey_min: default_tukey_min(),
+            tukey_px: default_tukey_px(),
             damping: 1e-4,
             max_rejections: 4,
             cg_tolerance: 1e-3,
@@ -184,7 +230,106 @@ struct Warped {
 
 const PAIRS: [(usize, usize); 6] = [(0, 0), (1, 1), (2, 2), (0, 1), (0, 2), (1, 2)];
 
+/// A worker's reusable buffers: the warped pixels of a patch, and the residual histogram when
+/// one is being collected.
+#[derive(Default)]
+struct Scratch {
+    warped: Vec<Warped>,
+    hist: Option<ResidualHistogram>,
+}
+
+/// A weighted histogram of residual norms on a log scale, for their median. Weights are summed
+/// as integers (fixed point), so the result does not depend on how threads split the work.
+pub(crate) struct ResidualHistogram {
+    bins: Vec<u64>,
+}
+
+impl ResidualHistogram {
+    const BINS: usize = 160;
+    /// Norms from 1e-4 to 10^(−4 + BINS/STEPS) (past the largest RGB difference, √3).
+    const LOG_MIN: f64 = -4.0;
+    const PER_DECADE: f64 = 36.0;
+
+    fn new() -> Self {
+        ResidualHistogram {
+            bins: vec![0; Self::BINS],
+        }
+    }
+
+    fn add(&mut self, e2: f64, weight: f64) {
+        let l = 0.5 * e2.max(1e-300).log10();
+        let b = ((l - Self::LOG_MIN) * Self::PER_DECADE).floor();
+        let b = if b.is_nan() {
+            0.0
+        } else {
+            b.clamp(0.0, (Self::BINS - 1) as f64)
+        };
+        self.bins[b as usize] += (weight * 1024.0).round().max(1.0) as u64;
+    }
+
+    fn merge(mut self, other: Self) -> Self {
+        for (a, b) in self.bins.iter_mut().zip(other.bins) {
+            *a += b;
+        }
+        self
+    }
+
+    /// The weighted median norm (interpolated within its bin), or `None` when empty.
+    fn median(&self) -> Option<f64> {
+        let total: u64 = self.bins.iter().sum();
+        if total == 0 {
+            return None;
+        }
+        let half = total as f64 / 2.0;
+        let mut below = 0.0;
+        for (i, &n) in self.bins.iter().enumerate() {
+            let n = n as f64;
+            if below + n >= half {
+                let f = if n > 0.0 { (half - below) / n } else { 0.0 };
+                return Some(10f64.powf(Self::LOG_MIN + (i as f64 + f) / Self::PER_DECADE));
+            }
+            below += n;
+        }
+        None
+    }
+}
+
 impl Problem<'_> {
+    /// The weighted median RGB residual norm at `x` (`None` when no pixel compares).
+    pub fn median_residual(&self, x: &[Point3<f64>], opts: &SolverOptions) -> Option<f64> {
+        self.by_triangle
+            .par_iter()
+            .with_min_len(16)
+            .fold(
+                || Scratch {
+                    warped: Vec::new(),
+                    hist: Some(ResidualHistogram::new()),
+                },
+                |mut scratch, (t, r)| {
+                    self.triangle(*t, r, x, opts, false, &mut scratch);
+                    scratch
+                },
+            )
+            .filter_map(|s| s.hist)
+            .reduce(ResidualHistogram::new, ResidualHistogram::merge)
+            .median()
+    }
+
+    /// The options a solve starting at `x` runs with: with [`Loss::Tukey`], its threshold set
+    /// from the residuals there (in `huber`).
+    pub fn solve_options(&self, x: &[Point3<f64>], opts: &SolverOptions) -> SolverOptions {
+        match opts.loss {
+            Loss::Huber => *opts,
+            Loss::Tukey => {
+                let m = self.median_residual(x, opts).unwrap_or(opts.huber);
+                SolverOptions {
+                    huber: (opts.tukey_k * m).max(opts.tukey_min),
+                    ..*opts
+                }
+            }
+        }
+    }
+
     fn weighted_pixels(&self) -> f64 {
         self.patches
             .iter()
@@ -200,8 +345,12 @@ impl Problem<'_> {
         x: &[Point3<f64>],
         opts: &SolverOptions,
         system: bool,
-        scratch: &mut Vec<Warped>,
+        scratch: &mut Scratch,
     ) -> TriAccum {
+        let Scratch {
+            warped: scratch,
+            hist,
+        } = scratch;
         let huber = opts.huber;
         let tri = self.triangles[t as usize];
         let xs = tri.map(|v| x[v as usize]);
@@ -212,6 +361,7 @@ impl Problem<'_> {
             g: [Vector3::zeros(); 3],
         };
         let hub2 = huber * huber;
+        let tol2 = opts.tukey_px * opts.tukey_px;
         for patch in &self.patches[range.clone()] {
             let cam = patch.camera as usize;
             let proj = &self.projections[cam];
@@ -303,12 +453,36 @@ impl Problem<'_> {
                     (s[2] - gain * px.color[2]) as f64,
                 ];
                 let e2 = r[0] * r[0] + r[1] * r[1] + r[2] * r[2];
-                // Huber: ρ(e²) = e² below the threshold, 2δe − δ² above; IRLS weight ρ'.
-                let (rho, w) = if e2 <= hub2 {
-                    (e2, 1.0)
-                } else {
-                    let e = e2.sqrt();
-                    (2.0 * huber * e - hub2, huber / e)
+                if let Some(h) = hist.as_mut() {
+                    h.add(e2, pw);
+                }
+                let (rho, w) = match opts.loss {
+                    // Huber: ρ(e²) = e² below the threshold, 2δe − δ² above; IRLS weight ρ'.
+                    Loss::Huber => {
+                        if e2 <= hub2 {
+                            (e2, 1.0)
+                        } else {
+                            let e = e2.sqrt();
+                            (2.0 * huber * e - hub2, huber / e)
+                        }
+                    }
+                    // Tukey: ρ(e²) = δ²/3·(1 − (1 − e²/δ²)³) below δ, δ²/3 above; ρ' = (1 − e²/δ²)².
+                    // The threshold grows with the image gradient where the pixel lands: a
+                    // pixel on a strong edge misaligned by `tukey_px` is kept, so the rejection
+                    // picks out what the warp cannot explain, not what it has yet to align.
+                    Loss::Tukey => {
+                        let mut g2 = 0.0;
+                        for k in 3..9 {
+                            g2 += (s[k] * s[k]) as f64;
+                        }
+                        let d2 = hub2 + tol2 * g2;
+                        if e2 >= d2 {
+                            (d2 / 3.0, 0.0)
+                        } else {
+                            let t = 1.0 - e2 / d2;
+                            (d2 / 3.0 * (1.0 - t * t * t), t * t)
+                        }
+                    }
                 };
                 acc.cost += pw * rho;
                 acc.pixels += 1;
@@ -392,7 +566,7 @@ impl Problem<'_> {
             .by_triangle
             .par_iter()
             .with_min_len(16)
-            .map_init(Vec::new, |scratch, (t, r)| {
+            .map_init(Scratch::default, |scratch, (t, r)| {
                 self.triangle(*t, r, x, opts, want, scratch)
             })
             .collect();
@@ -476,6 +650,14 @@ impl Problem<'_> {
         opts: &SolverOptions,
         motion: Motion,
     ) -> (Vec<Point3<f64>>, SolveSummary, Linearised) {
+        // An adaptive loss is re-scaled here, so a linearisation made with another scale is
+        // not reused.
+        let opts = &self.solve_options(start, opts);
+        let at_start = if opts.loss == Loss::Huber {
+            at_start
+        } else {
+            None
+        };
         let nv = start.len();
         let mut x = start.to_vec();
         let t_solve = Instant::now();

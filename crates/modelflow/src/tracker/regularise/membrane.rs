@@ -67,7 +67,7 @@ mod tests {
     #[test]
     fn a_translation_of_the_reference_costs_nothing_and_a_stretch_does() {
         let m = grid(4, 4, |u, v| Point3::new(u, v, 0.0));
-        let edges = Arc::new(EdgeSet::new(m.edges(), &m.positions));
+        let edges = Arc::new(EdgeSet::new(&m));
         let mut t = Membrane::new(edges, 0.5);
         t.begin_frame(&FrameContext {
             previous: &m.positions,
@@ -91,7 +91,7 @@ mod tests {
     fn normal_equations_are_exact_for_the_quadratic_term() {
         // For a quadratic term, cost(x + δ) = cost(x) − 2δᵀb + δᵀAδ exactly.
         let m = grid(3, 3, |u, v| Point3::new(u, v, 0.1 * u * v));
-        let edges = Arc::new(EdgeSet::new(m.edges(), &m.positions));
+        let edges = Arc::new(EdgeSet::new(&m));
         let mut t = Membrane::new(edges.clone(), 0.7);
         t.begin_frame(&FrameContext {
             previous: &m.positions,

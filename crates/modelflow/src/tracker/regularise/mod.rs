@@ -78,10 +78,18 @@ pub(crate) struct EdgeSet {
     pub edges: Vec<[u32; 2]>,
     pub rest: Vec<f64>,
     pub mean_length: f64,
+    /// Each edge's share of the rest surface's area (a third of each adjacent triangle's),
+    /// summing to 1: an edge term weighted by it integrates over the surface, so a densely
+    /// triangulated region is no stiffer than a coarse one and refining a mesh does not change
+    /// the energy. Uniform (1 / number of edges) when the rest surface has no area.
+    pub area_weight: Vec<f64>,
 }
 
 impl EdgeSet {
-    pub fn new(edges: Vec<[u32; 2]>, rest_positions: &[Point3<f64>]) -> Self {
+    /// The edges of `mesh` (sorted vertex pairs, as `Mesh::edges`) at its positions as rest shape.
+    pub fn new(mesh: &Mesh) -> Self {
+        let edges = mesh.edges();
+        let rest_positions = &mesh.positions;
         let rest: Vec<f64> = edges
             .iter()
             .map(|[a, b]| (rest_positions[*b as usize] - rest_positions[*a as usize]).norm())
@@ -91,10 +99,31 @@ impl EdgeSet {
         } else {
             rest.iter().sum::<f64>() / rest.len() as f64
         };
+        let mut area_weight = vec![0.0; edges.len()];
+        for (i, t) in mesh.triangles.iter().enumerate() {
+            let third = 0.5 * mesh.triangle_normal(i).norm() / 3.0;
+            if !third.is_finite() {
+                continue;
+            }
+            for [a, b] in [[t[0], t[1]], [t[1], t[2]], [t[2], t[0]]] {
+                let key = if a < b { [a, b] } else { [b, a] };
+                if let Ok(e) = edges.binary_search(&key) {
+                    area_weight[e] += third;
+                }
+            }
+        }
+        let total: f64 = area_weight.iter().sum();
+        if total > 0.0 && total.is_finite() {
+            area_weight.iter_mut().for_each(|w| *w /= total);
+        } else {
+            let n = edges.len().max(1) as f64;
+            area_weight.iter_mut().for_each(|w| *w = 1.0 / n);
+        }
         EdgeSet {
             edges,
             rest,
             mean_length,
+            area_weight,
         }
     }
 
@@ -157,4 +186,30 @@ pub(crate) fn names(reg: &Regularisation) -> Vec<&'static str> {
     .into_iter()
     .filter_map(|(on, name)| on.then_some(name))
     .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn edge_weights_follow_the_area_so_a_sliver_adds_almost_nothing() {
+        // A right triangle of area 0.5 and, on its hypotenuse, a sliver of height 1e-6.
+        let mesh = Mesh::new(
+            vec![
+                Point3::new(0.0, 0.0, 0.0),
+                Point3::new(1.0, 0.0, 0.0),
+                Point3::new(0.0, 1.0, 0.0),
+                Point3::new(0.5, 0.5 + 1e-6, 0.0),
+            ],
+            vec![[0, 1, 2], [1, 3, 2]],
+        );
+        let e = EdgeSet::new(&mesh);
+        let w = |a: u32, b: u32| e.area_weight[e.edges.binary_search(&[a, b]).unwrap()];
+        assert!((e.area_weight.iter().sum::<f64>() - 1.0).abs() < 1e-12);
+        for (a, b) in [(0, 1), (0, 2), (1, 2)] {
+            assert!((w(a, b) - 1.0 / 3.0).abs() < 1e-5, "{a}-{b}: {}", w(a, b));
+        }
+        assert!(w(1, 3) < 1e-5 && w(2, 3) < 1e-5);
+    }
 }
