@@ -7,7 +7,8 @@
 //! trait) by Gauss–Newton with Levenberg–Marquardt damping: the normal equations are accumulated
 //! straight into the block-sparse matrix (J is never stored), solved by preconditioned conjugate
 //! gradients, and a step is accepted only if the cost falls; otherwise the positions roll back and
-//! the damping grows. `ρ` is a Huber loss on the RGB residual, so that pixels that changed for
+//! the damping grows. `ρ` is a robust loss on the RGB residual (Huber, or Tukey's biweight with a
+//! per-pixel threshold set once per solve, see [`Loss`]), so that pixels that changed for
 //! reasons the warp does not explain (occlusion, specular light) do not dominate.
 //!
 //! Invariant: this module does no I/O. It reports per iteration, like Ceres' summary: cost, its
