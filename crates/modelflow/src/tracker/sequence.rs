@@ -381,39 +381,31 @@ impl Tracker {
             if level == 0 {
                 cost_before = problem.cost(&self.prev.positions, &sopts);
             }
+            // A cancelled solve ends the step: the tracker stays at the previous frame and
+            // nothing of this step is kept.
+            let last_complete = self.prev.frame;
+            let solve = |x: &[Point3<f64>], lin, o: &SolverOptions, motion| {
+                let out = problem.solve_motion(x, lin, o, motion);
+                if out.1.stop == StopReason::Cancelled {
+                    Err(Error::Interrupted { last_complete })
+                } else {
+                    Ok(out)
+                }
+            };
             let mut linearised = None;
             if self.opts.rigid_first {
-                let (sol, summary, lin) = problem.solve_motion(&x, None, &sopts, Motion::Rigid);
-                if summary.stop == StopReason::Cancelled {
-                    return Err(Error::Interrupted {
-                        last_complete: self.prev.frame,
-                    });
-                }
+                let (sol, summary, lin) = solve(&x, None, &sopts, Motion::Rigid)?;
                 x = sol;
                 linearised = Some(lin);
                 summaries.push(summary);
             }
-            let (sol, summary, _) = problem.solve_motion(&x, linearised, &sopts, Motion::Free);
-            if summary.stop == StopReason::Cancelled {
-                // The tracker stays at the previous frame: nothing of this step is kept.
-                return Err(Error::Interrupted {
-                    last_complete: self.prev.frame,
-                });
-            }
+            let (sol, mut summary, _) = solve(&x, linearised, &sopts, Motion::Free)?;
             x = sol;
-            let summary = if refine {
-                summaries.push(summary);
-                let (sol, summary, _) = problem.solve_motion(&x, None, &robust, Motion::Free);
-                if summary.stop == StopReason::Cancelled {
-                    return Err(Error::Interrupted {
-                        last_complete: self.prev.frame,
-                    });
-                }
+            if refine {
+                let (sol, refined, _) = solve(&x, None, &robust, Motion::Free)?;
                 x = sol;
-                summary
-            } else {
-                summary
-            };
+                summaries.push(std::mem::replace(&mut summary, refined));
+            }
             if level == 0 {
                 cost_after = summary.final_cost;
                 pixels = summary.pixels;
