@@ -1,7 +1,9 @@
 //! `modelflow bench`: the tracker's speed on the default 640×480 two-camera cloth (or any scene):
 //! milliseconds per frame end to end (image loading included, and also shown apart), per solver
-//! iteration, and pixel residuals evaluated per second — medians over the sequence.
+//! iteration, and pixel residuals evaluated per second — medians over the sequence. With
+//! `--capture-range`, the largest per-frame motion tracked instead (see `capture`).
 
+use crate::capture;
 use crate::progress::Progress;
 use modelflow::input::Scene;
 use modelflow::synth::{write_dataset, SynthOptions};
@@ -18,12 +20,27 @@ pub struct Args {
     /// Folder for the synthetic footage and the run.
     #[arg(long, default_value = "target/bench")]
     work: PathBuf,
-    /// Frames of synthetic footage (default: the preset's 120).
+    /// Frames of synthetic footage (default: the preset's 120; with --capture-range, 7 per speed).
     #[arg(long)]
     frames: Option<u32>,
     /// Print one JSON object.
     #[arg(long)]
     json: bool,
+    /// Measure the capture range instead: the largest hand-held motion per frame (synth
+    /// --shake) tracked with every frame within 1 % of the object's size.
+    #[arg(long)]
+    capture_range: bool,
+    /// Capture range: synthetic preset.
+    #[arg(long, default_value = "blob")]
+    preset: String,
+    /// Capture range: image size.
+    #[arg(long, default_value_t = 1280)]
+    width: u32,
+    #[arg(long, default_value_t = 720)]
+    height: u32,
+    /// Capture range: speeds tried, pixels per frame, comma-separated, ascending.
+    #[arg(long, value_delimiter = ',', default_value = "5,10,20,30,40,50,60,80")]
+    speeds: Vec<f64>,
 }
 
 /// The figures `bench` reports.
@@ -49,6 +66,25 @@ struct BenchReport {
 }
 
 pub fn run(args: Args) -> anyhow::Result<()> {
+    if args.capture_range {
+        if args.speeds.is_empty() || args.speeds.windows(2).any(|w| w[0] >= w[1]) {
+            anyhow::bail!("--speeds {:?}: expected ascending speeds", args.speeds);
+        }
+        let report = capture::measure(&capture::CaptureOptions {
+            preset: args.preset,
+            width: args.width,
+            height: args.height,
+            frames: args.frames.unwrap_or(7),
+            speeds: args.speeds,
+            track: TrackOptions::default(),
+        })?;
+        if args.json {
+            println!("{}", serde_json::to_string(&report)?);
+        } else {
+            capture::print(&report);
+        }
+        return Ok(());
+    }
     let scene_path = match &args.scene {
         Some(s) => s.clone(),
         None => {

@@ -6,6 +6,7 @@ use clap::{CommandFactory, FromArgMatches, Subcommand};
 
 mod baseline;
 mod bench;
+mod capture;
 mod demo;
 mod eval;
 mod progress;

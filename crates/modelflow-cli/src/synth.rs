@@ -7,8 +7,9 @@ use std::path::PathBuf;
 
 #[derive(clap::Args)]
 pub struct Args {
-    /// Preset: cloth (a hanging, waving, folding sheet; 2 cameras) or blob (a closed, turning,
-    /// lobed surface; 4 cameras around it).
+    /// Preset: cloth (a hanging, waving, folding sheet; 2 cameras), blob (a closed, turning,
+    /// lobed surface; 4 cameras around it) or irregular (the blob on an uneven triangulation with
+    /// a hole).
     #[arg(long, default_value = "cloth")]
     preset: String,
     /// Output folder (created; existing files with the same names are replaced).
@@ -35,6 +36,10 @@ pub struct Args {
     /// Anti-aliasing subsamples per pixel along each axis.
     #[arg(long, default_value_t = 3)]
     supersample: u32,
+    /// Hand-held motion on top of the preset's: pixels per frame at the object's centre in the
+    /// first camera (a circle of 12 frames with a roll), for large per-frame motion.
+    #[arg(long, default_value_t = 0.0)]
+    shake: f64,
 }
 
 pub fn run(args: Args) -> anyhow::Result<()> {
@@ -47,6 +52,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         light: !args.no_light,
         seed: args.seed,
         supersample: args.supersample,
+        shake: args.shake,
         ..SynthOptions::preset(&args.preset)?
     };
     let start = std::time::Instant::now();

@@ -61,6 +61,64 @@ fn first_frames_of_the_default_cloth_are_tracked_to_ground_truth() {
     assert!(mean < 0.3, "mean error {mean:.3} % of the cloth's size");
 }
 
+#[test]
+fn an_irregular_triangulation_with_a_hole_is_tracked_and_never_stalls() {
+    // The blob's surface on an artist-like mesh (edges from about 1.5 to 30 cm, uneven
+    // valences, a hole through which the inside shows), 4 cameras at 320×240, carried by a
+    // hand-held motion of 6 px per frame on top of its own turning and swelling.
+    let opts = SynthOptions {
+        width: 320,
+        height: 240,
+        frames: 7,
+        shake: 6.0,
+        ..SynthOptions::preset("irregular").unwrap()
+    };
+    let syn = Synthetic::generate(&opts).unwrap();
+    assert!(!syn.mesh.is_closed());
+    let images = |f: u32| {
+        (0..syn.cameras.len())
+            .map(|c| syn.render(c, f))
+            .collect::<Vec<_>>()
+    };
+    let mut tr = Tracker::new(
+        &syn.mesh,
+        syn.cameras.clone(),
+        0,
+        &images(0),
+        TrackOptions::default(),
+    )
+    .unwrap();
+    let diag = syn.mesh.bbox_diagonal();
+    let mut sum = 0.0;
+    for f in 1..opts.frames {
+        let report = tr.step(f, &images(f)).unwrap();
+        let moved = 100.0 * rms(&syn.truth[f as usize - 1], &syn.truth[f as usize]) / diag;
+        let accepted = report
+            .levels
+            .iter()
+            .flat_map(|l| &l.iterations)
+            .filter(|i| i.accepted)
+            .count();
+        // The truth moved (about 1 % of the size per frame), so some step must have been taken.
+        assert!(moved > 0.3, "frame {f}: truth moved only {moved:.3} %");
+        assert!(
+            !report.stalled && accepted > 0,
+            "frame {f}: every step rejected ({:?})",
+            report.stop
+        );
+        let err = 100.0 * rms(tr.positions(), &syn.truth[f as usize]) / diag;
+        let still = 100.0 * rms(&syn.truth[0], &syn.truth[f as usize]) / diag;
+        eprintln!("frame {f}: error {err:.3} %, standing still {still:.3} %");
+        assert!(
+            err < 0.1 * still && err < 0.5,
+            "frame {f}: error {err:.3} % (standing still {still:.3} %)"
+        );
+        sum += err;
+    }
+    let mean = sum / (opts.frames - 1) as f64;
+    assert!(mean < 0.3, "mean error {mean:.3} % of the blob's size");
+}
+
 fn blender_scene() -> Scene {
     let p = concat!(
         env!("CARGO_MANIFEST_DIR"),

@@ -13,6 +13,17 @@
 //! - `blob`: a closed surface (icosphere of radius 0.4 m, 2562 vertices) with five lobes that
 //!   swell and shrink while the whole body turns, seen by cameras on a ring around it; the lobes
 //!   occlude other parts of the surface.
+//! - `irregular`: the blob's surface and motion on an artist-like triangulation (`remesh`): fine
+//!   on one side, about four times coarser on the other, jittered vertices (uneven valences,
+//!   1 125 vertices, edges from 1.5 to 31 cm at the first frame, median 3.6 cm) and a hole with a
+//!   border, through which the inside shows.
+//!
+//! Any preset can be carried by a hand-held motion on top of its own (`shake`, in pixels per
+//! frame): the whole object travels round a circle of 12 frames in the first camera's image
+//! plane, with a chord of `shake` pixels at its centre in that camera, while rolling about that
+//! camera's axis by a quarter of that motion at its rim. It starts from rest at frame 0, so the
+//! first mesh does not change. This makes large per-frame motion (the tracker's capture range)
+//! without making the deformation itself faster.
 //!
 //! The texture is a function of the material (rest-pose) coordinates, so it sticks to the
 //! surface. Everything is deterministic for a seed (the seed chooses the texture and the image
@@ -27,6 +38,7 @@ use crate::error::{Error, Result};
 use crate::input::imageio::write_png;
 use crate::input::meshio::write_obj;
 use crate::input::scene::{CameraEntry, FrameRange, SceneFile, FORMAT};
+use crate::synth::remesh::{irregular_sphere, Irregularity};
 use crate::synth::render::{render, Light, RenderOptions, Surface};
 use crate::synth::texture::{mix64, CubeTexture, PlaneTexture, Texture};
 use nalgebra::{Matrix3, Point3, Rotation3, Unit, Vector3};
@@ -43,15 +55,17 @@ pub const FPS: f64 = 30.0;
 pub enum Preset {
     Cloth,
     Blob,
+    Irregular,
 }
 
 impl Preset {
-    pub const ALL: [Preset; 2] = [Preset::Cloth, Preset::Blob];
+    pub const ALL: [Preset; 3] = [Preset::Cloth, Preset::Blob, Preset::Irregular];
 
     pub fn name(self) -> &'static str {
         match self {
             Preset::Cloth => "cloth",
             Preset::Blob => "blob",
+            Preset::Irregular => "irregular",
         }
     }
 
@@ -74,7 +88,7 @@ impl Preset {
     pub fn default_cameras(self) -> usize {
         match self {
             Preset::Cloth => 2,
-            Preset::Blob => 4,
+            Preset::Blob | Preset::Irregular => 4,
         }
     }
 }
@@ -101,6 +115,9 @@ pub struct SynthOptions {
     pub seed: u64,
     /// Anti-aliasing subsamples per pixel along each axis.
     pub supersample: u32,
+    /// Hand-held motion added to the preset's own, in pixels per frame at the object's centre in
+    /// the first camera (0: none); see the module documentation.
+    pub shake: f64,
 }
 
 impl Default for SynthOptions {
@@ -115,6 +132,7 @@ impl Default for SynthOptions {
             light: true,
             seed: 1,
             supersample: 3,
+            shake: 0.0,
         }
     }
 }
@@ -153,6 +171,13 @@ impl SynthOptions {
         }
         if !(self.noise.is_finite() && (0.0..=1.0).contains(&self.noise)) {
             return Err(Error::option("--noise", self.noise, "a sigma in [0, 1]"));
+        }
+        if !(self.shake.is_finite() && (0.0..=1000.0).contains(&self.shake)) {
+            return Err(Error::option(
+                "--shake",
+                self.shake,
+                "0 to 1000 pixels per frame",
+            ));
         }
         if !(1..=8).contains(&self.supersample) {
             return Err(Error::option("--supersample", self.supersample, "1 to 8"));
@@ -425,7 +450,24 @@ fn blob_positions(dirs: &[Point3<f64>], t: f64) -> Vec<Point3<f64>> {
 }
 
 fn blob(opts: &SynthOptions) -> Synthetic {
-    let sphere = icosphere(4);
+    lobed(opts, icosphere(4))
+}
+
+fn irregular(opts: &SynthOptions) -> Synthetic {
+    let how = Irregularity {
+        coarsening: 4.0,
+        // Fine towards the first camera, coarse behind; the hole between the first and the last
+        // camera, away from the lobes.
+        fine_side: Vector3::new(0.3, -0.9, 0.3),
+        jitter: 0.3,
+        hole: Some((Vector3::new(-0.6, -0.6, 0.2), 0.22)),
+        seed: 0x1BE6 ^ opts.seed,
+    };
+    lobed(opts, irregular_sphere(&icosphere(4), &how))
+}
+
+/// The blob's lobed, turning surface on the triangulation `sphere` (vertices on the unit sphere).
+fn lobed(opts: &SynthOptions, sphere: Mesh) -> Synthetic {
     let dirs = sphere.positions.clone();
     let material: Vec<[f64; 3]> = dirs
         .iter()
@@ -519,14 +561,52 @@ impl Synthetic {
     /// Generates a preset's geometry, cameras and texture (images are rendered on demand).
     pub fn generate(opts: &SynthOptions) -> Result<Self> {
         opts.validate()?;
-        Ok(match opts.preset {
+        let mut s = match opts.preset {
             Preset::Cloth => cloth(opts),
             Preset::Blob => blob(opts),
-        })
+            Preset::Irregular => irregular(opts),
+        };
+        if opts.shake > 0.0 {
+            s.shake(opts.shake);
+        }
+        Ok(s)
     }
 
     pub fn frames(&self) -> u32 {
         self.truth.len() as u32
+    }
+
+    /// Adds the hand-held motion of `px` pixels per frame (see the module documentation).
+    fn shake(&mut self, px: f64) {
+        const PERIOD: f64 = 12.0;
+        let first = &self.truth[0];
+        let centre =
+            Point3::from(first.iter().map(|p| p.coords).sum::<Vector3<f64>>() / first.len() as f64);
+        let radius = first
+            .iter()
+            .map(|p| (p - centre).norm())
+            .fold(0.0, f64::max);
+        let (k, r, _) = &self.krt[0];
+        let cam = self.cameras[0].at(0);
+        // The camera's axes in the world: rows of R (x right, y down, z forward).
+        let (right, down, axis) = (
+            Vector3::new(r[(0, 0)], r[(0, 1)], r[(0, 2)]),
+            Vector3::new(r[(1, 0)], r[(1, 1)], r[(1, 2)]),
+            Vector3::new(r[(2, 0)], r[(2, 1)], r[(2, 2)]),
+        );
+        // World distance per frame that moves the centre `px` pixels in the first camera.
+        let step = px * cam.depth(&centre) / k[(0, 0)];
+        let circle = step / (2.0 * (std::f64::consts::PI / PERIOD).sin());
+        let roll = 0.25 * step / radius;
+        let axis = Unit::new_normalize(axis);
+        for (f, frame) in self.truth.iter_mut().enumerate() {
+            let a = 2.0 * std::f64::consts::PI * f as f64 / PERIOD;
+            let offset = (right * (1.0 - a.cos()) + down * a.sin()) * circle;
+            let rot = Rotation3::from_axis_angle(&axis, roll * f as f64);
+            for p in frame.iter_mut() {
+                *p = centre + rot * (*p - centre) + offset;
+            }
+        }
     }
 
     /// The true mesh at `frame` (panics past the last frame).
@@ -688,7 +768,10 @@ mod tests {
     #[test]
     fn unknown_preset_lists_the_presets() {
         let e = SynthOptions::preset("sheet").unwrap_err().to_string();
-        assert!(e.contains("'sheet'") && e.contains("cloth, blob"), "{e}");
+        assert!(
+            e.contains("'sheet'") && e.contains("cloth, blob, irregular"),
+            "{e}"
+        );
         assert_eq!(SynthOptions::preset("blob").unwrap().preset, Preset::Blob);
     }
 
@@ -812,6 +895,53 @@ mod tests {
             occluded > 10,
             "only {occluded} front-facing vertices hidden"
         );
+    }
+
+    #[test]
+    fn shake_moves_the_object_by_the_asked_pixels_and_leaves_the_first_mesh() {
+        let plain = Synthetic::generate(&opts(Preset::Blob, 13)).unwrap();
+        let shaken = Synthetic::generate(&SynthOptions {
+            shake: 40.0,
+            ..opts(Preset::Blob, 13)
+        })
+        .unwrap();
+        assert_eq!(plain.mesh, shaken.mesh);
+        // In the first camera, the shake's own share of each vertex's motion: 40 px along the
+        // circle at the centre, plus the roll's ±10 px at the rim.
+        let cam = &shaken.cameras[0];
+        let (p0, p1) = (cam.at(5), cam.at(6));
+        let mut d: Vec<f64> = (0..shaken.mesh.vertex_count())
+            .map(|v| {
+                let own =
+                    |s: &Synthetic, f: usize, p: &Projection| p.project(&s.truth[f][v]).unwrap();
+                ((own(&shaken, 6, p1) - own(&shaken, 5, p0))
+                    - (own(&plain, 6, p1) - own(&plain, 5, p0)))
+                .norm()
+            })
+            .collect();
+        d.sort_by(f64::total_cmp);
+        let (lo, med, hi) = (d[0], d[d.len() / 2], d[d.len() - 1]);
+        assert!(
+            (med - 40.0).abs() < 4.0 && lo > 28.0 && hi < 53.0,
+            "{lo} {med} {hi}"
+        );
+        // A full circle brings it back (12 frames), rolled.
+        let back = (shaken.truth[12]
+            .iter()
+            .map(|p| p.coords)
+            .sum::<Vector3<f64>>()
+            - plain.truth[12]
+                .iter()
+                .map(|p| p.coords)
+                .sum::<Vector3<f64>>())
+        .norm()
+            / shaken.mesh.vertex_count() as f64;
+        assert!(back < 0.05, "centre off by {back} m after a circle");
+        let bad = SynthOptions {
+            shake: f64::INFINITY,
+            ..opts(Preset::Blob, 3)
+        };
+        assert!(bad.validate().unwrap_err().to_string().contains("--shake"));
     }
 
     #[test]
