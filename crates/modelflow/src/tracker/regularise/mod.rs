@@ -36,7 +36,7 @@ impl Default for Regularisation {
     fn default() -> Self {
         Regularisation {
             spring_k: 1.0,
-            spring_t: 0.1,
+            spring_t: 0.2,
             membrane: 0.002,
             bending: 0.01,
         }
