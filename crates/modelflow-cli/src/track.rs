@@ -181,8 +181,22 @@ pub struct Args {
     track: TrackArgs,
 }
 
+/// Height over longest edge below which `track` warns of a sliver triangle.
+const SLIVER_RATIO: f64 = 1e-3;
+
 pub fn run(args: Args, invocation: &Invocation) -> anyhow::Result<()> {
     let scene = Scene::load(&args.scene)?;
+    let slivers = scene.mesh.slivers(SLIVER_RATIO);
+    if let Some(&(first, r)) = slivers.first() {
+        let [a, b, c] = scene.mesh.triangles[first].map(|v| v + 1);
+        eprintln!(
+            "warning: the mesh has {} sliver triangle(s), thinner than 1/{} of their longest edge; the first is triangle {} (vertices {a} {b} {c}, counted from 1 as in OBJ), {:.1e} of its edge. Slivers are tracked, but own almost no pixels.",
+            slivers.len(),
+            (1.0 / SLIVER_RATIO) as u32,
+            first + 1,
+            r
+        );
+    }
     let run = run_options(args.out.mode(args.resume), invocation);
     let summary = run_scene(&scene, &args.track.options(), &args.out.out, &run)?;
     let resumed = match summary.resumed_from {

@@ -63,6 +63,26 @@ impl Mesh {
         !count.is_empty() && count.values().all(|&c| c == 2)
     }
 
+    /// Triangles thinner than `ratio` of their longest edge (height over the longest edge over
+    /// the longest edge), as (triangle index, that ratio). Such a sliver owns almost no pixels:
+    /// the tracker handles it (its edges weigh by area), but it usually means a modelling slip.
+    pub fn slivers(&self, ratio: f64) -> Vec<(usize, f64)> {
+        self.triangles
+            .iter()
+            .enumerate()
+            .filter_map(|(i, t)| {
+                let [a, b, c] = t.map(|v| self.positions[v as usize]);
+                let longest = (b - a).norm().max((c - a).norm()).max((c - b).norm());
+                if longest == 0.0 {
+                    return Some((i, 0.0));
+                }
+                let height = (b - a).cross(&(c - a)).norm() / longest;
+                let r = height / longest;
+                (r < ratio).then_some((i, r))
+            })
+            .collect()
+    }
+
     /// Unnormalised normal of triangle `i` (right-handed: counter-clockwise seen from its front).
     pub fn triangle_normal(&self, i: usize) -> Vector3<f64> {
         let [a, b, c] = self.triangles[i].map(|v| self.positions[v as usize]);
@@ -124,6 +144,23 @@ pub fn grid(nx: usize, ny: usize, place: impl Fn(f64, f64) -> Point3<f64>) -> Me
 
 #[cfg(test)]
 mod tests {
+    #[test]
+    fn slivers_are_found_by_their_height() {
+        let m = Mesh::new(
+            vec![
+                Point3::new(0.0, 0.0, 0.0),
+                Point3::new(0.025, 0.0, 0.0),
+                Point3::new(0.0125, 1e-7, 0.0),
+                Point3::new(0.0125, 0.02, 0.0),
+            ],
+            vec![[0, 1, 2], [0, 1, 3]],
+        );
+        let s = m.slivers(1e-3);
+        assert_eq!(s.len(), 1);
+        assert_eq!(s[0].0, 0);
+        assert!((s[0].1 - 4e-6).abs() < 1e-12, "{}", s[0].1);
+    }
+
     use super::*;
 
     #[test]
