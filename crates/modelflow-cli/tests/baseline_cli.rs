@@ -5,7 +5,7 @@ use std::process::Command;
 
 const SCENE: &str = concat!(
     env!("CARGO_MANIFEST_DIR"),
-    "/../../../shared/footage/blender-cloth-sample/scene.json"
+    "/../../fixtures/blender-cloth-sample/scene.json"
 );
 
 fn baseline(args: &[&str]) -> (bool, String) {

@@ -8,7 +8,7 @@ use std::process::{Command, Output};
 fn sample() -> PathBuf {
     PathBuf::from(concat!(
         env!("CARGO_MANIFEST_DIR"),
-        "/../../../shared/footage/blender-cloth-sample"
+        "/../../fixtures/blender-cloth-sample"
     ))
 }
 

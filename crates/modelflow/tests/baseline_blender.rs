@@ -10,7 +10,7 @@ use std::sync::atomic::{AtomicU32, Ordering};
 
 const SCENE: &str = concat!(
     env!("CARGO_MANIFEST_DIR"),
-    "/../../../shared/footage/blender-cloth-sample/scene.json"
+    "/../../fixtures/blender-cloth-sample/scene.json"
 );
 
 #[test]

@@ -7,7 +7,7 @@ use std::path::PathBuf;
 fn sample() -> PathBuf {
     PathBuf::from(concat!(
         env!("CARGO_MANIFEST_DIR"),
-        "/../../../shared/footage/blender-cloth-sample/scene.json"
+        "/../../fixtures/blender-cloth-sample/scene.json"
     ))
 }
 

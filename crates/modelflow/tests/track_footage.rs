@@ -1,11 +1,11 @@
 //! The tracker on rendered footage: small synthetic cloth from our renderer (with ground truth),
-//! and the Blender-rendered cloth sample in `shared/` (footage made by another renderer, which
+//! and the Blender-rendered cloth sample in `fixtures/` (footage made by another renderer, which
 //! checks the camera and pixel conventions end to end).
 
 use modelflow::input::Scene;
 use modelflow::synth::{SynthOptions, Synthetic};
 use modelflow::tracker::{track_scene, TrackOptions, Tracker};
-use modelflow::{OpenMode, RunOptions};
+use modelflow::{OpenMode, RgbImage, RunOptions};
 use nalgebra::Point3;
 
 fn rms(a: &[Point3<f64>], b: &[Point3<f64>]) -> f64 {
@@ -15,6 +15,23 @@ fn rms(a: &[Point3<f64>], b: &[Point3<f64>]) -> f64 {
         .sum::<f64>()
         / a.len() as f64)
         .sqrt()
+}
+
+/// Every camera's image of frame `f`.
+fn images(syn: &Synthetic, f: u32) -> Vec<RgbImage> {
+    (0..syn.cameras.len()).map(|c| syn.render(c, f)).collect()
+}
+
+/// A tracker with the default options, started on the first frame.
+fn start(syn: &Synthetic) -> Tracker {
+    Tracker::new(
+        &syn.mesh,
+        syn.cameras.clone(),
+        0,
+        &images(syn, 0),
+        TrackOptions::default(),
+    )
+    .unwrap()
 }
 
 #[test]
@@ -28,19 +45,8 @@ fn first_frames_of_the_default_cloth_are_tracked_to_ground_truth() {
         ..SynthOptions::default()
     };
     let syn = Synthetic::generate(&opts).unwrap();
-    let images = |f: u32| {
-        (0..syn.cameras.len())
-            .map(|c| syn.render(c, f))
-            .collect::<Vec<_>>()
-    };
-    let mut tr = Tracker::new(
-        &syn.mesh,
-        syn.cameras.clone(),
-        0,
-        &images(0),
-        TrackOptions::default(),
-    )
-    .unwrap();
+    let images = |f: u32| images(&syn, f);
+    let mut tr = start(&syn);
     let diag = syn.mesh.bbox_diagonal();
     let mut sum = 0.0;
     for f in 1..opts.frames {
@@ -75,19 +81,8 @@ fn an_irregular_triangulation_with_a_hole_is_tracked_and_never_stalls() {
     };
     let syn = Synthetic::generate(&opts).unwrap();
     assert!(!syn.mesh.is_closed());
-    let images = |f: u32| {
-        (0..syn.cameras.len())
-            .map(|c| syn.render(c, f))
-            .collect::<Vec<_>>()
-    };
-    let mut tr = Tracker::new(
-        &syn.mesh,
-        syn.cameras.clone(),
-        0,
-        &images(0),
-        TrackOptions::default(),
-    )
-    .unwrap();
+    let images = |f: u32| images(&syn, f);
+    let mut tr = start(&syn);
     let diag = syn.mesh.bbox_diagonal();
     let mut sum = 0.0;
     for f in 1..opts.frames {
@@ -122,7 +117,7 @@ fn an_irregular_triangulation_with_a_hole_is_tracked_and_never_stalls() {
 fn blender_scene() -> Scene {
     let p = concat!(
         env!("CARGO_MANIFEST_DIR"),
-        "/../../../shared/footage/blender-cloth-sample/scene.json"
+        "/../../fixtures/blender-cloth-sample/scene.json"
     );
     Scene::load(std::path::Path::new(p)).expect("the shared Blender sample loads")
 }

@@ -8,7 +8,7 @@ use nalgebra::Vector3;
 
 const SAMPLE: &str = concat!(
     env!("CARGO_MANIFEST_DIR"),
-    "/../../../shared/footage/blender-cloth-sample/scene.json"
+    "/../../fixtures/blender-cloth-sample/scene.json"
 );
 
 /// Writes a run folder: the ground truth of every frame moved by `drift · (frame − first)` in x,

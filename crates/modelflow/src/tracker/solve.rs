@@ -100,7 +100,8 @@ pub enum Loss {
     /// some pull).
     Huber,
     /// Tukey's biweight with a threshold set at the start of every solve from the residuals
-    /// there (`tukey_k` × their median, within `[tukey_min, huber]`): pixels beyond it are
+    /// there (`tukey_k` × their median, at least `tukey_min`, widened per pixel by `tukey_px` ×
+    /// the image gradient's norm where it lands): pixels beyond it are
     /// rejected (an occluder, a highlight), and the threshold is fixed within the solve so that
     /// the cost the steps are judged by does not change under them.
     #[default]

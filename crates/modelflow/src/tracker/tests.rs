@@ -182,25 +182,37 @@ fn images_prepared_ahead_give_the_same_step_and_must_match_the_levels() {
     assert!(err.contains("blur"), "{err}");
 }
 
+/// Tracks `mesh(plane)` from the plane at rest through frames `1..=frames` of it moving by
+/// `motion` per frame, seen in `images(plane)`; asserts that no frame stalls and returns each
+/// frame's RMS vertex error (m) against `mesh(plane)`.
+fn track_plane(
+    rig: &Rig,
+    opts: TrackOptions,
+    motion: Vector3<f64>,
+    frames: u32,
+    mesh: impl Fn(&Plane) -> Mesh,
+    images: impl Fn(&Plane) -> Vec<RgbImage>,
+) -> Vec<f64> {
+    let plane0 = plane_at(Vector3::zeros());
+    let mut tr = Tracker::new(&mesh(&plane0), rig.cameras(), 0, &images(&plane0), opts).unwrap();
+    (1..=frames)
+        .map(|f| {
+            let plane = plane_at(motion * f as f64);
+            let rep = tr.step(f, &images(&plane)).unwrap();
+            assert!(!rep.stalled, "frame {f} stalled");
+            rms(tr.positions(), &mesh(&plane).positions)
+        })
+        .collect()
+}
+
 #[test]
 fn rigid_motion_is_recovered() {
     let rig = rig();
     let motion = Vector3::new(0.006, -0.004, 0.005);
-    let plane0 = plane_at(Vector3::zeros());
-    let mesh = mesh_of(&plane0);
-    let mut tr = Tracker::new(
-        &mesh,
-        rig.cameras(),
-        0,
-        &rig.images(&plane0),
-        TrackOptions::default(),
-    )
-    .unwrap();
-    for f in 1..=4u32 {
-        let plane = plane_at(motion * f as f64);
-        tr.step(f, &rig.images(&plane)).unwrap();
-        let truth = mesh_of(&plane).positions;
-        let err = rms(tr.positions(), &truth);
+    let errors = track_plane(&rig, TrackOptions::default(), motion, 4, mesh_of, |p| {
+        rig.images(p)
+    });
+    for (f, err) in (1..).zip(errors) {
         eprintln!("frame {f}: rms error {err:.2e} m");
         // 0.6 m plane; 1 pixel at 1.5 m is 5 mm. Ask for a small fraction of a pixel.
         assert!(err < 1.0e-3, "frame {f}: rms {err}");
@@ -214,21 +226,10 @@ fn a_large_motion_is_caught() {
     // refines it.
     let rig = rig();
     let motion = Vector3::new(0.02, 0.01, -0.008);
-    let plane0 = plane_at(Vector3::zeros());
-    let mesh = mesh_of(&plane0);
-    let mut tr = Tracker::new(
-        &mesh,
-        rig.cameras(),
-        0,
-        &rig.images(&plane0),
-        TrackOptions::default(),
-    )
-    .unwrap();
-    for f in 1..=3u32 {
-        let plane = plane_at(motion * f as f64);
-        let rep = tr.step(f, &rig.images(&plane)).unwrap();
-        assert!(!rep.stalled);
-        let err = rms(tr.positions(), &mesh_of(&plane).positions);
+    let errors = track_plane(&rig, TrackOptions::default(), motion, 3, mesh_of, |p| {
+        rig.images(p)
+    });
+    for (f, err) in (1..).zip(errors) {
         assert!(err < 1.5e-3, "frame {f}: rms {err} m for a 2.4 cm motion");
     }
 }
@@ -567,20 +568,10 @@ fn a_static_occluder_does_not_hold_the_surface_back() {
         paint_rod(&mut im[0], 70, 86);
         im
     };
-    let plane0 = plane_at(Vector3::zeros());
-    let mesh = mesh_of(&plane0);
     let run = |loss: Loss| {
         let mut opts = TrackOptions::default();
         opts.solver.loss = loss;
-        let mut tr = Tracker::new(&mesh, rig.cameras(), 0, &images(&plane0), opts).unwrap();
-        let mut errors = Vec::new();
-        for f in 1..=5u32 {
-            let plane = plane_at(motion * f as f64);
-            let rep = tr.step(f, &images(&plane)).unwrap();
-            assert!(!rep.stalled);
-            errors.push(rms(tr.positions(), &mesh_of(&plane).positions));
-        }
-        errors
+        track_plane(&rig, opts, motion, 5, mesh_of, images)
     };
     let (huber, tukey) = (run(Loss::Huber), run(Loss::Tukey));
     eprintln!("rms error per frame (m): huber {huber:?}, tukey {tukey:?}");
@@ -599,9 +590,7 @@ fn a_sliver_triangle_does_not_stall_the_tracker() {
     // motion is tracked as well as without it, and no frame stalls.
     let rig = rig();
     let motion = Vector3::new(0.006, -0.004, 0.005);
-    let plane0 = plane_at(Vector3::zeros());
-    let base = mesh_of(&plane0);
-    let [a, b, c] = base.triangles[40];
+    let [a, b, c] = mesh_of(&plane_at(Vector3::zeros())).triangles[40];
     let with_sliver = |m: &Mesh| {
         let (pa, pb, pc) = (
             m.positions[a as usize],
@@ -619,21 +608,15 @@ fn a_sliver_triangle_does_not_stall_the_tracker() {
         triangles.push([p, b, c]);
         Mesh::new(positions, triangles)
     };
-    let mesh = with_sliver(&base);
-    let mut tr = Tracker::new(
-        &mesh,
-        rig.cameras(),
-        0,
-        &rig.images(&plane0),
+    let errors = track_plane(
+        &rig,
         TrackOptions::default(),
-    )
-    .unwrap();
-    for f in 1..=4u32 {
-        let plane = plane_at(motion * f as f64);
-        let rep = tr.step(f, &rig.images(&plane)).unwrap();
-        assert!(!rep.stalled, "frame {f} stalled");
-        let truth = with_sliver(&mesh_of(&plane)).positions;
-        let err = rms(tr.positions(), &truth);
+        motion,
+        4,
+        |p| with_sliver(&mesh_of(p)),
+        |p| rig.images(p),
+    );
+    for (f, err) in (1..).zip(errors) {
         assert!(err < 1.0e-3, "frame {f}: rms {err}");
     }
 }
