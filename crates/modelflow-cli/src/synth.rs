@@ -40,6 +40,11 @@ pub struct Args {
     /// first camera (a circle of 12 frames with a roll), for large per-frame motion.
     #[arg(long, default_value_t = 0.0)]
     shake: f64,
+    /// Render through lens distortion, given as MODEL:COEFFICIENTS in OpenCV's order, e.g.
+    /// opencv:-0.3,0.1,0,0,0 (k1, k2, p1, p2, k3) or fisheye:0.05,-0.01,0,0; the scene file
+    /// records it (docs/scene-format.md).
+    #[arg(long, allow_hyphen_values = true)]
+    distortion: Option<String>,
 }
 
 pub fn run(args: Args) -> anyhow::Result<()> {
@@ -53,6 +58,14 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         seed: args.seed,
         supersample: args.supersample,
         shake: args.shake,
+        distortion: args
+            .distortion
+            .as_deref()
+            .map(|d| {
+                d.parse::<modelflow::base::Distortion>()
+                    .map_err(|m| anyhow::anyhow!("--distortion: {m}"))
+            })
+            .transpose()?,
         ..SynthOptions::preset(&args.preset)?
     };
     let start = std::time::Instant::now();

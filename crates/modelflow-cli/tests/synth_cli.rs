@@ -66,5 +66,46 @@ fn unknown_preset_and_bad_options_fail_with_a_clear_message() {
         .unwrap();
     assert!(!out.status.success());
     assert!(String::from_utf8_lossy(&out.stderr).contains("--cameras 1"));
+    for (spec, why) in [
+        ("-0.3,0.1,0,0", "expected MODEL:c1,c2"),
+        ("opencv:-0.3,x,0,0", "\"x\" is not a number"),
+        ("opencv:-0.3,0.1", "4, 5, 8, 12 or 14 coefficients"),
+    ] {
+        let out = modelflow()
+            .args(["synth", "--distortion", spec, "--out"])
+            .arg(dir.path())
+            .output()
+            .unwrap();
+        assert!(!out.status.success());
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(
+            err.contains("--distortion") && err.contains(why),
+            "{spec}: {err}"
+        );
+    }
     assert!(!dir.path().join("scene.json").exists());
+}
+
+#[test]
+fn renders_through_a_lens_and_records_it() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = modelflow()
+        .args(["synth", "--frames", "1", "--width", "96", "--height", "72"])
+        .args(["--distortion", "fisheye:0.05,-0.01,0,0", "--out"])
+        .arg(dir.path())
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let text = std::fs::read_to_string(dir.path().join("scene.json")).unwrap();
+    assert!(text.contains("\"model\": \"fisheye\""), "{text}");
+    let scene = modelflow::input::Scene::load(&dir.path().join("scene.json")).unwrap();
+    let lens = scene.cameras[1].lens.as_ref().expect("a lens");
+    assert_eq!(
+        lens.distortion().coefficients(),
+        vec![0.05, -0.01, 0.0, 0.0]
+    );
 }

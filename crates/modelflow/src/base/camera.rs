@@ -5,10 +5,16 @@
 //! grows downwards; the pixel is `(u, v) = (K·x)[0..2] / x_z`. Pixel centres sit at integer
 //! coordinates: the top-left pixel's centre is `(0, 0)` and it covers `[-0.5, 0.5)²`.
 //!
+//! A camera may also have a [`Lens`] (distortion, see `lens`): its frames are then resampled
+//! once at load into the pinhole image of the same `K`, and every stage works on that image
+//! with the pinhole model above; the lens is kept for what must meet the raw frames (drawing on
+//! them, rendering distorted footage).
+//!
 //! Internally every camera pose is a 3×4 projection matrix `P` (the thesis' P), normalised so that
 //! its left 3×3 block has a positive determinant and a unit third row: then `(P·[X;1])_z` is the
 //! point's depth along the optical axis, in world units.
 
+use crate::base::lens::Lens;
 use nalgebra::{Matrix3, Matrix3x4, Point2, Point3, Vector3, Vector4};
 
 /// One camera pose at one frame: a normalised 3×4 projection matrix.
@@ -123,6 +129,8 @@ pub struct Camera {
     pub height: u32,
     first_frame: u32,
     poses: Vec<Projection>,
+    /// The lens distortion of the raw frames (`None`: they are pinhole images already).
+    pub lens: Option<Lens>,
 }
 
 impl Camera {
@@ -134,6 +142,7 @@ impl Camera {
             height,
             first_frame: 0,
             poses: vec![pose],
+            lens: None,
         }
     }
 
@@ -152,6 +161,23 @@ impl Camera {
             height,
             first_frame,
             poses,
+            lens: None,
+        }
+    }
+
+    /// The same camera with a lens (distortion of its raw frames).
+    pub fn with_lens(mut self, lens: Option<Lens>) -> Self {
+        self.lens = lens;
+        self
+    }
+
+    /// Raw-frame pixel of a world point at `frame`: the pinhole projection, then the lens (if
+    /// any). `None` behind the camera or beyond the lens model's range.
+    pub fn project_raw(&self, frame: u32, x: &Point3<f64>) -> Option<Point2<f64>> {
+        let p = self.at(frame).project(x)?;
+        match &self.lens {
+            Some(lens) => lens.distort_pixel(&p),
+            None => Some(p),
         }
     }
 

@@ -206,6 +206,52 @@ impl RgbImage {
         Some(out)
     }
 
+    /// Catmull–Rom bicubic sample of the colour alone (no derivatives) at `(u, v)` within
+    /// `[0, w-1] × [0, h-1]` (clamped into it); beyond the border the edge pixels are repeated.
+    /// Used to resample whole frames (undistortion), where the derivatives are not needed.
+    pub fn sample_cubic_value(&self, u: f32, v: f32) -> [f32; 3] {
+        let (w, h) = (self.width, self.height);
+        let u = u.clamp(0.0, (w - 1) as f32);
+        let v = v.clamp(0.0, (h - 1) as f32);
+        let x0 = (u as usize).min(w.saturating_sub(2));
+        let y0 = (v as usize).min(h.saturating_sub(2));
+        let (wx, _) = catmull_rom(u - x0 as f32);
+        let (wy, _) = catmull_rom(v - y0 as f32);
+        let mut out = [0.0f32; 3];
+        if x0 >= 1 && x0 + 2 < w && y0 >= 1 && y0 + 2 < h {
+            // Inside: four contiguous taps per row, no clamping.
+            for (j, wyj) in wy.iter().enumerate() {
+                let start = (y0 + j - 1) * w + x0 - 1;
+                let taps = &self.data[start..start + 4];
+                let mut acc = [0.0f32; 3];
+                for (px, wxi) in taps.iter().zip(&wx) {
+                    for k in 0..3 {
+                        acc[k] += wxi * px[k];
+                    }
+                }
+                for k in 0..3 {
+                    out[k] += wyj * acc[k];
+                }
+            }
+            return out;
+        }
+        for (j, wyj) in wy.iter().enumerate() {
+            let y = (y0 + j).saturating_sub(1).min(h - 1);
+            let row = &self.data[y * w..(y + 1) * w];
+            let mut acc = [0.0f32; 3];
+            for (i, wxi) in wx.iter().enumerate() {
+                let px = row[(x0 + i).saturating_sub(1).min(w - 1)];
+                for k in 0..3 {
+                    acc[k] += wxi * px[k];
+                }
+            }
+            for k in 0..3 {
+                out[k] += wyj * acc[k];
+            }
+        }
+        out
+    }
+
     /// The four pixels around a point inside the image and the fractional position between them.
     #[inline(always)]
     fn taps(&self, u: f64, v: f64) -> ([[f32; 3]; 4], f32, f32) {

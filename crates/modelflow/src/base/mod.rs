@@ -1,4 +1,5 @@
-//! Core values every stage shares: the camera model (`camera`), in-memory images and their
+//! Core values every stage shares: the camera model (`camera`) and its lens distortion
+//! (`lens`), in-memory images and their
 //! samplers (`image`), triangle meshes and their topology (`mesh`), and z-buffered visibility of a
 //! mesh in a camera (`raster`, used by the tracker and the baseline alike, so both agree on what
 //! a camera sees). Nothing here reads or writes files or knows about tracking, footage or
@@ -6,9 +7,11 @@
 
 pub(crate) mod camera;
 pub(crate) mod image;
+pub(crate) mod lens;
 pub(crate) mod mesh;
 pub(crate) mod raster;
 
 pub use camera::{is_rotation, look_at, Camera, Projection, ProjectionError};
 pub use image::RgbImage;
+pub use lens::{DistortMap, Distortion, Lens, UndistortMap};
 pub use mesh::{grid, Mesh};

@@ -4,6 +4,7 @@
 
 use crate::base::camera::{is_rotation, Camera, Projection, ProjectionError};
 use crate::base::image::RgbImage;
+use crate::base::lens::{Distortion, Lens, UndistortMap};
 use crate::base::mesh::Mesh;
 use crate::error::{Error, Result};
 use crate::fsutil::write_atomic;
@@ -54,7 +55,20 @@ pub struct CameraEntry {
     pub poses: Option<Vec<PoseEntry>>,
     #[serde(rename = "P", default, skip_serializing_if = "Option::is_none")]
     pub p: Option<Vec<[[f64; 4]; 3]>>,
+    /// Lens distortion of the frames (with `K`; see `docs/scene-format.md`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub distortion: Option<DistortionEntry>,
     pub images: String,
+}
+
+/// A camera's lens distortion as written in the scene file.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct DistortionEntry {
+    /// `"opencv"` or `"fisheye"`.
+    pub model: String,
+    /// As OpenCV orders them.
+    pub coefficients: Vec<f64>,
 }
 
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -87,6 +101,9 @@ pub struct Scene {
     /// Image pattern of each camera, in the order of `cameras`.
     pub images: Vec<FramePattern>,
     pub ground_truth: Option<FramePattern>,
+    /// Per camera, the resampling from its raw (distorted) frames to pinhole ones; `None` for a
+    /// camera without distortion.
+    pub undistort: Vec<Option<std::sync::Arc<UndistortMap>>>,
 }
 
 impl Scene {
@@ -368,6 +385,13 @@ fn build_camera(path: &Path, i: usize, c: &CameraEntry, first: u32, last: u32) -
         ));
     }
     if let Some(ps) = &c.p {
+        if c.distortion.is_some() {
+            return Err(Error::invalid(
+                path,
+                f("distortion"),
+                "needs the camera given as K with R and t or poses (a P matrix carries no camera matrix for the lens to apply in)",
+            ));
+        }
         if c.k.is_some() || c.r.is_some() || c.t.is_some() || c.poses.is_some() {
             return Err(Error::invalid(
                 path,
@@ -411,7 +435,11 @@ fn build_camera(path: &Path, i: usize, c: &CameraEntry, first: u32, last: u32) -
         )
     })?;
     let k = check_k(path, &f("K"), k)?;
-    match (&c.poses, &c.r, &c.t) {
+    let lens = match &c.distortion {
+        None => None,
+        Some(d) => check_lens(path, &f("distortion"), k, c, d)?,
+    };
+    let camera = match (&c.poses, &c.r, &c.t) {
         (Some(_), Some(_), _) | (Some(_), _, Some(_)) => Err(Error::invalid(
             path,
             f("poses"),
@@ -478,7 +506,51 @@ fn build_camera(path: &Path, i: usize, c: &CameraEntry, first: u32, last: u32) -
             f("t"),
             "missing: a camera with K and R needs t",
         )),
+    }?;
+    Ok(camera.with_lens(lens))
+}
+
+/// A camera's lens, validated: known model, right number of finite coefficients, and a model
+/// that stays one-to-one over the image's central region (coefficients in the wrong order or
+/// for another unit fold it over near the centre). Identity coefficients give no lens.
+fn check_lens(
+    path: &Path,
+    field: &str,
+    k: Matrix3<f64>,
+    c: &CameraEntry,
+    d: &DistortionEntry,
+) -> Result<Option<Lens>> {
+    let distortion =
+        Distortion::new(&d.model, &d.coefficients).map_err(|m| Error::invalid(path, field, m))?;
+    if distortion.is_identity() {
+        return Ok(None);
     }
+    let lens = Lens::new(k, distortion);
+    // The normalised radius of the point halfway from the principal point to the farthest
+    // image corner must lie within the model's one-to-one range.
+    let kinv = k.try_inverse().unwrap_or_else(Matrix3::identity);
+    let (w, h) = (c.width as f64 - 1.0, c.height as f64 - 1.0);
+    let centre = kinv * Vector3::new(k[(0, 2)], k[(1, 2)], 1.0);
+    let reach = [(0.0, 0.0), (w, 0.0), (0.0, h), (w, h)]
+        .iter()
+        .map(|&(u, v)| {
+            let n = kinv * Vector3::new(u, v, 1.0);
+            ((n.x - centre.x).hypot(n.y - centre.y)) * 0.5
+        })
+        .fold(0.0, f64::max);
+    if lens.max_radius() < reach {
+        return Err(Error::invalid(
+            path,
+            field,
+            format!(
+                "the {} model with these coefficients folds over {:.0}% of the way from the principal point to the farthest image corner (it is one-to-one only up to a normalised radius of {:.3}); are the coefficients in OpenCV's order?",
+                d.model,
+                100.0 * lens.max_radius() / (2.0 * reach),
+                lens.max_radius()
+            ),
+        ));
+    }
+    Ok(Some(lens))
 }
 
 fn list_frames(frames: &[u32]) -> String {
@@ -649,6 +721,18 @@ impl Scene {
                 ),
             ));
         }
+        let undistort = cameras
+            .iter()
+            .map(|c| {
+                c.lens.as_ref().map(|lens| {
+                    std::sync::Arc::new(UndistortMap::new(
+                        lens,
+                        c.width as usize,
+                        c.height as usize,
+                    ))
+                })
+            })
+            .collect();
         Ok(Scene {
             path: path.to_path_buf(),
             first,
@@ -657,6 +741,7 @@ impl Scene {
             cameras,
             images,
             ground_truth,
+            undistort,
         })
     }
 
@@ -678,7 +763,24 @@ impl Scene {
 
     /// The images of `frame`, one per camera in the order of `cameras` (read in parallel),
     /// each checked to have its camera's size.
+    /// The pinhole images of every camera at `frame`: the files as they are for a camera without
+    /// distortion, resampled through its [`UndistortMap`] for one with (what the tracker, the
+    /// baseline and the report work on).
     pub fn load_images(&self, frame: u32) -> Result<Vec<RgbImage>> {
+        let raw = self.load_raw_images(frame)?;
+        Ok(raw
+            .into_par_iter()
+            .zip(self.undistort.par_iter())
+            .map(|(img, map)| match map {
+                Some(map) => map.apply(&img),
+                None => img,
+            })
+            .collect())
+    }
+
+    /// The image files of every camera at `frame` as they are (distorted, for a camera with a
+    /// lens).
+    pub fn load_raw_images(&self, frame: u32) -> Result<Vec<RgbImage>> {
         self.check_frame(frame)?;
         self.cameras
             .par_iter()

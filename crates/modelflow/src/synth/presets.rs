@@ -33,11 +33,12 @@
 
 use crate::base::camera::{look_at, Camera, Projection};
 use crate::base::image::RgbImage;
+use crate::base::lens::{DistortMap, Distortion, Lens};
 use crate::base::mesh::{grid, Mesh};
 use crate::error::{Error, Result};
 use crate::input::imageio::write_png;
 use crate::input::meshio::write_obj;
-use crate::input::scene::{CameraEntry, FrameRange, SceneFile, FORMAT};
+use crate::input::scene::{CameraEntry, DistortionEntry, FrameRange, SceneFile, FORMAT};
 use crate::synth::remesh::{irregular_sphere, Irregularity};
 use crate::synth::render::{render, Light, RenderOptions, Surface};
 use crate::synth::texture::{mix64, CubeTexture, PlaneTexture, Texture};
@@ -118,6 +119,9 @@ pub struct SynthOptions {
     /// Hand-held motion added to the preset's own, in pixels per frame at the object's centre in
     /// the first camera (0: none); see the module documentation.
     pub shake: f64,
+    /// Lens distortion of every camera: the images are rendered through it and the scene file
+    /// gives it (`None`: pinhole footage).
+    pub distortion: Option<Distortion>,
 }
 
 impl Default for SynthOptions {
@@ -133,6 +137,7 @@ impl Default for SynthOptions {
             seed: 1,
             supersample: 3,
             shake: 0.0,
+            distortion: None,
         }
     }
 }
@@ -208,6 +213,8 @@ pub struct Synthetic {
     render_options: RenderOptions,
     /// (K, R, t) of each camera, for the scene file.
     krt: Vec<Krt>,
+    /// Per camera, how its raw frame reads the pinhole render (with distortion only).
+    distort: Vec<Option<std::sync::Arc<DistortMap>>>,
 }
 
 /// Per-frame image motion of the vertices, in pixels, over all cameras and frame pairs.
@@ -345,6 +352,7 @@ fn cloth(opts: &SynthOptions) -> Synthetic {
         truth,
         skin,
         krt,
+        distort: Vec::new(),
         render_options: render_options(opts, Vector3::new(-0.5, -0.5, 1.0), [0.13, 0.14, 0.17]),
     }
 }
@@ -516,6 +524,7 @@ fn lobed(opts: &SynthOptions, sphere: Mesh) -> Synthetic {
         truth,
         skin,
         krt,
+        distort: Vec::new(),
         render_options: render_options(opts, Vector3::new(0.4, -0.6, 0.8), [0.12, 0.12, 0.12]),
     }
 }
@@ -568,6 +577,17 @@ impl Synthetic {
         };
         if opts.shake > 0.0 {
             s.shake(opts.shake);
+        }
+        if let Some(d) = opts.distortion.as_ref().filter(|d| !d.is_identity()) {
+            for (cam, (k, _, _)) in s.cameras.iter_mut().zip(&s.krt) {
+                let lens = Lens::new(*k, d.clone());
+                s.distort.push(Some(std::sync::Arc::new(DistortMap::new(
+                    &lens,
+                    cam.width as usize,
+                    cam.height as usize,
+                ))));
+                cam.lens = Some(lens);
+            }
         }
         Ok(s)
     }
@@ -623,15 +643,35 @@ impl Synthetic {
             Skin::Cube(t) => Surface::Material(t),
         };
         let cam = &self.cameras[camera];
-        let mut img = render(
-            &mesh,
-            &self.material,
-            &surface,
-            cam.at(frame),
-            cam.width as usize,
-            cam.height as usize,
-            &self.render_options,
-        )
+        let mut img = match self.distort.get(camera).and_then(|d| d.as_deref()) {
+            None => render(
+                &mesh,
+                &self.material,
+                &surface,
+                cam.at(frame),
+                cam.width as usize,
+                cam.height as usize,
+                &self.render_options,
+            ),
+            Some(map) => {
+                // The pinhole render on a canvas that holds every raw pixel's ray, then
+                // resampled through the lens.
+                let ((u0, v0), (w, h)) = map.canvas();
+                let shift = Matrix3::new(1.0, 0.0, -u0 as f64, 0.0, 1.0, -v0 as f64, 0.0, 0.0, 1.0);
+                let proj = Projection::from_matrix(&(shift * cam.at(frame).matrix()))
+                    .expect("a shifted projection stays regular");
+                render(
+                    &mesh,
+                    &self.material,
+                    &surface,
+                    &proj,
+                    w,
+                    h,
+                    &self.render_options,
+                )
+                .map(|canvas| map.apply(&canvas))
+            }
+        }
         .expect("synthetic meshes and materials are consistent");
         if self.options.noise > 0.0 {
             let seed =
@@ -697,6 +737,10 @@ impl Synthetic {
                     t: Some([t.x, t.y, t.z]),
                     poses: None,
                     p: None,
+                    distortion: cam.lens.as_ref().map(|l| DistortionEntry {
+                        model: l.distortion().model().to_string(),
+                        coefficients: l.distortion().coefficients(),
+                    }),
                     images: format!("images/{}/{{frame:04}}.png", cam.name),
                 })
                 .collect(),

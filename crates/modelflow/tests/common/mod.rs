@@ -45,6 +45,7 @@ pub fn camera(name: &str, eye: Point3<f64>) -> CameraEntry {
         t: Some([t.x, t.y, t.z]),
         poses: None,
         p: None,
+        distortion: None,
         images: format!("images/{name}/{{frame:04}}.png"),
     }
 }
