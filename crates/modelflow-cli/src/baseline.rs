@@ -14,6 +14,8 @@ pub struct Args {
     #[arg(long)]
     pub scene: PathBuf,
     #[command(flatten)]
+    pub select: crate::select::SelectArgs,
+    #[command(flatten)]
     pub out: OutArgs,
     /// Where each frame's 2D tracks start: `reprojected` (from the triangulated vertex) or
     /// `chained` (each camera's own 2D track continues, as Universal Capture did).
@@ -43,7 +45,7 @@ pub fn run(args: Args, invocation: &Invocation) -> anyhow::Result<()> {
     if !(args.fb >= 0.0 && args.max_reprojection > 0.0) {
         anyhow::bail!("--fb must be >= 0 and --max-reprojection > 0");
     }
-    let scene = Scene::load(&args.scene)?;
+    let scene = args.select.apply(Scene::load(&args.scene)?)?;
     let defaults = BaselineOptions::default();
     let opts = BaselineOptions {
         seeding: if args.seeding == "chained" {

@@ -11,6 +11,8 @@ pub struct Args {
     /// The scene file (must have ground truth).
     #[arg(long)]
     scene: PathBuf,
+    #[command(flatten)]
+    select: crate::select::SelectArgs,
     /// The run folder: one OBJ per frame (frame = last number in the file name).
     #[arg(long)]
     track: PathBuf,
@@ -20,7 +22,7 @@ pub struct Args {
 }
 
 pub fn run(args: Args) -> anyhow::Result<()> {
-    let scene = Scene::load(&args.scene)?;
+    let scene = args.select.apply(Scene::load(&args.scene)?)?;
     let run = read_run(&args.track)?;
     let report =
         evaluate(&scene, &run).with_context(|| format!("evaluating {}", args.track.display()))?;

@@ -12,6 +12,7 @@ mod eval;
 mod progress;
 mod report;
 mod runfolder;
+mod select;
 mod synth;
 mod track;
 

@@ -11,6 +11,8 @@ pub struct Args {
     /// The scene file.
     #[arg(long)]
     scene: PathBuf,
+    #[command(flatten)]
+    select: crate::select::SelectArgs,
     /// A run to show, as NAME=DIR (DIR holds one OBJ per frame and optionally log.jsonl);
     /// repeat for several runs.
     #[arg(long = "run", value_name = "NAME=DIR", required = true)]
@@ -37,7 +39,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         }
         runs.push((name.to_string(), PathBuf::from(dir)));
     }
-    let scene = Scene::load(&args.scene)?;
+    let scene = args.select.apply(Scene::load(&args.scene)?)?;
     let opts = ReportOptions {
         frames: args.frames,
         oblique_degrees: args.oblique_degrees,

@@ -169,6 +169,8 @@ pub struct Args {
     scene: std::path::PathBuf,
     #[command(flatten)]
     out: OutArgs,
+    #[command(flatten)]
+    select: crate::select::SelectArgs,
     /// Continue the run in --out from its last complete frame (same scene, same options); the
     /// result is identical to an uninterrupted run.
     #[arg(long, conflicts_with = "force")]
@@ -185,7 +187,7 @@ pub struct Args {
 const SLIVER_RATIO: f64 = 1e-3;
 
 pub fn run(args: Args, invocation: &Invocation) -> anyhow::Result<()> {
-    let scene = Scene::load(&args.scene)?;
+    let scene = args.select.apply(Scene::load(&args.scene)?)?;
     let slivers = scene.mesh.slivers(SLIVER_RATIO);
     if let Some(&(first, r)) = slivers.first() {
         let [a, b, c] = scene.mesh.triangles[first].map(|v| v + 1);

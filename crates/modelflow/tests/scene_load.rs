@@ -614,3 +614,76 @@ fn scene_with_ply_mesh_exr_and_tiff_images() {
     assert_eq!(imgs[0].get(10, 3), [0.5, 2.5, 2.0]);
     assert_eq!(imgs[1].get(10, 3), [3000.0 / 65535.0, 1.0, 0.0]);
 }
+
+#[test]
+fn frame_offset_reads_a_later_file_for_each_frame() {
+    let dir = tempfile::tempdir().unwrap();
+    let (path, mut file) = write_scene(dir.path());
+    // cam1 started 2 frames early: its file number f + 2 shows scene frame f. Files 2..=4 are
+    // a distinct image each (the red channel holds the file number).
+    for n in 0..FRAMES + 2 {
+        let img = modelflow::RgbImage::from_fn(W as usize, H as usize, |_, _| {
+            [n as f32 / 10.0, 0.0, 0.0]
+        });
+        write_png(&dir.path().join(format!("images/cam1/{n:04}.png")), &img).unwrap();
+    }
+    file.cameras[1].frame_offset = 2;
+    file.write(&path).unwrap();
+    let scene = Scene::load(&path).unwrap();
+    for f in 0..FRAMES {
+        let red = scene.load_images(f).unwrap()[1].get(3, 3)[0];
+        assert!(
+            (red - (f + 2) as f32 / 10.0).abs() < 0.003,
+            "frame {f}: {red}"
+        );
+    }
+    // Reading past the last file is the usual missing-image error, naming the file.
+    std::fs::remove_file(
+        dir.path()
+            .join(format!("images/cam1/{:04}.png", FRAMES + 1)),
+    )
+    .unwrap();
+    assert_names(
+        &load_err(&path),
+        &["cameras[1].images", "0004.png", "image not found"],
+    );
+    // A negative offset that reaches before file 0 is refused with its field.
+    file.cameras[1].frame_offset = -1;
+    file.write(&path).unwrap();
+    assert_names(
+        &load_err(&path),
+        &["cameras[1].frame_offset", "file number -1 for frame 0"],
+    );
+}
+
+#[test]
+fn a_shorter_range_other_cameras_or_another_mesh_are_checked() {
+    let dir = tempfile::tempdir().unwrap();
+    let (path, _) = write_scene(dir.path());
+    let scene = Scene::load(&path).unwrap();
+    let part = scene.with_frames(1, 2).unwrap();
+    assert_eq!(
+        (part.first, part.last, part.mesh.clone()),
+        (1, 2, scene.mesh.clone())
+    );
+    assert!(scene
+        .with_frames(1, FRAMES)
+        .unwrap_err()
+        .to_string()
+        .contains("--frames"));
+    let swapped = scene.with_cameras(&["cam1".into(), "cam0".into()]).unwrap();
+    assert_eq!(swapped.cameras[0].name, "cam1");
+    assert_eq!(swapped.images[0], scene.images[1]);
+    let e = scene
+        .with_cameras(&["cam0".into()])
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("fewer than two cameras"), "{e}");
+    // Another mesh must match the ground truth's vertex count.
+    let small = dir.path().join("small.obj");
+    std::fs::write(&small, "v 0 0 0\nv 0.1 0 0\nv 0 0.1 0\nf 1 2 3\n").unwrap();
+    assert_names(
+        &scene.with_mesh(&small).unwrap_err().to_string(),
+        &["small.obj", "3 vertices", "ground truth"],
+    );
+}

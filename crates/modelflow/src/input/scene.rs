@@ -58,7 +58,15 @@ pub struct CameraEntry {
     /// Lens distortion of the frames (with `K`; see `docs/scene-format.md`).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub distortion: Option<DistortionEntry>,
+    /// This camera's image of scene frame `f` is its file number `f + frame_offset` (for rigs
+    /// whose cameras were not started together).
+    #[serde(default, skip_serializing_if = "is_zero")]
+    pub frame_offset: i64,
     pub images: String,
+}
+
+fn is_zero(v: &i64) -> bool {
+    *v == 0
 }
 
 /// A camera's lens distortion as written in the scene file.
@@ -86,6 +94,8 @@ pub struct PoseEntry {
 pub struct FramePattern {
     pub base: PathBuf,
     pub pattern: String,
+    /// Added to the frame number before it is put into the pattern.
+    pub offset: i64,
 }
 
 /// A loaded, validated scene.
@@ -114,6 +124,82 @@ impl Scene {
     pub fn dir(&self) -> &Path {
         self.path.parent().unwrap_or(Path::new("."))
     }
+
+    /// The same scene over frames `first..=last` only (within the scene's frames), with its mesh
+    /// taken as lined up with frame `first`: what `track --frames A..B` runs on. At least two
+    /// cameras must see the mesh at `first`.
+    pub fn with_frames(&self, first: u32, last: u32) -> Result<Scene> {
+        if first > last || first < self.first || last > self.last {
+            return Err(Error::option(
+                "--frames",
+                format!("{first}..{last}"),
+                format!(
+                    "A..B with {} <= A <= B <= {} (the frames of {})",
+                    self.first,
+                    self.last,
+                    self.path.display()
+                ),
+            ));
+        }
+        check_seen(&self.path, &self.cameras, first, &self.mesh)?;
+        Ok(Scene {
+            first,
+            last,
+            ..self.clone()
+        })
+    }
+
+    /// The same scene with another mesh file as the mesh lined up with frame `first` (e.g. the
+    /// last mesh of an earlier run, to go on from there). The ground truth, if any, must have its
+    /// vertex count.
+    pub fn with_mesh(&self, mesh: &Path) -> Result<Scene> {
+        let m = read_mesh(mesh)?;
+        if self.ground_truth.is_some() && m.positions.len() != self.mesh.positions.len() {
+            return Err(Error::invalid(
+                mesh,
+                "vertices",
+                format!(
+                    "{} vertices, but the scene's mesh and ground truth have {}",
+                    m.positions.len(),
+                    self.mesh.positions.len()
+                ),
+            ));
+        }
+        check_seen(&self.path, &self.cameras, self.first, &m)?;
+        Ok(Scene {
+            mesh: m,
+            ..self.clone()
+        })
+    }
+
+    /// The same scene with only the named cameras, in the order named: what `track --cameras`
+    /// runs on. Every name must be a camera of the scene, none twice, and at least two of them
+    /// must see the mesh at the first frame.
+    pub fn with_cameras(&self, names: &[String]) -> Result<Scene> {
+        let all: Vec<&str> = self.cameras.iter().map(|c| c.name.as_str()).collect();
+        let mut picked: Vec<usize> = Vec::with_capacity(names.len());
+        for n in names {
+            let i = all.iter().position(|c| c == n).ok_or_else(|| {
+                Error::option(
+                    "--cameras",
+                    n,
+                    format!("names of the scene's cameras: {}", all.join(", ")),
+                )
+            })?;
+            if picked.contains(&i) {
+                return Err(Error::option("--cameras", n, "each camera named once"));
+            }
+            picked.push(i);
+        }
+        let cameras: Vec<Camera> = picked.iter().map(|&i| self.cameras[i].clone()).collect();
+        check_seen(&self.path, &cameras, self.first, &self.mesh)?;
+        Ok(Scene {
+            cameras,
+            images: picked.iter().map(|&i| self.images[i].clone()).collect(),
+            undistort: picked.iter().map(|&i| self.undistort[i].clone()).collect(),
+            ..self.clone()
+        })
+    }
 }
 
 impl FramePattern {
@@ -130,12 +216,20 @@ impl FramePattern {
         Ok(FramePattern {
             base: base.into(),
             pattern,
+            offset: 0,
         })
     }
 
-    /// The file of `frame`: `{frame}` becomes the plain number, `{frame:0N}` the number
-    /// zero-padded to `N` digits; relative patterns are joined to `base`.
+    /// The same pattern reading file number `frame + offset` for `frame`.
+    pub fn with_offset(self, offset: i64) -> Self {
+        FramePattern { offset, ..self }
+    }
+
+    /// The file of `frame`: `{frame}` becomes the plain number `frame + offset`, `{frame:0N}`
+    /// that number zero-padded to `N` digits; relative patterns are joined to `base`. (The scene
+    /// reader refuses offsets that make a used frame's number negative.)
     pub fn path(&self, frame: u32) -> PathBuf {
+        let frame = frame as i64 + self.offset;
         let mut s = String::with_capacity(self.pattern.len() + 8);
         match split_pattern(&self.pattern) {
             Ok(pieces) => {
@@ -510,6 +604,31 @@ fn build_camera(path: &Path, i: usize, c: &CameraEntry, first: u32, last: u32) -
     Ok(camera.with_lens(lens))
 }
 
+/// At least two cameras must see the mesh at `first` (see [`MIN_VISIBLE_SHARE`]).
+fn check_seen(path: &Path, cameras: &[Camera], first: u32, mesh: &Mesh) -> Result<()> {
+    let shares: Vec<f64> = cameras
+        .iter()
+        .map(|c| visible_share(c, first, mesh))
+        .collect();
+    if shares.iter().filter(|&&s| s >= MIN_VISIBLE_SHARE).count() < 2 {
+        let detail: Vec<String> = cameras
+            .iter()
+            .zip(&shares)
+            .map(|(c, s)| format!("{} sees {:.0}%", c.name, 100.0 * s))
+            .collect();
+        return Err(Error::invalid(
+                path,
+                "cameras",
+                format!(
+                    "the mesh is seen by fewer than two cameras at frame {first} (a camera sees it when at least {:.0}% of its vertices project inside the image, in front of the camera): {}",
+                    100.0 * MIN_VISIBLE_SHARE,
+                    detail.join(", ")
+                ),
+            ));
+    }
+    Ok(())
+}
+
 /// A camera's lens, validated: known model, right number of finite coefficients, and a model
 /// that stays one-to-one over the image's central region (coefficients in the wrong order or
 /// for another unit fold it over near the centre). Identity coefficients give no lens.
@@ -632,9 +751,21 @@ impl Scene {
                 ));
             }
             cameras.push(build_camera(path, i, c, first, last)?);
+            if first as i64 + c.frame_offset < 0 {
+                return Err(Error::invalid(
+                    path,
+                    format!("cameras[{i}].frame_offset"),
+                    format!(
+                        "{} would read file number {} for frame {first}; file numbers start at 0",
+                        c.frame_offset,
+                        first as i64 + c.frame_offset
+                    ),
+                ));
+            }
             images.push(
                 FramePattern::new(&base, &c.images)
-                    .map_err(|m| Error::invalid(path, format!("cameras[{i}].images"), m))?,
+                    .map_err(|m| Error::invalid(path, format!("cameras[{i}].images"), m))?
+                    .with_offset(c.frame_offset),
             );
         }
         let ground_truth = match &file.ground_truth {
@@ -701,26 +832,7 @@ impl Scene {
             }
         }
         // The mesh must be seen by at least two cameras at the first frame.
-        let shares: Vec<f64> = cameras
-            .iter()
-            .map(|c| visible_share(c, first, &mesh))
-            .collect();
-        if shares.iter().filter(|&&s| s >= MIN_VISIBLE_SHARE).count() < 2 {
-            let detail: Vec<String> = cameras
-                .iter()
-                .zip(&shares)
-                .map(|(c, s)| format!("{} sees {:.0}%", c.name, 100.0 * s))
-                .collect();
-            return Err(Error::invalid(
-                path,
-                "cameras",
-                format!(
-                    "the mesh is seen by fewer than two cameras at frame {first} (a camera sees it when at least {:.0}% of its vertices project inside the image, in front of the camera): {}",
-                    100.0 * MIN_VISIBLE_SHARE,
-                    detail.join(", ")
-                ),
-            ));
-        }
+        check_seen(path, &cameras, first, &mesh)?;
         let undistort = cameras
             .iter()
             .map(|c| {

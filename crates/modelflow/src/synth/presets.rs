@@ -741,6 +741,7 @@ impl Synthetic {
                         model: l.distortion().model().to_string(),
                         coefficients: l.distortion().coefficients(),
                     }),
+                    frame_offset: 0,
                     images: format!("images/{}/{{frame:04}}.png", cam.name),
                 })
                 .collect(),

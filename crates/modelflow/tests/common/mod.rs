@@ -46,6 +46,7 @@ pub fn camera(name: &str, eye: Point3<f64>) -> CameraEntry {
         poses: None,
         p: None,
         distortion: None,
+        frame_offset: 0,
         images: format!("images/{name}/{{frame:04}}.png"),
     }
 }

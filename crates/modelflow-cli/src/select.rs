@@ -1,0 +1,70 @@
+//! `--frames A..B`, `--cameras NAME,...` and `--mesh FILE`, shared by the commands that read a scene (`track`,
+//! `baseline`, `eval`, `report`): parsing here, the selection itself in the library
+//! (`Scene::with_frames`, `Scene::with_cameras`, `Scene::with_mesh`).
+
+use modelflow::input::Scene;
+
+#[derive(clap::Args, Clone, Debug, Default)]
+pub struct SelectArgs {
+    /// Only frames A..B (inclusive, within the scene's); the scene's mesh is taken as lined up
+    /// with frame A.
+    #[arg(long, value_name = "A..B", value_parser = parse_frames)]
+    pub frames: Option<(u32, u32)>,
+    /// Only these cameras (names as in the scene, comma-separated); at least two must see the
+    /// mesh at the first frame.
+    #[arg(long, value_name = "NAME,...", value_delimiter = ',')]
+    pub cameras: Option<Vec<String>>,
+    /// The mesh lined up with the first frame, instead of the scene's (OBJ or PLY; e.g. an
+    /// earlier run's last frame, to go on from there with --frames).
+    #[arg(long, value_name = "FILE")]
+    pub mesh: Option<std::path::PathBuf>,
+}
+
+impl SelectArgs {
+    /// The scene restricted as asked (unchanged when nothing is asked).
+    pub fn apply(&self, scene: Scene) -> modelflow::Result<Scene> {
+        let scene = match &self.cameras {
+            Some(names) => scene.with_cameras(names)?,
+            None => scene,
+        };
+        let scene = match self.frames {
+            Some((a, b)) => scene.with_frames(a, b)?,
+            None => scene,
+        };
+        match &self.mesh {
+            Some(m) => scene.with_mesh(m),
+            None => Ok(scene),
+        }
+    }
+}
+
+fn parse_frames(s: &str) -> Result<(u32, u32), String> {
+    let bad = || format!("expected A..B with frame numbers A <= B (e.g. 10..40), got {s:?}");
+    let (a, b) = s.split_once("..").ok_or_else(bad)?;
+    let b = b.strip_prefix('=').unwrap_or(b);
+    let (a, b) = (
+        a.trim().parse::<u32>().map_err(|_| bad())?,
+        b.trim().parse::<u32>().map_err(|_| bad())?,
+    );
+    if a > b {
+        return Err(bad());
+    }
+    Ok((a, b))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::parse_frames;
+
+    #[test]
+    fn frame_ranges_parse_inclusive_and_refuse_the_rest() {
+        assert_eq!(parse_frames("10..40"), Ok((10, 40)));
+        assert_eq!(parse_frames("3..=3"), Ok((3, 3)));
+        for bad in ["10", "40..10", "a..b", "-1..3", "1...3"] {
+            assert!(
+                parse_frames(bad).unwrap_err().contains("expected A..B"),
+                "{bad}"
+            );
+        }
+    }
+}
