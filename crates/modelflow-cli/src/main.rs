@@ -9,6 +9,7 @@ mod bench;
 mod capture;
 mod demo;
 mod eval;
+mod import;
 mod progress;
 mod report;
 mod runfolder;
@@ -37,6 +38,8 @@ enum Command {
     Baseline(baseline::Args),
     /// Score a run folder against the scene's ground truth.
     Eval(eval::Args),
+    /// Write a scene file from a calibration made by another tool (COLMAP, OpenCV).
+    Import(import::Args),
     /// Write an HTML report comparing runs: error plot, overlays, oblique and error views.
     Report(report::Args),
     /// Track the scene's mesh through every frame (Model Flow).
@@ -64,6 +67,7 @@ fn main() -> std::process::ExitCode {
         Command::Bench(a) => bench::run(a),
         Command::Demo(a) => demo::run(a),
         Command::Eval(a) => eval::run(a),
+        Command::Import(a) => import::run(a),
         Command::Report(a) => report::run(a),
         Command::Track(a) => track::run(a, &sub),
         Command::Synth(a) => synth::run(a),

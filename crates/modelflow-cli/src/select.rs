@@ -38,7 +38,7 @@ impl SelectArgs {
     }
 }
 
-fn parse_frames(s: &str) -> Result<(u32, u32), String> {
+pub fn parse_frames(s: &str) -> Result<(u32, u32), String> {
     let bad = || format!("expected A..B with frame numbers A <= B (e.g. 10..40), got {s:?}");
     let (a, b) = s.split_once("..").ok_or_else(bad)?;
     let b = b.strip_prefix('=').unwrap_or(b);

@@ -1,7 +1,9 @@
 //! Everything that enters from disk: the scene format (`scene`), mesh files (`meshio`: OBJ, PLY)
-//! and image files (`imageio`: PNG, JPEG, TIFF, OpenEXR). Each reader validates what it reads and
+//! image files (`imageio`: PNG, JPEG, TIFF, OpenEXR) and calibrations made by other tools
+//! (`calib`: COLMAP, OpenCV `FileStorage`). Each reader validates what it reads and
 //! names the file and the field or line at fault. Nothing here tracks, renders or scores.
 
+pub mod calib;
 pub(crate) mod imageio;
 pub(crate) mod meshio;
 pub(crate) mod scene;

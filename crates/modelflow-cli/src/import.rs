@@ -1,0 +1,107 @@
+//! `modelflow import`: writes a scene file from a calibration made by another tool (a COLMAP
+//! sparse model, an OpenCV `FileStorage` file), with the user's mesh, image pattern and frames.
+//! The readers and the conversion of conventions are the library's (`input::calib`).
+
+use modelflow::input::calib::{read_colmap, read_opencv, scene_file};
+use modelflow::input::Scene;
+use std::path::PathBuf;
+
+#[derive(clap::ValueEnum, Clone, Copy, Debug)]
+pub enum Format {
+    /// A COLMAP sparse model folder (cameras.txt + images.txt, or the .bin files).
+    Colmap,
+    /// An OpenCV FileStorage file (.yml, .yaml or .json) from camera or stereo calibration.
+    Opencv,
+}
+
+#[derive(clap::Args)]
+pub struct Args {
+    /// What the calibration is.
+    #[arg(value_enum)]
+    format: Format,
+    /// The calibration: a COLMAP model folder, or an OpenCV file.
+    input: PathBuf,
+    /// The scene file to write.
+    #[arg(long)]
+    out: PathBuf,
+    /// The mesh lined up with the first frame, as the scene file will name it (relative to the
+    /// scene file's folder).
+    #[arg(long, default_value = "mesh/initial.obj")]
+    mesh: String,
+    /// Each camera's images: {camera} becomes the camera's name, {frame:04} the frame number
+    /// (relative to the scene file's folder).
+    #[arg(long, default_value = "images/{camera}/{frame:04}.png")]
+    images: String,
+    /// The frames, A..B inclusive.
+    #[arg(long, value_name = "A..B", default_value = "0..0", value_parser = crate::select::parse_frames)]
+    frames: (u32, u32),
+    /// The image size of cameras whose calibration gives none (OpenCV files without
+    /// image_width/image_height), as WxH.
+    #[arg(long, value_name = "WxH", value_parser = parse_size)]
+    size: Option<(u32, u32)>,
+    /// Replace an existing scene file.
+    #[arg(long)]
+    force: bool,
+}
+
+fn parse_size(s: &str) -> Result<(u32, u32), String> {
+    let bad = || format!("expected WxH with positive integers (e.g. 1920x1080), got {s:?}");
+    let (w, h) = s.split_once(['x', 'X']).ok_or_else(bad)?;
+    match (w.trim().parse::<u32>(), h.trim().parse::<u32>()) {
+        (Ok(w), Ok(h)) if w > 0 && h > 0 => Ok((w, h)),
+        _ => Err(bad()),
+    }
+}
+
+pub fn run(args: Args) -> anyhow::Result<()> {
+    if args.out.exists() && !args.force {
+        anyhow::bail!("{} exists; give --force to replace it", args.out.display());
+    }
+    if !args.images.contains("{frame") {
+        anyhow::bail!(
+            "--images {:?}: needs a {{frame}} or {{frame:0N}} placeholder",
+            args.images
+        );
+    }
+    let cameras = match args.format {
+        Format::Colmap => read_colmap(&args.input)?,
+        Format::Opencv => read_opencv(&args.input, args.size)?,
+    };
+    if cameras.len() > 1 && !args.images.contains("{camera}") {
+        anyhow::bail!(
+            "--images {:?}: needs a {{camera}} placeholder for {} cameras",
+            args.images,
+            cameras.len()
+        );
+    }
+    let (first, last) = args.frames;
+    let file = scene_file(&cameras, &args.mesh, &args.images, first, last);
+    file.write(&args.out)?;
+    for c in &cameras {
+        let lens = match &c.distortion {
+            Some(d) => format!("{} {:?}", d.model(), d.coefficients()),
+            None => "pinhole".into(),
+        };
+        eprintln!(
+            "  {:<12} {}x{}  f {:.2}, {:.2}  c {:.2}, {:.2}  {lens}",
+            c.name,
+            c.width,
+            c.height,
+            c.k[(0, 0)],
+            c.k[(1, 1)],
+            c.k[(0, 2)],
+            c.k[(1, 2)]
+        );
+    }
+    eprintln!(
+        "wrote {} ({} cameras, frames {first}..={last})",
+        args.out.display(),
+        cameras.len()
+    );
+    // The scene is complete only with its mesh and images in place: say what is missing.
+    if let Err(e) = Scene::load(&args.out) {
+        eprintln!("note: the scene does not load yet: {e}");
+    }
+    println!("{}", args.out.display());
+    Ok(())
+}

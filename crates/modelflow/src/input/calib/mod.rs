@@ -1,0 +1,97 @@
+//! Calibration importers: the camera files users already have (COLMAP sparse models, OpenCV
+//! `FileStorage` files) turned into the cameras of a `modelflow-scene/1` file, in our
+//! conventions (OpenCV pinhole, pixel centres at integers, world-to-camera `R`, `t`; see
+//! `docs/scene-format.md`, "Importing a calibration"). Each reader converts its tool's own
+//! conventions and names the file, line and field of anything it cannot use.
+
+mod colmap;
+mod opencv;
+
+pub use colmap::read_colmap;
+pub use opencv::read_opencv;
+
+use crate::base::camera::is_rotation;
+use crate::base::lens::Distortion;
+use crate::input::scene::{CameraEntry, DistortionEntry, FrameRange, SceneFile, FORMAT};
+use nalgebra::{Matrix3, Vector3};
+
+/// One calibrated camera of a rig, as an importer read it.
+#[derive(Clone, Debug, PartialEq)]
+pub struct CalibratedCamera {
+    pub name: String,
+    pub width: u32,
+    pub height: u32,
+    /// Camera matrix with pixel centres at integer coordinates.
+    pub k: Matrix3<f64>,
+    /// World to camera: `x = R·X + t`.
+    pub r: Matrix3<f64>,
+    pub t: Vector3<f64>,
+    pub distortion: Option<Distortion>,
+}
+
+/// A scene file for `cameras`: the mesh file and frames as given, and each camera's images at
+/// `images` with `{camera}` replaced by its name (paths relative to the scene file's folder).
+pub fn scene_file(
+    cameras: &[CalibratedCamera],
+    mesh: &str,
+    images: &str,
+    first: u32,
+    last: u32,
+) -> SceneFile {
+    let rows = |m: &Matrix3<f64>| [0, 1, 2].map(|i| [0, 1, 2].map(|j| m[(i, j)]));
+    SceneFile {
+        format: FORMAT.into(),
+        frames: FrameRange { first, last },
+        mesh: mesh.into(),
+        cameras: cameras
+            .iter()
+            .map(|c| CameraEntry {
+                name: c.name.clone(),
+                width: c.width,
+                height: c.height,
+                k: Some(rows(&c.k)),
+                r: Some(rows(&c.r)),
+                t: Some([c.t.x, c.t.y, c.t.z]),
+                poses: None,
+                p: None,
+                distortion: c.distortion.as_ref().map(|d| DistortionEntry {
+                    model: d.model().into(),
+                    coefficients: d.coefficients(),
+                }),
+                frame_offset: 0,
+                images: images.replace("{camera}", &c.name),
+            })
+            .collect(),
+        ground_truth: None,
+    }
+}
+
+/// The rotation of a unit quaternion `(w, x, y, z)` (normalised first).
+pub(crate) fn quaternion_rotation(w: f64, x: f64, y: f64, z: f64) -> Option<Matrix3<f64>> {
+    let n = (w * w + x * x + y * y + z * z).sqrt();
+    if !(n.is_finite() && n > 1e-12) {
+        return None;
+    }
+    let (w, x, y, z) = (w / n, x / n, y / n, z / n);
+    Some(Matrix3::new(
+        1.0 - 2.0 * (y * y + z * z),
+        2.0 * (x * y - w * z),
+        2.0 * (x * z + w * y),
+        2.0 * (x * y + w * z),
+        1.0 - 2.0 * (x * x + z * z),
+        2.0 * (y * z - w * x),
+        2.0 * (x * z - w * y),
+        2.0 * (y * z + w * x),
+        1.0 - 2.0 * (x * x + y * y),
+    ))
+}
+
+/// The rotation of a Rodrigues vector (axis times angle), as `cv::Rodrigues`.
+pub(crate) fn rodrigues(v: &Vector3<f64>) -> Matrix3<f64> {
+    nalgebra::Rotation3::new(*v).into_inner()
+}
+
+/// Whether `r` is a rotation within the scene format's tolerance.
+pub(crate) fn check_rotation(r: &Matrix3<f64>) -> bool {
+    is_rotation(r, crate::input::scene::ROTATION_TOLERANCE)
+}
