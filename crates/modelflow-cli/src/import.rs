@@ -1,8 +1,8 @@
 //! `modelflow import`: writes a scene file from a calibration made by another tool (a COLMAP
-//! sparse model, an OpenCV `FileStorage` file), with the user's mesh, image pattern and frames.
+//! sparse model, an OpenCV `FileStorage` file, a Metashape camera XML), with the user's mesh, image pattern and frames.
 //! The readers and the conversion of conventions are the library's (`input::calib`).
 
-use modelflow::input::calib::{read_colmap, read_opencv, scene_file};
+use modelflow::input::calib::{read_colmap, read_metashape, read_opencv, scene_file};
 use modelflow::input::Scene;
 use std::path::PathBuf;
 
@@ -12,6 +12,8 @@ pub enum Format {
     Colmap,
     /// An OpenCV FileStorage file (.yml, .yaml or .json) from camera or stereo calibration.
     Opencv,
+    /// An Agisoft Metashape camera XML file (aligned frame cameras).
+    Metashape,
 }
 
 #[derive(clap::Args)]
@@ -19,7 +21,7 @@ pub struct Args {
     /// What the calibration is.
     #[arg(value_enum)]
     format: Format,
-    /// The calibration: a COLMAP model folder, or an OpenCV file.
+    /// The calibration: a COLMAP model folder, an OpenCV file or a Metashape XML file.
     input: PathBuf,
     /// The scene file to write.
     #[arg(long)]
@@ -66,6 +68,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let cameras = match args.format {
         Format::Colmap => read_colmap(&args.input)?,
         Format::Opencv => read_opencv(&args.input, args.size)?,
+        Format::Metashape => read_metashape(&args.input)?,
     };
     if cameras.len() > 1 && !args.images.contains("{camera}") {
         anyhow::bail!(

@@ -38,7 +38,7 @@ enum Command {
     Baseline(baseline::Args),
     /// Score a run folder against the scene's ground truth.
     Eval(eval::Args),
-    /// Write a scene file from a calibration made by another tool (COLMAP, OpenCV).
+    /// Write a scene file from a calibration made by another tool (COLMAP, OpenCV, Metashape).
     Import(import::Args),
     /// Write an HTML report comparing runs: error plot, overlays, oblique and error views.
     Report(report::Args),

@@ -1,6 +1,6 @@
 //! Everything that enters from disk: the scene format (`scene`), mesh files (`meshio`: OBJ, PLY)
 //! image files (`imageio`: PNG, JPEG, TIFF, OpenEXR) and calibrations made by other tools
-//! (`calib`: COLMAP, OpenCV `FileStorage`). Each reader validates what it reads and
+//! (`calib`: COLMAP, OpenCV `FileStorage`, Metashape XML). Each reader validates what it reads and
 //! names the file and the field or line at fault. Nothing here tracks, renders or scores.
 
 pub mod calib;
