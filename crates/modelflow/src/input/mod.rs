@@ -1,5 +1,6 @@
 //! Everything that enters from disk: the scene format (`scene`), mesh files (`meshio`: OBJ, PLY)
-//! image files (`imageio`: PNG, JPEG, TIFF, OpenEXR) and calibrations made by other tools
+//! image files (`imageio`: PNG, JPEG, TIFF, OpenEXR), video files (`video`, through FFmpeg) and
+//! calibrations made by other tools
 //! (`calib`: COLMAP, OpenCV `FileStorage`, Metashape XML). Each reader validates what it reads and
 //! names the file and the field or line at fault. Nothing here tracks, renders or scores.
 
@@ -7,6 +8,7 @@ pub mod calib;
 pub(crate) mod imageio;
 pub(crate) mod meshio;
 pub(crate) mod scene;
+pub mod video;
 
 pub use imageio::{image_size, read_rgb, write_png, write_png16};
 pub use meshio::{parse_obj, parse_ply, read_mesh, read_mesh_with, validate, write_obj, Checks};

@@ -10,10 +10,12 @@ use crate::error::{Error, Result};
 use crate::fsutil::write_atomic;
 use crate::input::imageio::{image_size, read_rgb};
 use crate::input::meshio::read_mesh;
+use crate::input::video::{is_video, VideoReader, VIDEO_EXTENSIONS};
 use nalgebra::{Matrix3, Matrix3x4, Vector3};
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
+use std::sync::{Arc, Mutex};
 
 /// The format tag of this version of the scene format.
 pub const FORMAT: &str = "modelflow-scene/1";
@@ -94,8 +96,11 @@ pub struct PoseEntry {
 pub struct FramePattern {
     pub base: PathBuf,
     pub pattern: String,
-    /// Added to the frame number before it is put into the pattern.
+    /// Added to the frame number before it is put into the pattern (or, for a video, before
+    /// the frame is read from it).
     pub offset: i64,
+    /// The pattern is one video file holding every frame (see `input::video`).
+    pub video: bool,
 }
 
 /// A loaded, validated scene.
@@ -114,6 +119,8 @@ pub struct Scene {
     /// Per camera, the resampling from its raw (distorted) frames to pinhole ones; `None` for a
     /// camera without distortion.
     pub undistort: Vec<Option<std::sync::Arc<UndistortMap>>>,
+    /// Per camera, the reader of its video file (`None`: image files).
+    pub videos: Vec<Option<Arc<Mutex<VideoReader>>>>,
 }
 
 impl Scene {
@@ -197,6 +204,7 @@ impl Scene {
             cameras,
             images: picked.iter().map(|&i| self.images[i].clone()).collect(),
             undistort: picked.iter().map(|&i| self.undistort[i].clone()).collect(),
+            videos: picked.iter().map(|&i| self.videos[i].clone()).collect(),
             ..self.clone()
         })
     }
@@ -208,15 +216,23 @@ impl FramePattern {
     pub fn new(base: impl Into<PathBuf>, pattern: impl Into<String>) -> Result<Self, String> {
         let pattern = pattern.into();
         let pieces = split_pattern(&pattern)?;
-        if !pieces.iter().any(|p| matches!(p, Piece::Frame(_))) {
+        let video = is_video(Path::new(&pattern));
+        if !video && !pieces.iter().any(|p| matches!(p, Piece::Frame(_))) {
             return Err(format!(
-                "{pattern:?} has no {{frame}} or {{frame:0N}} placeholder"
+                "{pattern:?} has no {{frame}} or {{frame:0N}} placeholder (and is not a video file: {})",
+                VIDEO_EXTENSIONS.join(", ")
+            ));
+        }
+        if video && pieces.iter().any(|p| matches!(p, Piece::Frame(_))) {
+            return Err(format!(
+                "{pattern:?} is a video file name: it holds every frame, so it takes no {{frame}} placeholder"
             ));
         }
         Ok(FramePattern {
             base: base.into(),
             pattern,
             offset: 0,
+            video,
         })
     }
 
@@ -229,6 +245,9 @@ impl FramePattern {
     /// that number zero-padded to `N` digits; relative patterns are joined to `base`. (The scene
     /// reader refuses offsets that make a used frame's number negative.)
     pub fn path(&self, frame: u32) -> PathBuf {
+        if self.video {
+            return self.base.join(&self.pattern);
+        }
         let frame = frame as i64 + self.offset;
         let mut s = String::with_capacity(self.pattern.len() + 8);
         match split_pattern(&self.pattern) {
@@ -777,7 +796,58 @@ impl Scene {
         // Every image present and of the declared size (headers only, in parallel). Checked in
         // blocks of 64 frames, so that memory does not grow with the frame range; the problem
         // reported is the first in (block, camera, frame) order, whatever the thread count.
+        // Video cameras: the file is probed once for its size and length.
+        let mut videos = Vec::with_capacity(cameras.len());
+        for (i, (pat, cam)) in images.iter().zip(&cameras).enumerate() {
+            if !pat.video {
+                videos.push(None);
+                continue;
+            }
+            let field = format!("cameras[{i}].images");
+            let p = pat.path(first);
+            if !p.is_file() {
+                return Err(Error::invalid(
+                    path,
+                    field,
+                    format!("video not found: {}", p.display()),
+                ));
+            }
+            let reader = VideoReader::open(&p)?;
+            let info = reader.info();
+            if (info.width, info.height) != (cam.width, cam.height) {
+                return Err(Error::invalid(
+                    path,
+                    field,
+                    format!(
+                        "{} is {}x{}, but the camera is declared {}x{}",
+                        p.display(),
+                        info.width,
+                        info.height,
+                        cam.width,
+                        cam.height
+                    ),
+                ));
+            }
+            let need = last as i64 + pat.offset;
+            if need >= info.frames as i64 {
+                return Err(Error::invalid(
+                    path,
+                    field,
+                    format!(
+                        "frame {last} is video frame {need} (frame_offset {}), but {} has {} frames (0..={})",
+                        pat.offset,
+                        p.display(),
+                        info.frames,
+                        info.frames - 1
+                    ),
+                ));
+            }
+            videos.push(Some(Arc::new(Mutex::new(reader))));
+        }
         let check = |i: usize, f: u32| -> Result<()> {
+            if images[i].video {
+                return Ok(());
+            }
             let p = images[i].path(f);
             let field = format!("cameras[{i}].images");
             if !p.is_file() {
@@ -854,6 +924,7 @@ impl Scene {
             images,
             ground_truth,
             undistort,
+            videos,
         })
     }
 
@@ -897,9 +968,18 @@ impl Scene {
         self.cameras
             .par_iter()
             .zip(self.images.par_iter())
-            .map(|(cam, pat)| {
+            .zip(self.videos.par_iter())
+            .map(|((cam, pat), video)| {
                 let p = pat.path(frame);
-                let img = read_rgb(&p)?;
+                let img = match video {
+                    Some(reader) => {
+                        let n = (frame as i64 + pat.offset).max(0) as u64;
+                        // A reader poisoned by a panic elsewhere is still a valid decoder state.
+                        let mut r = reader.lock().unwrap_or_else(|e| e.into_inner());
+                        r.frame(n)?
+                    }
+                    None => read_rgb(&p)?,
+                };
                 if (img.width(), img.height()) != (cam.width as usize, cam.height as usize) {
                     return Err(Error::invalid(
                         &p,

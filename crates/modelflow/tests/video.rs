@@ -1,0 +1,154 @@
+//! Video files as input: frames are read frame-accurately from H.264 MP4 (with B-frames and
+//! several keyframe intervals) in any order, and footage tracked from video matches footage
+//! tracked from the same frames as PNG. Needs FFmpeg's `ffmpeg`/`ffprobe` on the PATH (`.ci/run`
+//! installs them); without them these tests say so and pass without checking.
+
+use modelflow::input::video::{probe, VideoReader};
+use modelflow::input::{write_png, Scene, SceneFile};
+use modelflow::synth::{SynthOptions, Synthetic};
+use modelflow::tracker::{TrackOptions, Tracker};
+use modelflow::RgbImage;
+use std::path::Path;
+use std::process::Command;
+
+fn have_ffmpeg() -> bool {
+    let ok = |t: &str| {
+        Command::new(t)
+            .arg("-version")
+            .output()
+            .is_ok_and(|o| o.status.success())
+    };
+    let have = ok("ffmpeg") && ok("ffprobe");
+    if !have {
+        eprintln!(
+            "SKIPPED: ffmpeg/ffprobe not on the PATH (apt-get install ffmpeg; .ci/run installs it)"
+        );
+    }
+    have
+}
+
+/// Encodes `dir/{frame:04}.png` into an H.264 MP4 (keyframe every 7 frames, B-frames).
+fn encode(dir: &Path, out: &Path, crf: u32) {
+    let st = Command::new("ffmpeg")
+        .args(["-v", "error", "-y", "-framerate", "25", "-i"])
+        .arg(dir.join("%04d.png"))
+        .args([
+            "-c:v", "libx264", "-g", "7", "-bf", "2", "-pix_fmt", "yuv444p", "-crf",
+        ])
+        .arg(crf.to_string())
+        .arg(out)
+        .status()
+        .unwrap();
+    assert!(st.success(), "ffmpeg could not encode {}", dir.display());
+}
+
+#[test]
+fn frames_are_read_frame_accurately_in_any_order() {
+    if !have_ffmpeg() {
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let level = |n: u64| (6 * n) as f32 / 255.0;
+    for n in 0..40u64 {
+        let img = RgbImage::from_fn(64, 48, |x, _| {
+            [level(n), if x < 32 { 0.2 } else { 0.8 }, 0.5]
+        });
+        write_png(&dir.path().join(format!("{n:04}.png")), &img).unwrap();
+    }
+    let video = dir.path().join("clip.mp4");
+    encode(dir.path(), &video, 10);
+    let info = probe(&video).unwrap();
+    assert_eq!((info.width, info.height, info.frames), (64, 48, 40));
+    let mut r = VideoReader::open(&video).unwrap();
+    // In order, then backwards, jumps and repeats.
+    let order: Vec<u64> = (0..40).chain([39, 0, 17, 3, 30, 31, 8, 8]).collect();
+    for n in order {
+        let got = r.frame(n).unwrap().get(10, 20)[0];
+        assert!(
+            (got - level(n)).abs() < 2.5 / 255.0,
+            "frame {n}: red {got}, expected {}",
+            level(n)
+        );
+    }
+    let e = r.frame(40).unwrap_err().to_string();
+    assert!(e.contains("clip.mp4") && e.contains("has 40 frames"), "{e}");
+    // Not a video.
+    std::fs::write(dir.path().join("fake.mp4"), b"not a video").unwrap();
+    let e = probe(&dir.path().join("fake.mp4")).unwrap_err().to_string();
+    assert!(
+        e.contains("fake.mp4") && e.contains("not a readable video"),
+        "{e}"
+    );
+}
+
+/// RMS error of each frame after the first, % of the mesh's size.
+fn track(scene: &Scene) -> Vec<f64> {
+    let mut tr = Tracker::new(
+        &scene.mesh,
+        scene.cameras.clone(),
+        scene.first,
+        &scene.load_images(scene.first).unwrap(),
+        TrackOptions::default(),
+    )
+    .unwrap();
+    let diag = scene.mesh.bbox_diagonal();
+    (scene.first + 1..=scene.last)
+        .map(|f| {
+            tr.step(f, &scene.load_images(f).unwrap()).unwrap();
+            let truth = scene.ground_truth(f).unwrap().unwrap();
+            let sq: f64 = tr
+                .positions()
+                .iter()
+                .zip(&truth.positions)
+                .map(|(p, q)| (p - q).norm_squared())
+                .sum();
+            100.0 * (sq / truth.positions.len() as f64).sqrt() / diag
+        })
+        .collect()
+}
+
+#[test]
+fn footage_from_video_files_is_tracked_like_its_frames() {
+    if !have_ffmpeg() {
+        return;
+    }
+    let opts = SynthOptions {
+        width: 320,
+        height: 240,
+        frames: 5,
+        ..SynthOptions::default()
+    };
+    let dir = tempfile::tempdir().unwrap();
+    let pngs = Synthetic::generate(&opts)
+        .unwrap()
+        .write(&dir.path().join("png"), &|_, _| {})
+        .unwrap();
+    let text = std::fs::read_to_string(&pngs).unwrap();
+    let mut file = SceneFile::parse(&pngs, &text).unwrap();
+    for c in &mut file.cameras {
+        let frames = dir.path().join("png/images").join(&c.name);
+        encode(&frames, &dir.path().join(format!("png/{}.mp4", c.name)), 12);
+        c.images = format!("{}.mp4", c.name);
+    }
+    let videos = dir.path().join("png/video.json");
+    file.write(&videos).unwrap();
+    let from_video = track(&Scene::load(&videos).unwrap());
+    let from_png = track(&Scene::load(&pngs).unwrap());
+    eprintln!("error per frame (%): video {from_video:.4?}, png {from_png:.4?}");
+    for (f, (v, p)) in from_video.iter().zip(&from_png).enumerate() {
+        assert!(
+            *v < 1.5 * p + 0.05,
+            "frame {}: {v:.4} % from video vs {p:.4} % from PNG",
+            f + 1
+        );
+    }
+    // A frame range past the video's end is refused at load, naming the camera.
+    file.frames.last = 9;
+    file.ground_truth = None;
+    file.write(&videos).unwrap();
+    let e = Scene::load(&videos).unwrap_err().to_string();
+    assert!(
+        e.contains("cameras[0].images") && e.contains("has 5 frames"),
+        "{e}"
+    );
+}
