@@ -22,7 +22,7 @@ pub struct Args {
     out: PathBuf,
     /// Frames to draw overlays for, comma separated (default: first, middle, last).
     #[arg(long, value_delimiter = ',')]
-    frames: Option<Vec<u32>>,
+    overlay_frames: Option<Vec<u32>>,
     /// Degrees the oblique camera is turned about the vertical axis.
     #[arg(long, default_value_t = 60.0)]
     oblique_degrees: f64,
@@ -41,7 +41,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     }
     let scene = args.select.apply(Scene::load(&args.scene)?)?;
     let opts = ReportOptions {
-        frames: args.frames,
+        frames: args.overlay_frames,
         oblique_degrees: args.oblique_degrees,
         ..ReportOptions::default()
     };

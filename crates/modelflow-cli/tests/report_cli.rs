@@ -39,7 +39,7 @@ fn report_writes_index_and_chosen_frames() {
         run.as_ref(),
         "--out".as_ref(),
         out.as_os_str(),
-        "--frames".as_ref(),
+        "--overlay-frames".as_ref(),
         "2,7".as_ref(),
     ]);
     assert!(o.status.success(), "{}", text(&o.stderr));
@@ -93,7 +93,7 @@ fn malformed_run_and_unknown_frame_are_reported() {
         run.as_ref(),
         "--out".as_ref(),
         out.as_os_str(),
-        "--frames".as_ref(),
+        "--overlay-frames".as_ref(),
         "3,99".as_ref(),
     ]);
     assert!(!o.status.success());
