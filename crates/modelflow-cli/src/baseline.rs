@@ -9,6 +9,7 @@ use modelflow::input::Scene;
 use std::path::PathBuf;
 
 #[derive(clap::Args)]
+#[command(allow_negative_numbers = true)]
 pub struct Args {
     /// The scene file (modelflow-scene/1 JSON).
     #[arg(long)]
@@ -36,16 +37,22 @@ pub struct Args {
 }
 
 pub fn run(args: Args, invocation: &Invocation) -> anyhow::Result<()> {
-    if args.window < 3 || args.window % 2 == 0 {
-        anyhow::bail!(
-            "--window must be an odd number of pixels >= 3, got {}",
-            args.window
-        );
+    if args.window % 2 == 0 || !(3..=101).contains(&args.window) {
+        return Err(modelflow::Error::option(
+            "--window",
+            args.window,
+            "an odd number of pixels from 3 to 101",
+        )
+        .into());
     }
-    if !(args.fb >= 0.0 && args.max_reprojection > 0.0) {
-        anyhow::bail!("--fb must be >= 0 and --max-reprojection > 0");
+    if !(args.fb.is_finite() && (0.0..=1000.0).contains(&args.fb)) {
+        return Err(modelflow::Error::option(
+            "--fb",
+            args.fb,
+            "a number in [0, 1000] pixels (0 = off)",
+        )
+        .into());
     }
-    let scene = args.select.apply(Scene::load(&args.scene)?)?;
     let defaults = BaselineOptions::default();
     let opts = BaselineOptions {
         seeding: if args.seeding == "chained" {
@@ -55,13 +62,15 @@ pub fn run(args: Args, invocation: &Invocation) -> anyhow::Result<()> {
         },
         lk: LkOptions {
             window_radius: args.window / 2,
-            levels: args.levels.max(1),
+            levels: args.levels,
             forward_backward: (args.fb > 0.0).then_some(args.fb),
             ..defaults.lk.clone()
         },
         max_reprojection_error: args.max_reprojection,
         ..defaults
     };
+    opts.validate()?;
+    let scene = args.select.apply(Scene::load(&args.scene)?)?;
     let run = run_options(args.out.mode(false), invocation);
     let progress = Progress::new("baseline", (scene.last - scene.first) as u64);
     let result = baseline::run(&scene, &opts, &args.out.out, &run, &|f| {

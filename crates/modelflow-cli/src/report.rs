@@ -7,6 +7,7 @@ use modelflow::report::{write_report, ReportOptions};
 use std::path::PathBuf;
 
 #[derive(clap::Args)]
+#[command(allow_negative_numbers = true)]
 pub struct Args {
     /// The scene file.
     #[arg(long)]

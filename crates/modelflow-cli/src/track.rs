@@ -163,6 +163,7 @@ impl TrackArgs {
 }
 
 #[derive(clap::Args)]
+#[command(allow_negative_numbers = true)]
 pub struct Args {
     /// The scene file (modelflow-scene/1).
     #[arg(long)]
@@ -187,6 +188,7 @@ pub struct Args {
 const SLIVER_RATIO: f64 = 1e-3;
 
 pub fn run(args: Args, invocation: &Invocation) -> anyhow::Result<()> {
+    args.track.options().validate()?;
     let scene = args.select.apply(Scene::load(&args.scene)?)?;
     let slivers = scene.mesh.slivers(SLIVER_RATIO);
     if let Some(&(first, r)) = slivers.first() {

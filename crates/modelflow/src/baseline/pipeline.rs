@@ -68,6 +68,56 @@ impl Default for BaselineOptions {
     }
 }
 
+impl BaselineOptions {
+    /// Checks every option against its range before any work, naming it as `modelflow
+    /// baseline` spells it (a huge window or pyramid would allocate without bound).
+    pub fn validate(&self) -> Result<()> {
+        let lk = &self.lk;
+        if !(1..=50).contains(&lk.window_radius) {
+            return Err(Error::option(
+                "--window",
+                2 * lk.window_radius + 1,
+                "an odd number of pixels from 3 to 101",
+            ));
+        }
+        if !(1..=12).contains(&lk.levels) {
+            return Err(Error::option("--levels", lk.levels, "1 to 12"));
+        }
+        if let Some(fb) = lk.forward_backward {
+            if !(fb.is_finite() && fb > 0.0 && fb <= 1000.0) {
+                return Err(Error::option(
+                    "--fb",
+                    fb,
+                    "a number in (0, 1000] pixels (0 = off)",
+                ));
+            }
+        }
+        let r = self.max_reprojection_error;
+        if !(r.is_finite() && r > 0.0 && r <= 1000.0) {
+            return Err(Error::option(
+                "--max-reprojection",
+                r,
+                "a number in (0, 1000] pixels",
+            ));
+        }
+        let finite = |v: f64| v.is_finite() && v >= 0.0;
+        if !(finite(lk.epsilon)
+            && finite(lk.min_eigenvalue)
+            && finite(lk.pyramid_sigma)
+            && lk.pyramid_sigma <= 20.0)
+            || lk.max_iterations == 0
+            || lk.max_iterations > 10000
+        {
+            return Err(Error::option(
+                "baseline options",
+                format!("{lk:?}"),
+                "finite, non-negative numbers, at least one iteration, a blur of at most 20 px",
+            ));
+        }
+        Ok(())
+    }
+}
+
 /// What one frame step did (the baseline's part of a run's log line).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
 pub struct BaselineFrame {
@@ -120,6 +170,7 @@ impl Baseline {
         images: &[RgbImage],
         opts: &BaselineOptions,
     ) -> Result<Baseline> {
+        opts.validate()?;
         check_images(cameras, images, first_frame)?;
         let n = mesh.positions.len();
         Ok(Baseline {
@@ -266,6 +317,7 @@ pub fn run(
     run: &RunOptions,
     on_frame: &(dyn Fn(&FrameLog) + Sync),
 ) -> Result<BaselineSummary> {
+    opts.validate()?;
     if run.mode == OpenMode::Resume {
         return Err(Error::option(
             "resume",

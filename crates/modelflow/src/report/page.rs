@@ -95,6 +95,14 @@ pub fn write_report(
     opts: &ReportOptions,
     out_dir: &Path,
 ) -> Result<ReportSummary> {
+    let deg = opts.oblique_degrees;
+    if !(deg.is_finite() && (-180.0..=180.0).contains(&deg)) {
+        return Err(Error::option(
+            "--oblique-degrees",
+            deg,
+            "a number of degrees in [-180, 180]",
+        ));
+    }
     if runs.is_empty() {
         return Err(Error::option("runs", "none", "at least one run"));
     }

@@ -2,6 +2,7 @@
 //! [`OptionsUsed`], the same resolved and with what they imply, which the tracker runs with and
 //! a run's manifest records (like Ceres' summary, which reports options as given and as used).
 
+use crate::error::{Error, Result};
 use crate::tracker::pyramid::auto_levels;
 use crate::tracker::regularise::{self, Regularisation};
 use crate::tracker::solve::{Interpolation, SolverOptions};
@@ -72,7 +73,161 @@ pub struct OptionsUsed {
     pub regularisers: Vec<String>,
 }
 
+/// One checked option: its name as `modelflow track` spells it, its value, and the valid range
+/// (lower and upper bound, each inclusive or not), written once for the check and the message.
+struct Range {
+    option: &'static str,
+    value: f64,
+    low: (f64, bool),
+    high: (f64, bool),
+    why: &'static str,
+}
+
+impl Range {
+    fn check(&self) -> Result<()> {
+        let (lo, lo_in) = self.low;
+        let (hi, hi_in) = self.high;
+        let v = self.value;
+        let ok = v.is_finite()
+            && (if lo_in { v >= lo } else { v > lo })
+            && (if hi_in { v <= hi } else { v < hi });
+        if ok {
+            return Ok(());
+        }
+        Err(Error::option(
+            self.option,
+            v,
+            format!(
+                "a number in {}{lo}, {hi}{}{}",
+                if lo_in { "[" } else { "(" },
+                if hi_in { "]" } else { ")" },
+                if self.why.is_empty() {
+                    String::new()
+                } else {
+                    format!(" ({})", self.why)
+                }
+            ),
+        ))
+    }
+}
+
 impl TrackOptions {
+    /// Checks every option against its documented range (`docs/tracker.md`, "Options and their
+    /// ranges") before any work, naming the option as `modelflow track` spells it. Non-finite
+    /// values are always refused: they would leave the mesh unmoved or never finish.
+    pub fn validate(&self) -> Result<()> {
+        let s = &self.solver;
+        let r = &self.regularisation;
+        let ranges = [
+            Range {
+                option: "--blur",
+                value: self.blur,
+                low: (0.0, true),
+                high: (20.0, true),
+                why: "pixels",
+            },
+            Range {
+                option: "--anchor-weight",
+                value: self.anchor_weight,
+                low: (0.0, true),
+                high: (100.0, true),
+                why: "",
+            },
+            Range {
+                option: "--spring-k",
+                value: r.spring_k,
+                low: (0.0, true),
+                high: (1e6, true),
+                why: "",
+            },
+            Range {
+                option: "--spring-t",
+                value: r.spring_t,
+                low: (0.0, false),
+                high: (10.0, true),
+                why: "a fraction of the rest length",
+            },
+            Range {
+                option: "--membrane",
+                value: r.membrane,
+                low: (0.0, true),
+                high: (1e6, true),
+                why: "",
+            },
+            Range {
+                option: "--bending",
+                value: r.bending,
+                low: (0.0, true),
+                high: (1e6, true),
+                why: "",
+            },
+            Range {
+                option: "--min-decrease",
+                value: s.min_relative_decrease,
+                low: (0.0, true),
+                high: (1.0, false),
+                why: "a fraction of the cost",
+            },
+            Range {
+                option: "--huber",
+                value: s.huber,
+                low: (0.0, false),
+                high: (10.0, true),
+                why: "RGB residual, image values 0..1",
+            },
+            Range {
+                option: "--tukey-k",
+                value: s.tukey_k,
+                low: (0.0, false),
+                high: (1000.0, true),
+                why: "times the median residual",
+            },
+            Range {
+                option: "--tukey-min",
+                value: s.tukey_min,
+                low: (0.0, true),
+                high: (10.0, true),
+                why: "RGB residual",
+            },
+            Range {
+                option: "--tukey-px",
+                value: s.tukey_px,
+                low: (0.0, true),
+                high: (100.0, true),
+                why: "pixels",
+            },
+            Range {
+                option: "--max-iterations",
+                value: s.max_iterations as f64,
+                low: (1.0, true),
+                high: (10000.0, true),
+                why: "",
+            },
+            Range {
+                option: "--levels",
+                value: self.levels as f64,
+                low: (0.0, true),
+                high: (12.0, true),
+                why: "0 = automatic",
+            },
+            Range {
+                option: "min_cos",
+                value: self.min_cos,
+                low: (0.0, true),
+                high: (1.0, false),
+                why: "cosine",
+            },
+            Range {
+                option: "margin",
+                value: self.margin as f64,
+                low: (0.0, true),
+                high: (64.0, true),
+                why: "pixels",
+            },
+        ];
+        ranges.iter().try_for_each(Range::check)
+    }
+
     /// These options with `levels = 0` (automatic) resolved for images of the given sizes
     /// (width, height): the smallest image decides.
     pub fn resolved_for(&self, sizes: impl IntoIterator<Item = (u32, u32)>) -> TrackOptions {

@@ -106,6 +106,7 @@ impl Tracker {
         images: &[RgbImage],
         opts: TrackOptions,
     ) -> Result<Self> {
+        opts.validate()?;
         if images.len() != cameras.len() {
             return Err(Error::mismatch(
                 "images",

@@ -41,6 +41,7 @@ pub fn track_scene(
     on_frame: &mut dyn FnMut(&FrameLog),
 ) -> Result<TrackSummary> {
     let t_start = Instant::now();
+    opts.validate()?;
     let opts = &opts.resolved_for(scene.cameras.iter().map(|c| (c.width, c.height)));
     let mut summary = write_run(
         out_dir,

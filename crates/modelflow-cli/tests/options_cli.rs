@@ -1,0 +1,79 @@
+//! Every numeric option is checked against its range before any work: a value outside it (NaN,
+//! infinite, negative, absurdly large) stops the command with exit code 1, a message naming the
+//! option, the value and the range, and nothing written; never a panic, a hang or an abort.
+
+use std::path::Path;
+use std::process::Command;
+
+fn fixture_scene() -> &'static Path {
+    Path::new(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../../fixtures/blender-cloth-sample/scene.json"
+    ))
+}
+
+fn refused(cmd: &[&str], extra: &[&str], option: &str, range: &str) {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("out");
+    let o = Command::new(env!("CARGO_BIN_EXE_modelflow"))
+        .args(cmd)
+        .arg("--scene")
+        .arg(fixture_scene())
+        .arg("--out")
+        .arg(&out)
+        .args(extra)
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(1), "{cmd:?} {extra:?}: {err}");
+    assert!(
+        err.contains(option) && err.contains(range) && !err.contains("panicked"),
+        "{cmd:?} {extra:?}: {err}"
+    );
+    assert!(!out.exists(), "{cmd:?} {extra:?} wrote {}", out.display());
+}
+
+#[test]
+fn track_options_out_of_range_are_refused_by_name() {
+    for (opt, value, range) in [
+        ("--blur", "inf", "[0, 20]"),
+        ("--blur", "1000000", "[0, 20]"),
+        ("--huber", "NaN", "(0, 10]"),
+        ("--huber", "-1", "(0, 10]"),
+        ("--anchor-weight", "-1", "[0, 100]"),
+        ("--spring-k", "NaN", "[0, 1000000]"),
+        ("--spring-t", "0", "(0, 10]"),
+        ("--membrane", "-0.5", "[0, 1000000]"),
+        ("--min-decrease", "NaN", "[0, 1)"),
+        ("--max-iterations", "0", "[1, 10000]"),
+        ("--tukey-k", "inf", "(0, 1000]"),
+    ] {
+        refused(&["track"], &[opt, value], &format!("{opt} {value}"), range);
+    }
+}
+
+#[test]
+fn baseline_and_report_options_out_of_range_are_refused_by_name() {
+    for (opt, value, range) in [
+        ("--window", "100001", "3 to 101"),
+        ("--window", "4", "odd"),
+        ("--levels", "0", "1 to 12"),
+        ("--fb", "NaN", "[0, 1000]"),
+        ("--max-reprojection", "-2", "(0, 1000]"),
+    ] {
+        refused(
+            &["baseline"],
+            &[opt, value],
+            &format!("{opt} {value}"),
+            range,
+        );
+    }
+    for value in ["NaN", "inf", "-400"] {
+        refused(
+            &["report", "--run", "a=/nonexistent"],
+            &["--oblique-degrees", value],
+            &format!("--oblique-degrees {value}"),
+            "[-180, 180]",
+        );
+    }
+}
