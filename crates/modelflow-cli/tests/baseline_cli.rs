@@ -33,7 +33,10 @@ fn even_window_is_refused_before_any_work() {
         "20",
     ]);
     assert!(!ok);
-    assert!(err.contains("--window must be an odd number"), "{err}");
+    assert!(
+        err.contains("--window 20: expected an odd number of pixels"),
+        "{err}"
+    );
     assert!(!out.exists(), "nothing written");
 }
 

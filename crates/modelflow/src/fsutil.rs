@@ -44,6 +44,45 @@ pub fn write_atomic_with(
     Ok(())
 }
 
+/// What `path` is when it exists but is not a regular file (`"a folder"`, `"a FIFO"`, ...), so
+/// that readers refuse it with a reason instead of "not found" or a read that never ends.
+pub fn not_a_file(path: &Path) -> Option<&'static str> {
+    let meta = std::fs::metadata(path).ok()?;
+    if meta.is_file() {
+        return None;
+    }
+    if meta.is_dir() {
+        return Some("a folder");
+    }
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::FileTypeExt;
+        let t = meta.file_type();
+        if t.is_fifo() {
+            return Some("a FIFO (named pipe)");
+        }
+        if t.is_char_device() || t.is_block_device() {
+            return Some("a device");
+        }
+        if t.is_socket() {
+            return Some("a socket");
+        }
+    }
+    Some("not a regular file")
+}
+
+/// Refuses a path that exists but is not a regular file, naming what it is.
+pub fn require_file(path: &Path, what: &str) -> Result<()> {
+    match not_a_file(path) {
+        Some(kind) => Err(Error::invalid(
+            path,
+            what,
+            format!("is {kind}, not a regular file"),
+        )),
+        None => Ok(()),
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -687,3 +687,63 @@ fn a_shorter_range_other_cameras_or_another_mesh_are_checked() {
         &["small.obj", "3 vertices", "ground truth"],
     );
 }
+
+#[test]
+fn structural_errors_name_the_json_path_line_and_column() {
+    let dir = tempfile::tempdir().unwrap();
+    let (path, _) = write_scene(dir.path());
+    let text = std::fs::read_to_string(&path).unwrap();
+    let value: serde_json::Value = serde_json::from_str(&text).unwrap();
+    let with = |edit: &dyn Fn(&mut serde_json::Value)| {
+        let mut v = value.clone();
+        edit(&mut v);
+        std::fs::write(&path, serde_json::to_string_pretty(&v).unwrap()).unwrap();
+        load_err(&path)
+    };
+    let e = with(&|v| v["cameras"][0]["K"] = serde_json::json!([[1, 0], [0, 1]]));
+    assert_names(
+        &e,
+        &["scene.json", "cameras[0].K[0] (line ", "invalid length 2"],
+    );
+    let e = with(&|v| v["cameras"][0]["t"] = serde_json::json!([1, 2]));
+    assert_names(&e, &["cameras[0].t (line ", "invalid length 2"]);
+    let e = with(&|v| v["cameras"][1]["width"] = serde_json::json!(-640));
+    assert_names(&e, &["cameras[1].width (line ", "-640"]);
+    let e = with(&|v| v["frames"]["last"] = serde_json::json!("2"));
+    assert_names(&e, &["frames.last (line ", "invalid type"]);
+}
+
+#[test]
+fn paths_that_are_not_regular_files_say_what_they_are() {
+    let dir = tempfile::tempdir().unwrap();
+    let (path, _) = write_scene(dir.path());
+    // The scene "file" is a folder.
+    assert_names(
+        &load_err(dir.path()),
+        &["scene file", "is a folder, not a regular file"],
+    );
+    // An image that is a folder.
+    let img = dir.path().join("images/cam1/0001.png");
+    std::fs::remove_file(&img).unwrap();
+    std::fs::create_dir(&img).unwrap();
+    assert_names(
+        &load_err(&path),
+        &[
+            "cameras[1].images",
+            "frame 1",
+            "0001.png is a folder, not an image file",
+        ],
+    );
+    // A FIFO would block a reader forever.
+    #[cfg(unix)]
+    {
+        let fifo = dir.path().join("fifo.json");
+        let ok = std::process::Command::new("mkfifo")
+            .arg(&fifo)
+            .status()
+            .is_ok_and(|s| s.success());
+        if ok {
+            assert_names(&load_err(&fifo), &["fifo.json", "is a FIFO"]);
+        }
+    }
+}

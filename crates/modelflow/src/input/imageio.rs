@@ -51,6 +51,7 @@ fn open(path: &Path) -> Result<ImageReader<std::io::BufReader<std::fs::File>>> {
 
 /// Reads an image file as RGB `f32` (see the module doc for the value convention).
 pub fn read_rgb(path: &Path) -> Result<RgbImage> {
+    crate::fsutil::require_file(path, "image")?;
     let reader = open(path)?;
     let img = if reader.format() == Some(image::ImageFormat::Jpeg) {
         // Read once: checked for completeness, then decoded from memory.

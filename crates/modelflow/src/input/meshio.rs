@@ -32,6 +32,7 @@ pub fn read_mesh(path: &Path) -> Result<Mesh> {
 
 /// [`read_mesh`] with a choice of checks.
 pub fn read_mesh_with(path: &Path, checks: Checks) -> Result<Mesh> {
+    crate::fsutil::require_file(path, "mesh")?;
     let ext = path
         .extension()
         .map(|e| e.to_string_lossy().to_ascii_lowercase())

@@ -7,7 +7,7 @@ use crate::base::image::RgbImage;
 use crate::base::lens::{Distortion, Lens, UndistortMap};
 use crate::base::mesh::Mesh;
 use crate::error::{Error, Result};
-use crate::fsutil::write_atomic;
+use crate::fsutil::{not_a_file, require_file, write_atomic};
 use crate::input::imageio::{image_size, read_rgb};
 use crate::input::meshio::read_mesh;
 use crate::input::video::{is_video, VideoReader, VIDEO_EXTENSIONS};
@@ -354,10 +354,16 @@ impl SceneFile {
         write_atomic(path, text.as_bytes())
     }
 
-    /// Parses scene JSON, naming the line and column of a syntax error and the field of a
-    /// structural one (`cameras[1]`, `frames`, ...).
+    /// Parses scene JSON straight into the typed structures (no intermediate JSON tree, so
+    /// memory stays proportional to what the scene holds), naming the line and column of any
+    /// error and, for a structural one, the JSON path of the field (`cameras[0].K`,
+    /// `cameras[1].width`).
     pub fn parse(path: &Path, text: &str) -> Result<SceneFile> {
-        let value: serde_json::Value = serde_json::from_str(text).map_err(|e| {
+        #[derive(Deserialize)]
+        struct Tag {
+            format: Option<serde_json::Value>,
+        }
+        let syntax = |e: serde_json::Error| {
             let at = format!("line {} column {}", e.line(), e.column());
             let what = e.to_string().replace(&format!(" at {at}"), "");
             let hint = if what.starts_with("number out of range") {
@@ -366,11 +372,21 @@ impl SceneFile {
                 ""
             };
             Error::invalid(path, at, format!("invalid JSON: {what}{hint}"))
-        })?;
-        let obj = value
-            .as_object()
-            .ok_or_else(|| Error::invalid(path, "(top level)", "expected a JSON object"))?;
-        match obj.get("format") {
+        };
+        // The format tag first: a file of another kind is named as such, not by its first
+        // unexpected field.
+        let tag: Tag = match serde_json::from_str(text) {
+            Ok(t) => t,
+            Err(e) if e.is_syntax() || e.is_eof() => return Err(syntax(e)),
+            Err(_) => {
+                return Err(Error::invalid(
+                    path,
+                    "(top level)",
+                    "expected a JSON object",
+                ));
+            }
+        };
+        match tag.format {
             Some(serde_json::Value::String(f)) if f == FORMAT => {}
             Some(other) => {
                 return Err(Error::invalid(
@@ -387,30 +403,22 @@ impl SceneFile {
                 ))
             }
         }
-        let structural = |field: String, e: serde_json::Error| {
-            Error::invalid(
-                path,
-                field,
-                e.to_string().replace(" at line 0 column 0", ""),
-            )
-        };
-        if let Some(f) = obj.get("frames") {
-            serde_json::from_value::<FrameRange>(f.clone())
-                .map_err(|e| structural("frames".into(), e))?;
-        }
-        if let Some(serde_json::Value::Array(cams)) = obj.get("cameras") {
-            for (i, c) in cams.iter().enumerate() {
-                if let Some(serde_json::Value::Array(poses)) = c.get("poses") {
-                    for (j, p) in poses.iter().enumerate() {
-                        serde_json::from_value::<PoseEntry>(p.clone())
-                            .map_err(|e| structural(format!("cameras[{i}].poses[{j}]"), e))?;
-                    }
-                }
-                serde_json::from_value::<CameraEntry>(c.clone())
-                    .map_err(|e| structural(format!("cameras[{i}]"), e))?;
+        let de = &mut serde_json::Deserializer::from_str(text);
+        serde_path_to_error::deserialize::<_, SceneFile>(de).map_err(|e| {
+            let field = e.path().to_string();
+            let inner = e.into_inner();
+            if inner.is_syntax() || inner.is_eof() {
+                return syntax(inner);
             }
-        }
-        serde_json::from_value::<SceneFile>(value).map_err(|e| structural("(top level)".into(), e))
+            let at = format!("line {} column {}", inner.line(), inner.column());
+            let what = inner.to_string().replace(&format!(" at {at}"), "");
+            let field = if field == "." {
+                "(top level)".to_string()
+            } else {
+                field
+            };
+            Error::invalid(path, format!("{field} ({at})"), what)
+        })
     }
 }
 
@@ -718,6 +726,7 @@ impl Scene {
     /// Reads and validates a scene file: everything a run will need is checked here, so that a
     /// run cannot fail half-way on bad input. Errors name the file and the field at fault.
     pub fn load(path: &Path) -> Result<Scene> {
+        require_file(path, "scene file")?;
         let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
         let file = SceneFile::parse(path, &text)?;
         Scene::from_file(path, &file)
@@ -851,11 +860,11 @@ impl Scene {
             let p = images[i].path(f);
             let field = format!("cameras[{i}].images");
             if !p.is_file() {
-                return Err(Error::invalid(
-                    path,
-                    field,
-                    format!("frame {f}: image not found: {}", p.display()),
-                ));
+                let what = match not_a_file(&p) {
+                    Some(kind) => format!("{} is {kind}, not an image file", p.display()),
+                    None => format!("image not found: {}", p.display()),
+                };
+                return Err(Error::invalid(path, field, format!("frame {f}: {what}")));
             }
             let (w, h) = image_size(&p)?;
             let cam = &cameras[i];
