@@ -17,6 +17,8 @@ pub struct Args {
     #[command(flatten)]
     pub select: crate::select::SelectArgs,
     #[command(flatten)]
+    memory: crate::select::MemoryArgs,
+    #[command(flatten)]
     pub out: OutArgs,
     /// Where each frame's 2D tracks start: `reprojected` (from the triangulated vertex) or
     /// `chained` (each camera's own 2D track continues, as Universal Capture did).
@@ -71,6 +73,7 @@ pub fn run(args: Args, invocation: &Invocation) -> anyhow::Result<()> {
     };
     opts.validate()?;
     let scene = args.select.apply(Scene::load(&args.scene)?)?;
+    args.memory.check(&scene)?;
     let run = run_options(args.out.mode(false), invocation);
     let progress = Progress::new("baseline", (scene.last - scene.first) as u64);
     let result = baseline::run(&scene, &opts, &args.out.out, &run, &|f| {

@@ -20,6 +20,31 @@ pub struct SelectArgs {
     pub mesh: Option<std::path::PathBuf>,
 }
 
+/// `--max-memory`, for the commands that hold every camera's frames (`track`, `baseline`).
+#[derive(clap::Args, Clone, Debug)]
+pub struct MemoryArgs {
+    /// Refuse scenes that would need more memory than this, in GiB, before anything is
+    /// allocated (the estimate is 100 bytes per pixel of every camera).
+    #[arg(long, value_name = "GIB", default_value_t = 16.0)]
+    pub max_memory: f64,
+}
+
+impl MemoryArgs {
+    pub fn check(&self, scene: &Scene) -> modelflow::Result<()> {
+        if !(self.max_memory.is_finite() && self.max_memory > 0.0) {
+            return Err(modelflow::Error::option(
+                "--max-memory",
+                self.max_memory,
+                "a positive number of GiB",
+            ));
+        }
+        scene.check_memory(
+            (self.max_memory * (1u64 << 30) as f64) as u64,
+            "--max-memory",
+        )
+    }
+}
+
 impl SelectArgs {
     /// The scene restricted as asked (unchanged when nothing is asked).
     pub fn apply(&self, scene: Scene) -> modelflow::Result<Scene> {

@@ -172,6 +172,8 @@ pub struct Args {
     out: OutArgs,
     #[command(flatten)]
     select: crate::select::SelectArgs,
+    #[command(flatten)]
+    memory: crate::select::MemoryArgs,
     /// Continue the run in --out from its last complete frame (same scene, same options); the
     /// result is identical to an uninterrupted run.
     #[arg(long, conflicts_with = "force")]
@@ -190,6 +192,7 @@ const SLIVER_RATIO: f64 = 1e-3;
 pub fn run(args: Args, invocation: &Invocation) -> anyhow::Result<()> {
     args.track.options().validate()?;
     let scene = args.select.apply(Scene::load(&args.scene)?)?;
+    args.memory.check(&scene)?;
     let slivers = scene.mesh.slivers(SLIVER_RATIO);
     if let Some(&(first, r)) = slivers.first() {
         let [a, b, c] = scene.mesh.triangles[first].map(|v| v + 1);

@@ -77,3 +77,20 @@ fn baseline_and_report_options_out_of_range_are_refused_by_name() {
         );
     }
 }
+
+#[test]
+fn a_scene_that_needs_more_memory_than_allowed_is_refused_before_loading_frames() {
+    // The fixture: two 320x240 cameras, about 47 MiB by the estimate.
+    refused(
+        &["track"],
+        &["--max-memory", "0.01"],
+        "--max-memory 10 MiB: expected at least ",
+        "MiB: tracking 2 camera(s) of 320x240, 320x240 needs about that much (100 bytes per pixel)",
+    );
+    refused(
+        &["baseline"],
+        &["--max-memory", "NaN"],
+        "--max-memory NaN",
+        "a positive number of GiB",
+    );
+}
