@@ -24,6 +24,9 @@ mod track;
     about = "Markerless capture of deforming geometry from calibrated multi-view footage"
 )]
 struct Cli {
+    /// Worker threads (default: one per CPU core). Results are the same whatever the count.
+    #[arg(long, global = true, value_name = "N")]
+    threads: Option<usize>,
     #[command(subcommand)]
     command: Command,
 }
@@ -62,6 +65,19 @@ fn main() -> std::process::ExitCode {
         command: sub_command,
         matches: sub_matches,
     };
+    if let Some(n) = cli.threads {
+        if !(1..=1024).contains(&n) {
+            eprintln!("error: --threads {n}: expected 1 to 1024");
+            return std::process::ExitCode::from(1);
+        }
+        if let Err(e) = rayon::ThreadPoolBuilder::new()
+            .num_threads(n)
+            .build_global()
+        {
+            eprintln!("error: --threads {n}: {e}");
+            return std::process::ExitCode::from(1);
+        }
+    }
     let result: anyhow::Result<()> = match cli.command {
         Command::Baseline(args) => baseline::run(args, &sub),
         Command::Bench(a) => bench::run(a),

@@ -18,10 +18,13 @@ pub struct Args {
     /// Number of cameras (default: the preset's).
     #[arg(long)]
     cameras: Option<usize>,
+    /// Image width in pixels (16 to 8192).
     #[arg(long, default_value_t = 640)]
     width: u32,
+    /// Image height in pixels (16 to 8192).
     #[arg(long, default_value_t = 480)]
     height: u32,
+    /// Number of frames (1 to 10000).
     #[arg(long, default_value_t = 120)]
     frames: u32,
     /// Standard deviation of Gaussian image noise, intensities in [0, 1].

@@ -23,13 +23,16 @@ pub struct TrackArgs {
     /// Weight of the first frame as a second template (0 = compare with the previous frame only, as in the thesis).
     #[arg(long, default_value_t = TrackOptions::default().anchor_weight)]
     pub anchor_weight: f64,
-    /// Spring constant k of the cubic edge springs (Eq. 5.16).
+    /// Spring constant k of the cubic edge springs (Eq. 5.16) on the edges' strain, each edge
+    /// weighted by its share of the surface's area, so independent of units and triangulation
+    /// (0 = off; 0 to 1e6).
     #[arg(long, default_value_t = TrackOptions::default().regularisation.spring_k)]
     pub spring_k: f64,
     /// Spring threshold T, as a fraction of the rest length (Eq. 5.16).
     #[arg(long, default_value_t = TrackOptions::default().regularisation.spring_t)]
     pub spring_t: f64,
-    /// Weight of the frame-to-frame membrane term (0 = off).
+    /// Weight of the frame-to-frame membrane term, on the edges' change of rate over the mean
+    /// edge length (0 = off; 0 to 1e6).
     #[arg(long, default_value_t = TrackOptions::default().regularisation.membrane)]
     pub membrane: f64,
     /// Weight of the bending term that keeps the mesh's local shape close to its rest shape up to
@@ -59,7 +62,8 @@ pub struct TrackArgs {
     /// kept (the threshold grows by this times the local image gradient).
     #[arg(long, default_value_t = TrackOptions::default().solver.tukey_px)]
     pub tukey_px: f64,
-    /// Gaussian smoothing of the images, in pixels.
+    /// Gaussian smoothing of the images before gradients are taken: its sigma, in pixels of
+    /// each pyramid level (0 to 20).
     #[arg(long, default_value_t = TrackOptions::default().blur)]
     pub blur: f64,
     /// Compare every pixel of the previous frame at full resolution (default: every other one,

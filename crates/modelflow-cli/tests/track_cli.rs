@@ -53,3 +53,44 @@ fn a_sliver_triangle_is_tracked_and_named_in_a_warning() {
     assert!(err.contains(&want), "{err}");
     assert!(!err.contains("STALLED"), "{err}");
 }
+
+#[test]
+fn results_are_the_same_whatever_the_thread_count() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../../fixtures/blender-cloth-sample/scene.json"
+    );
+    let run = |threads: &str| {
+        let out = dir.path().join(format!("t{threads}"));
+        let o = Command::new(env!("CARGO_BIN_EXE_modelflow"))
+            .args([
+                "--threads",
+                threads,
+                "track",
+                "--frames",
+                "0..3",
+                "--scene",
+                scene,
+                "--out",
+            ])
+            .arg(&out)
+            .output()
+            .unwrap();
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        (1..=3)
+            .map(|f| std::fs::read(out.join(format!("{f:04}.obj"))).unwrap())
+            .collect::<Vec<_>>()
+    };
+    assert!(
+        run("1") == run("2"),
+        "one and two threads give different meshes"
+    );
+    let o = Command::new(env!("CARGO_BIN_EXE_modelflow"))
+        .args(["--threads", "0", "track", "--scene", scene, "--out"])
+        .arg(dir.path().join("none"))
+        .output()
+        .unwrap();
+    assert_eq!(o.status.code(), Some(1));
+    assert!(String::from_utf8_lossy(&o.stderr).contains("--threads 0: expected 1 to 1024"));
+}
