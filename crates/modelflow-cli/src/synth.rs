@@ -73,7 +73,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     };
     let start = std::time::Instant::now();
     let synth = Synthetic::generate(&opts)?;
-    let progress = Progress::new(&format!("synth {}", opts.preset), 0);
+    let progress = Progress::new(&format!("synth {} (files written)", opts.preset), 0);
     let scene = synth.write(&args.out, &|done, total| {
         progress.set(done as u64, total as u64)
     })?;
