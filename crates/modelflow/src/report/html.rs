@@ -142,12 +142,12 @@ pub(super) fn page(
     if has_truth {
         let _ = writeln!(
             o,
-            "<tr><th>run</th><th>mean RMS error<br>(scene units)</th><th>mean RMS error<br>(% bbox)</th><th>final RMS error<br>(scene units)</th><th>final RMS error<br>(% bbox)</th><th>max vertex error, final<br>(scene units)</th><th>time per frame<br>(s)</th></tr>"
+            "<tr><th>run</th><th>mean RMS error<br>(scene units)</th><th>mean RMS error<br>(% bbox)</th><th>final RMS error<br>(scene units)</th><th>final RMS error<br>(% bbox)</th><th>max vertex error, final<br>(scene units)</th><th>time per frame<br>(ms, median)</th></tr>"
         );
     } else {
         let _ = writeln!(
             o,
-            "<tr><th>run</th><th>mean photometric cost<br>(×10<sup>−3</sup>)</th><th>final photometric cost<br>(×10<sup>−3</sup>)</th><th>time per frame<br>(s)</th></tr>"
+            "<tr><th>run</th><th>mean photometric cost<br>(×10<sup>−3</sup>)</th><th>final photometric cost<br>(×10<sup>−3</sup>)</th><th>time per frame<br>(ms, median)</th></tr>"
         );
     }
     for (i, r) in runs.iter().enumerate() {
@@ -178,7 +178,14 @@ pub(super) fn page(
                 num(c.last().copied().flatten().map(|v| 1e3 * v))
             );
         }
-        let _ = writeln!(o, "<td>{}</td></tr>", num(r.seconds_per_frame));
+        let _ = writeln!(
+            o,
+            "<td>{}</td></tr>",
+            match r.seconds_per_frame {
+                Some(s) => format!("{:.0}", s * 1e3),
+                None => "—".into(),
+            }
+        );
     }
     let _ = writeln!(o, "</table>");
     let _ = writeln!(
