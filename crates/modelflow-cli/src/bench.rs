@@ -13,6 +13,7 @@ use serde::Serialize;
 use std::path::PathBuf;
 
 #[derive(clap::Args)]
+#[command(allow_negative_numbers = true)]
 pub struct Args {
     /// Scene to time (default: the synthetic default cloth, written once into --work).
     #[arg(long)]
@@ -67,8 +68,17 @@ struct BenchReport {
 
 pub fn run(args: Args) -> anyhow::Result<()> {
     if args.capture_range {
-        if args.speeds.is_empty() || args.speeds.windows(2).any(|w| w[0] >= w[1]) {
-            anyhow::bail!("--speeds {:?}: expected ascending speeds", args.speeds);
+        if args.speeds.is_empty()
+            || args
+                .speeds
+                .iter()
+                .any(|v| !(v.is_finite() && (0.0..=1000.0).contains(v)))
+            || args.speeds.windows(2).any(|w| w[0] >= w[1])
+        {
+            anyhow::bail!(
+                "--speeds {:?}: expected ascending speeds from 0 to 1000 pixels per frame",
+                args.speeds
+            );
         }
         let report = capture::measure(&capture::CaptureOptions {
             preset: args.preset,

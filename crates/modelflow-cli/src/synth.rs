@@ -6,6 +6,7 @@ use modelflow::synth::{SynthOptions, Synthetic};
 use std::path::PathBuf;
 
 #[derive(clap::Args)]
+#[command(allow_negative_numbers = true)]
 pub struct Args {
     /// Preset: cloth (a hanging, waving, folding sheet; 2 cameras), blob (a closed, turning,
     /// lobed surface; 4 cameras around it) or irregular (the blob on an uneven triangulation with

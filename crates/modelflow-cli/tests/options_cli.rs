@@ -94,3 +94,19 @@ fn a_scene_that_needs_more_memory_than_allowed_is_refused_before_loading_frames(
         "a positive number of GiB",
     );
 }
+
+#[test]
+fn capture_range_speeds_must_be_finite_and_ascending() {
+    for speeds in ["10,NaN", "20,10", "-5"] {
+        let o = Command::new(env!("CARGO_BIN_EXE_modelflow"))
+            .args(["bench", "--capture-range", "--speeds", speeds])
+            .output()
+            .unwrap();
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(1), "{speeds}: {err}");
+        assert!(
+            err.contains("--speeds") && err.contains("ascending speeds from 0 to 1000"),
+            "{speeds}: {err}"
+        );
+    }
+}

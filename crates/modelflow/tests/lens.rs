@@ -8,7 +8,6 @@ use common::*;
 use modelflow::base::Distortion;
 use modelflow::input::{DistortionEntry, Scene};
 use modelflow::synth::{SynthOptions, Synthetic};
-use modelflow::tracker::{TrackOptions, Tracker};
 use modelflow::RgbImage;
 
 fn opts(distortion: Option<Distortion>) -> SynthOptions {
@@ -33,32 +32,6 @@ fn mean_diff(a: &RgbImage, b: &RgbImage) -> f64 {
         }
     }
     sum / n as f64
-}
-
-/// RMS error of each tracked frame after the first, in % of the mesh's size.
-fn track(scene: &Scene) -> Vec<f64> {
-    let mut tr = Tracker::new(
-        &scene.mesh,
-        scene.cameras.clone(),
-        scene.first,
-        &scene.load_images(scene.first).unwrap(),
-        TrackOptions::default(),
-    )
-    .unwrap();
-    let diag = scene.mesh.bbox_diagonal();
-    (scene.first + 1..=scene.last)
-        .map(|f| {
-            tr.step(f, &scene.load_images(f).unwrap()).unwrap();
-            let truth = scene.ground_truth(f).unwrap().unwrap();
-            let sq: f64 = tr
-                .positions()
-                .iter()
-                .zip(&truth.positions)
-                .map(|(p, q)| (p - q).norm_squared())
-                .sum();
-            100.0 * (sq / truth.positions.len() as f64).sqrt() / diag
-        })
-        .collect()
 }
 
 #[test]
@@ -90,8 +63,8 @@ fn footage_through_a_lens_is_undistorted_at_load_and_tracked_like_pinhole_footag
     );
     // Tracked through the lens, as well as the pinhole footage (within 10 %, or 0.02 % of the
     // size: both are a few hundredths of a percent).
-    let through = track(&scene);
-    let plain = track(&Scene::load(&pin_path).unwrap());
+    let through = track_errors(&scene);
+    let plain = track_errors(&Scene::load(&pin_path).unwrap());
     eprintln!("error per frame (%): through the lens {through:.4?}, pinhole {plain:.4?}");
     for (f, (a, b)) in through.iter().zip(&plain).enumerate() {
         assert!(

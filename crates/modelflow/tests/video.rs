@@ -3,10 +3,12 @@
 //! tracked from the same frames as PNG. Needs FFmpeg's `ffmpeg`/`ffprobe` on the PATH (`.ci/run`
 //! installs them); without them these tests say so and pass without checking.
 
+mod common;
+
+use common::track_errors;
 use modelflow::input::video::{probe, VideoReader};
 use modelflow::input::{write_png, Scene, SceneFile};
 use modelflow::synth::{SynthOptions, Synthetic};
-use modelflow::tracker::{TrackOptions, Tracker};
 use modelflow::RgbImage;
 use std::path::Path;
 use std::process::Command;
@@ -81,32 +83,6 @@ fn frames_are_read_frame_accurately_in_any_order() {
     );
 }
 
-/// RMS error of each frame after the first, % of the mesh's size.
-fn track(scene: &Scene) -> Vec<f64> {
-    let mut tr = Tracker::new(
-        &scene.mesh,
-        scene.cameras.clone(),
-        scene.first,
-        &scene.load_images(scene.first).unwrap(),
-        TrackOptions::default(),
-    )
-    .unwrap();
-    let diag = scene.mesh.bbox_diagonal();
-    (scene.first + 1..=scene.last)
-        .map(|f| {
-            tr.step(f, &scene.load_images(f).unwrap()).unwrap();
-            let truth = scene.ground_truth(f).unwrap().unwrap();
-            let sq: f64 = tr
-                .positions()
-                .iter()
-                .zip(&truth.positions)
-                .map(|(p, q)| (p - q).norm_squared())
-                .sum();
-            100.0 * (sq / truth.positions.len() as f64).sqrt() / diag
-        })
-        .collect()
-}
-
 #[test]
 fn footage_from_video_files_is_tracked_like_its_frames() {
     if !have_ffmpeg() {
@@ -132,8 +108,8 @@ fn footage_from_video_files_is_tracked_like_its_frames() {
     }
     let videos = dir.path().join("png/video.json");
     file.write(&videos).unwrap();
-    let from_video = track(&Scene::load(&videos).unwrap());
-    let from_png = track(&Scene::load(&pngs).unwrap());
+    let from_video = track_errors(&Scene::load(&videos).unwrap());
+    let from_png = track_errors(&Scene::load(&pngs).unwrap());
     eprintln!("error per frame (%): video {from_video:.4?}, png {from_png:.4?}");
     for (f, (v, p)) in from_video.iter().zip(&from_png).enumerate() {
         assert!(

@@ -420,17 +420,23 @@ impl UndistortMap {
             (self.width, self.height),
             "undistortion map and image sizes differ"
         );
-        let mut out = RgbImage::new(self.width, self.height);
-        out.pixels_mut()
-            .par_chunks_mut(self.width)
-            .zip(self.source.par_chunks(self.width))
-            .for_each(|(row, src)| {
-                for (px, s) in row.iter_mut().zip(src) {
-                    *px = raw.sample_cubic_value(s[0], s[1]);
-                }
-            });
-        out
+        remap(raw, &self.source, self.width, self.height)
     }
+}
+
+/// A `width × height` image whose pixel `i` is `from` sampled (Catmull–Rom) at `source[i]`,
+/// rows in parallel.
+fn remap(from: &RgbImage, source: &[[f32; 2]], width: usize, height: usize) -> RgbImage {
+    let mut out = RgbImage::new(width, height);
+    out.pixels_mut()
+        .par_chunks_mut(width)
+        .zip(source.par_chunks(width))
+        .for_each(|(row, src)| {
+            for (px, s) in row.iter_mut().zip(src) {
+                *px = from.sample_cubic_value(s[0], s[1]);
+            }
+        });
+    out
 }
 
 /// The other way round: for every pixel of a raw (distorted) frame, where to read a pinhole
@@ -508,16 +514,7 @@ impl DistortMap {
             self.canvas,
             "canvas size"
         );
-        let mut out = RgbImage::new(self.width, self.height);
-        out.pixels_mut()
-            .par_chunks_mut(self.width)
-            .zip(self.source.par_chunks(self.width))
-            .for_each(|(row, src)| {
-                for (px, s) in row.iter_mut().zip(src) {
-                    *px = canvas.sample_cubic_value(s[0], s[1]);
-                }
-            });
-        out
+        remap(canvas, &self.source, self.width, self.height)
     }
 }
 

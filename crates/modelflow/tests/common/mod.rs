@@ -87,3 +87,30 @@ pub fn write_scene(dir: &Path) -> (PathBuf, SceneFile) {
     file.write(&path).unwrap();
     (path, file)
 }
+
+/// Tracks `scene` from its first frame with the default options, in memory, and returns the RMS
+/// vertex error of every later frame against the ground truth, in % of the mesh's size.
+pub fn track_errors(scene: &modelflow::input::Scene) -> Vec<f64> {
+    let mut tr = modelflow::tracker::Tracker::new(
+        &scene.mesh,
+        scene.cameras.clone(),
+        scene.first,
+        &scene.load_images(scene.first).unwrap(),
+        modelflow::tracker::TrackOptions::default(),
+    )
+    .unwrap();
+    let diag = scene.mesh.bbox_diagonal();
+    (scene.first + 1..=scene.last)
+        .map(|f| {
+            tr.step(f, &scene.load_images(f).unwrap()).unwrap();
+            let truth = scene.ground_truth(f).unwrap().unwrap();
+            let sq: f64 = tr
+                .positions()
+                .iter()
+                .zip(&truth.positions)
+                .map(|(p, q)| (p - q).norm_squared())
+                .sum();
+            100.0 * (sq / truth.positions.len() as f64).sqrt() / diag
+        })
+        .collect()
+}

@@ -68,29 +68,16 @@ pub fn scene_file(
     }
 }
 
-/// The rotation of a unit quaternion `(w, x, y, z)` (normalised first).
+/// The rotation of a quaternion `(w, x, y, z)` (normalised first), or `None` for a zero or
+/// non-finite one.
 pub(crate) fn quaternion_rotation(w: f64, x: f64, y: f64, z: f64) -> Option<Matrix3<f64>> {
-    let n = (w * w + x * x + y * y + z * z).sqrt();
-    if !(n.is_finite() && n > 1e-12) {
-        return None;
-    }
-    let (w, x, y, z) = (w / n, x / n, y / n, z / n);
-    Some(Matrix3::new(
-        1.0 - 2.0 * (y * y + z * z),
-        2.0 * (x * y - w * z),
-        2.0 * (x * z + w * y),
-        2.0 * (x * y + w * z),
-        1.0 - 2.0 * (x * x + z * z),
-        2.0 * (y * z - w * x),
-        2.0 * (x * z - w * y),
-        2.0 * (y * z + w * x),
-        1.0 - 2.0 * (x * x + y * y),
-    ))
-}
-
-/// The rotation of a Rodrigues vector (axis times angle), as `cv::Rodrigues`.
-pub(crate) fn rodrigues(v: &Vector3<f64>) -> Matrix3<f64> {
-    nalgebra::Rotation3::new(*v).into_inner()
+    let q = nalgebra::Quaternion::new(w, x, y, z);
+    let n = q.norm();
+    (n.is_finite() && n > 1e-12).then(|| {
+        nalgebra::UnitQuaternion::from_quaternion(q)
+            .to_rotation_matrix()
+            .into_inner()
+    })
 }
 
 /// Whether `r` is a rotation within the scene format's tolerance.

@@ -13,7 +13,7 @@
 //! `image_size: [w, h]`), or else from the caller. OpenCV's pixel-centre convention is ours, so
 //! `K` is taken as it is.
 
-use super::{check_rotation, rodrigues, CalibratedCamera};
+use super::{check_rotation, CalibratedCamera};
 use crate::base::lens::Distortion;
 use crate::error::{Error, Result};
 use nalgebra::{Matrix3, Vector3};
@@ -47,8 +47,7 @@ pub fn read_opencv(path: &Path, size: Option<(u32, u32)>) -> Result<Vec<Calibrat
     if let (Some(_), Some(_)) = (pick(top, K1), pick(top, K2)) {
         let size = top_size.or(size);
         let first = file.camera(top, "cam0", "", K1, D1, false, size)?;
-        let mut second = file.camera(top, "cam1", "", K2, D2, true, size)?;
-        second.name = "cam1".into();
+        let second = file.camera(top, "cam1", "", K2, D2, true, size)?;
         return Ok(vec![first, second]);
     }
     if pick(top, K).is_some() {
@@ -253,7 +252,8 @@ impl File<'_> {
                 r
             } else if let Some((rn, rv)) = pick(m, &["rvec", "rotation_vector", "r"]) {
                 let v = self.numbers(rv, &format!("{prefix}{rn}"), &[3])?;
-                rodrigues(&Vector3::new(v[0], v[1], v[2]))
+                // cv::Rodrigues: the axis times the angle.
+                nalgebra::Rotation3::new(Vector3::new(v[0], v[1], v[2])).into_inner()
             } else {
                 Matrix3::identity()
             };
