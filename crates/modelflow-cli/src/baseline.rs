@@ -24,16 +24,17 @@ pub struct Args {
     /// `chained` (each camera's own 2D track continues, as Universal Capture did).
     #[arg(long, default_value = "reprojected", value_parser = ["reprojected", "chained"])]
     pub seeding: String,
-    /// Lucas-Kanade window side in pixels (odd).
+    /// Lucas-Kanade window side in pixels (odd, 3 to 101).
     #[arg(long, default_value_t = 21)]
     pub window: usize,
-    /// Pyramid levels including full resolution.
+    /// Pyramid levels including full resolution (1 to 12).
     #[arg(long, default_value_t = 4)]
     pub levels: usize,
-    /// Forward-backward check threshold in pixels (0 disables it).
+    /// Forward-backward check threshold in pixels (0 disables it; at most 1000).
     #[arg(long, default_value_t = 1.0)]
     pub fb: f64,
-    /// Largest accepted reprojection error of a triangulated vertex, in pixels.
+    /// Largest accepted reprojection error of a triangulated vertex, in pixels (above 0, at most
+    /// 1000).
     #[arg(long, default_value_t = 2.0)]
     pub max_reprojection: f64,
 }

@@ -4,6 +4,7 @@
 
 use crate::progress::Progress;
 use anyhow::Context;
+use modelflow::base::Length;
 use modelflow::baseline::{self, BaselineOptions};
 use modelflow::input::Scene;
 use modelflow::report::{write_report, ReportOptions};
@@ -89,16 +90,18 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         "{:<12} {:>14} {:>14} {:>16}",
         "run", "mean error", "final error", "time per frame"
     );
+    let len = Length::of(scene.units);
     for (name, dir, secs) in &runs {
         let e = score(&scene, dir)?;
         println!(
-            "{:<12} {:>7.2} mm {:>4.2}% {:>6.2} mm {:>4.2}% {:>12.0} ms",
+            "{:<12} {:>7.2} {u} {:>4.2}% {:>6.2} {u} {:>4.2}% {:>12.0} ms",
             name,
-            e.rms_mean * 1e3,
+            len.value(e.rms_mean),
             e.rms_mean_pct,
-            e.rms_final * 1e3,
+            len.value(e.rms_final),
             e.rms_final_pct,
-            secs * 1e3
+            secs * 1e3,
+            u = len.unit()
         );
     }
     println!("(errors: RMS vertex distance to ground truth, mean over frames and last frame; % of the first mesh's bounding-box diagonal; time: median per frame, image loading included)");

@@ -2,6 +2,7 @@
 //! prints a table, or one JSON object with `--json`.
 
 use anyhow::Context;
+use modelflow::base::Length;
 use modelflow::input::Scene;
 use modelflow::{evaluate, read_run, EvalReport};
 use std::path::PathBuf;
@@ -35,23 +36,43 @@ pub fn run(args: Args) -> anyhow::Result<()> {
 }
 
 fn table(r: &EvalReport) -> String {
+    let len = Length::of(r.units);
+    let u = len.unit();
     let mut s = format!(
-        "{:>6}  {:>12}  {:>8}  {:>12}  {:>8}  {:>6}\n",
-        "frame", "rms", "rms %", "max", "seen %", "seen"
+        "{:>6}  {:>14}  {:>8}  {:>14}  {:>8}  {:>6}\n",
+        "frame",
+        format!("rms ({u})"),
+        "rms %",
+        format!("max ({u})"),
+        "seen %",
+        "seen"
     );
     for e in &r.per_frame {
         s += &format!(
-            "{:>6}  {:>12.6}  {:>8.4}  {:>12.6}  {:>8.4}  {:>6}\n",
-            e.frame, e.rms, e.rms_pct, e.max, e.seen_rms_pct, e.seen
+            "{:>6}  {:>14.6}  {:>8.4}  {:>14.6}  {:>8.4}  {:>6}\n",
+            e.frame,
+            len.value(e.rms),
+            e.rms_pct,
+            len.value(e.max),
+            e.seen_rms_pct,
+            e.seen
         );
     }
     s += &format!(
-        "{} frames, scale (bbox diagonal) {:.6}\nrms mean  {:.6} ({:.4} %)\nrms final {:.6} ({:.4} %)\n",
-        r.frames, r.scale, r.rms_mean, r.rms_mean_pct, r.rms_final, r.rms_final_pct
+        "{} frames, scale (bbox diagonal) {:.6} {u}\nrms mean  {:.6} {u} ({:.4} %)\nrms final {:.6} {u} ({:.4} %)\n",
+        r.frames,
+        len.value(r.scale),
+        len.value(r.rms_mean),
+        r.rms_mean_pct,
+        len.value(r.rms_final),
+        r.rms_final_pct
     );
     s += &format!(
-        "seen vertices (by some camera, in the truth): rms mean {:.6} ({:.4} %), final {:.6} ({:.4} %)\n",
-        r.seen_rms_mean, r.seen_rms_mean_pct, r.seen_rms_final, r.seen_rms_final_pct
+        "seen vertices (by some camera, in the truth): rms mean {:.6} {u} ({:.4} %), final {:.6} {u} ({:.4} %)\n",
+        len.value(r.seen_rms_mean),
+        r.seen_rms_mean_pct,
+        len.value(r.seen_rms_final),
+        r.seen_rms_final_pct
     );
     s
 }

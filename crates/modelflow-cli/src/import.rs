@@ -41,6 +41,10 @@ pub struct Args {
     /// image_width/image_height), as WxH.
     #[arg(long, value_name = "WxH", value_parser = parse_size)]
     size: Option<(u32, u32)>,
+    /// The unit of the calibration's world coordinates (m, cm or mm), written into the scene so
+    /// that errors are shown in mm; without it they are shown in scene units.
+    #[arg(long)]
+    units: Option<modelflow::base::Units>,
     /// Replace an existing scene file.
     #[arg(long)]
     force: bool,
@@ -78,7 +82,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         );
     }
     let (first, last) = args.frames;
-    let file = scene_file(&cameras, &args.mesh, &args.images, first, last);
+    let mut file = scene_file(&cameras, &args.mesh, &args.images, first, last);
+    file.units = args.units;
     file.write(&args.out)?;
     for c in &cameras {
         let lens = match &c.distortion {

@@ -24,7 +24,7 @@ pub struct Args {
     /// Frames to draw overlays for, comma separated (default: first, middle, last).
     #[arg(long, value_delimiter = ',')]
     overlay_frames: Option<Vec<u32>>,
-    /// Degrees the oblique camera is turned about the vertical axis.
+    /// Degrees the oblique camera is turned about the vertical axis (-180 to 180).
     #[arg(long, default_value_t = 60.0)]
     oblique_degrees: f64,
 }

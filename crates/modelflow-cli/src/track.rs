@@ -13,14 +13,14 @@ use modelflow::RunOptions;
 #[derive(clap::Args, Clone, Debug)]
 pub struct TrackArgs {
     /// Pyramid levels solved coarse to fine: a number (1 = full resolution only), or auto:
-    /// as many as keep the coarsest level's short side at least 80 px (720 p: 4, 480 p: 3).
+    /// as many as keep the coarsest level's short side at least 80 px (720 p: 4, 480 p: 3); 1 to 12.
     #[arg(long, default_value = "auto", value_parser = parse_levels)]
     pub levels: usize,
     /// Solve each pyramid level per vertex only, without first solving for one rigid motion of
     /// the whole mesh.
     #[arg(long)]
     pub no_rigid_stage: bool,
-    /// Weight of the first frame as a second template (0 = compare with the previous frame only, as in the thesis).
+    /// Weight of the first frame as a second template (0 = compare with the previous frame only, as in the thesis; 0 to 100).
     #[arg(long, default_value_t = TrackOptions::default().anchor_weight)]
     pub anchor_weight: f64,
     /// Spring constant k of the cubic edge springs (Eq. 5.16) on the edges' strain, each edge
@@ -28,7 +28,7 @@ pub struct TrackArgs {
     /// (0 = off; 0 to 1e6).
     #[arg(long, default_value_t = TrackOptions::default().regularisation.spring_k)]
     pub spring_k: f64,
-    /// Spring threshold T, as a fraction of the rest length (Eq. 5.16).
+    /// Spring threshold T, as a fraction of the rest length (Eq. 5.16; above 0, at most 10).
     #[arg(long, default_value_t = TrackOptions::default().regularisation.spring_t)]
     pub spring_t: f64,
     /// Weight of the frame-to-frame membrane term, on the edges' change of rate over the mean
@@ -36,30 +36,32 @@ pub struct TrackArgs {
     #[arg(long, default_value_t = TrackOptions::default().regularisation.membrane)]
     pub membrane: f64,
     /// Weight of the bending term that keeps the mesh's local shape close to its rest shape up to
-    /// rotation (0 = off).
+    /// rotation (0 = off; 0 to 1e6).
     #[arg(long, default_value_t = TrackOptions::default().regularisation.bending)]
     pub bending: f64,
-    /// Gauss-Newton iterations at most per frame and level.
+    /// Gauss-Newton iterations at most per frame and level (1 to 10000).
     #[arg(long, default_value_t = TrackOptions::default().solver.max_iterations)]
     pub max_iterations: usize,
-    /// Stop a level when a step lowers the cost by less than this fraction.
+    /// Stop a level when a step lowers the cost by less than this fraction of it (0 to below 1).
     #[arg(long, default_value_t = TrackOptions::default().solver.min_relative_decrease)]
     pub min_decrease: f64,
-    /// Huber threshold on the RGB residual (image values 0..1).
+    /// Huber threshold on the RGB residual (image values 0..1; above 0, at most 10).
     #[arg(long, default_value_t = TrackOptions::default().solver.huber)]
     pub huber: f64,
     /// Robust loss on each pixel's RGB residual: huber (fixed threshold --huber), or tukey
     /// (rejects pixels beyond --tukey-k times the median residual, at least --tukey-min).
     #[arg(long, value_enum, default_value_t = LossArg::from(TrackOptions::default().solver.loss))]
     pub loss: LossArg,
-    /// With --loss tukey: the rejection threshold as a multiple of the median residual.
+    /// With --loss tukey: the rejection threshold as a multiple of the median residual (above 0,
+    /// at most 1000).
     #[arg(long, default_value_t = TrackOptions::default().solver.tukey_k)]
     pub tukey_k: f64,
-    /// With --loss tukey: the smallest rejection threshold (RGB residual, image values 0..1).
+    /// With --loss tukey: the smallest rejection threshold (RGB residual, image values 0..1; 0 to
+    /// 10).
     #[arg(long, default_value_t = TrackOptions::default().solver.tukey_min)]
     pub tukey_min: f64,
     /// With --loss tukey: the misalignment in pixels a pixel on an edge may have and still be
-    /// kept (the threshold grows by this times the local image gradient).
+    /// kept (the threshold grows by this times the local image gradient; 0 to 100).
     #[arg(long, default_value_t = TrackOptions::default().solver.tukey_px)]
     pub tukey_px: f64,
     /// Gaussian smoothing of the images before gradients are taken: its sigma, in pixels of

@@ -78,6 +78,34 @@ fn shifted_run_scores_the_shift_in_a_table() {
         "{table}"
     );
     assert!(table.contains("12 frames"), "{table}");
+    assert!(table.contains("rms (scene units)"), "{table}");
+
+    // The same scene saying its unit is the metre: the table shows the same errors in mm.
+    let mut v: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(sample().join("scene.json")).unwrap())
+            .unwrap();
+    let abs = |rel: &serde_json::Value| sample().join(rel.as_str().unwrap()).display().to_string();
+    v["units"] = "m".into();
+    v["mesh"] = abs(&v["mesh"]).into();
+    v["ground_truth"] = abs(&v["ground_truth"]).into();
+    for c in v["cameras"].as_array_mut().unwrap() {
+        c["images"] = abs(&c["images"]).into();
+    }
+    let metres = dir.path().join("metres.json");
+    std::fs::write(&metres, v.to_string()).unwrap();
+    let out = eval(&metres, dir.path(), false);
+    assert!(out.status.success(), "{}", text(&out.stderr));
+    let table = text(&out.stdout);
+    assert!(table.contains("rms (mm)"), "{table}");
+    assert_eq!(table.matches("10.000000").count(), 2 * 12 + 4, "{table}");
+    assert!(
+        table.contains("rms final 10.000000 mm (0.3536 %)"),
+        "{table}"
+    );
+    let out = eval(&metres, dir.path(), true);
+    let j: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(j["units"], "m");
+    assert!((j["rms_final"].as_f64().unwrap() - 0.01).abs() < 1e-9);
 
     let out = eval(&sample().join("scene.json"), dir.path(), true);
     let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();

@@ -64,6 +64,7 @@ fn colmap_and_opencv_calibrations_become_scene_files() {
     assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
     let file = SceneFile::parse(&out, &std::fs::read_to_string(&out).unwrap()).unwrap();
     assert_eq!(file.cameras.len(), 2);
+    assert_eq!(file.units, None);
     assert_eq!(
         file.cameras[0].r.unwrap(),
         [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]]
@@ -76,4 +77,21 @@ fn colmap_and_opencv_calibrations_become_scene_files() {
     );
     assert!(!r.status.success());
     assert!(String::from_utf8_lossy(&r.stderr).contains("{camera}"));
+
+    // The unit of the calibration, when given, is written down; a unit we do not know is refused.
+    let r = import(
+        &["opencv", "--force", "--units", "mm"],
+        &fixtures().join("opencv/stereo.yml"),
+        &out,
+    );
+    assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
+    let file = SceneFile::parse(&out, &std::fs::read_to_string(&out).unwrap()).unwrap();
+    assert_eq!(file.units, Some(modelflow::base::Units::Millimetres));
+    let r = import(
+        &["opencv", "--force", "--units", "inch"],
+        &fixtures().join("opencv/stereo.yml"),
+        &out,
+    );
+    let err = String::from_utf8_lossy(&r.stderr);
+    assert!(!r.status.success() && err.contains("m, cm or mm"), "{err}");
 }

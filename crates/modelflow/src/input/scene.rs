@@ -6,6 +6,7 @@ use crate::base::camera::{is_rotation, Camera, Projection, ProjectionError};
 use crate::base::image::RgbImage;
 use crate::base::lens::{Distortion, Lens, UndistortMap};
 use crate::base::mesh::Mesh;
+use crate::base::units::Units;
 use crate::error::{Error, Result};
 use crate::fsutil::{not_a_file, require_file, write_atomic};
 use crate::input::imageio::{image_size, read_rgb};
@@ -31,6 +32,9 @@ pub struct SceneFile {
     pub cameras: Vec<CameraEntry>,
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub ground_truth: Option<String>,
+    /// The unit of the world coordinates (`m`, `cm` or `mm`); lengths are then shown in mm.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub units: Option<Units>,
 }
 
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
@@ -116,6 +120,8 @@ pub struct Scene {
     /// Image pattern of each camera, in the order of `cameras`.
     pub images: Vec<FramePattern>,
     pub ground_truth: Option<FramePattern>,
+    /// The unit of the world coordinates, when the scene file gives it.
+    pub units: Option<Units>,
     /// Per camera, the resampling from its raw (distorted) frames to pinhole ones; `None` for a
     /// camera without distortion.
     pub undistort: Vec<Option<std::sync::Arc<UndistortMap>>>,
@@ -991,6 +997,7 @@ impl Scene {
             cameras,
             images,
             ground_truth,
+            units: file.units,
             undistort,
             videos,
         })

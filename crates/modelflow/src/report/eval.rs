@@ -8,6 +8,7 @@
 use crate::base::camera::Camera;
 use crate::base::mesh::Mesh;
 use crate::base::raster::{rasterize, NONE};
+use crate::base::units::Units;
 use crate::error::{Error, Result};
 use crate::input::scene::Scene;
 use rayon::prelude::*;
@@ -47,6 +48,9 @@ pub struct EvalReport {
     pub seen_rms_final_pct: f64,
     /// The bounding-box diagonal of the scene mesh (frame `first`), the 100 % of the `_pct` values.
     pub scale: f64,
+    /// The unit of every length above (the scene's `units`; `null`: scene units). Lengths here
+    /// stay in the scene's unit; the table and the report show them in mm when it is known.
+    pub units: Option<Units>,
 }
 
 /// Compares a run (as from [`read_run`]) with the scene's ground truth, frame by frame over all
@@ -141,6 +145,7 @@ pub fn evaluate(scene: &Scene, run: &[(u32, Mesh)]) -> Result<EvalReport> {
         seen_rms_mean_pct: pct(seen_rms_mean, scale),
         seen_rms_final_pct: pct(seen_rms_final, scale),
         scale,
+        units: scene.units,
     })
 }
 

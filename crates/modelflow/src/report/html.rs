@@ -2,6 +2,7 @@
 //! anything else fetched from the network; images by relative links into the report folder).
 
 use super::page::{fmt_sig, ReportOptions, RunSummary};
+use crate::base::units::Length;
 use crate::input::scene::Scene;
 use crate::report::plot::xml_escape as esc;
 use std::fmt::Write;
@@ -55,6 +56,7 @@ pub(super) fn page(
         )
     );
     let has_truth = scene.ground_truth.is_some();
+    let len = Length::of(scene.units);
     let mut o = String::new();
     let _ = writeln!(
         o,
@@ -78,10 +80,11 @@ pub(super) fn page(
     );
     let _ = writeln!(
         o,
-        "<tr><th>mesh</th><td>{} vertices, {} triangles, bbox diagonal {} scene units</td></tr>",
+        "<tr><th>mesh</th><td>{} vertices, {} triangles, bbox diagonal {} {}</td></tr>",
         scene.mesh.positions.len(),
         scene.mesh.triangles.len(),
-        fmt_sig(scene.mesh.bbox_diagonal())
+        fmt_sig(len.value(scene.mesh.bbox_diagonal())),
+        len.unit()
     );
     let _ = writeln!(
         o,
@@ -122,8 +125,9 @@ pub(super) fn page(
         let _ = writeln!(o, "<h2>Error against ground truth</h2>");
         let _ = writeln!(
             o,
-            "<p>Per frame, the RMS over vertices of the distance between each run's vertex and its ground-truth position, as a percentage of the bounding-box diagonal of the scene mesh ({} scene units).</p>",
-            fmt_sig(scene.mesh.bbox_diagonal())
+            "<p>Per frame, the RMS over vertices of the distance between each run's vertex and its ground-truth position, as a percentage of the bounding-box diagonal of the scene mesh ({} {}).</p>",
+            fmt_sig(len.value(scene.mesh.bbox_diagonal())),
+            len.unit()
         );
     } else {
         let _ = writeln!(o, "<h2>Photometric cost</h2>");
@@ -142,7 +146,8 @@ pub(super) fn page(
     if has_truth {
         let _ = writeln!(
             o,
-            "<tr><th>run</th><th>mean RMS error<br>(scene units)</th><th>mean RMS error<br>(% bbox)</th><th>final RMS error<br>(scene units)</th><th>final RMS error<br>(% bbox)</th><th>max vertex error, final<br>(scene units)</th><th>time per frame<br>(ms, median)</th></tr>"
+            "<tr><th>run</th><th>mean RMS error<br>({u})</th><th>mean RMS error<br>(% bbox)</th><th>final RMS error<br>({u})</th><th>final RMS error<br>(% bbox)</th><th>max vertex error, final<br>({u})</th><th>time per frame<br>(ms, median)</th></tr>",
+            u = len.unit()
         );
     } else {
         let _ = writeln!(
@@ -160,11 +165,11 @@ pub(super) fn page(
             let _ = write!(
                 o,
                 "<td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td>",
-                num(Some(e.rms_mean)),
+                num(Some(len.value(e.rms_mean))),
                 num(Some(e.rms_mean_pct)),
-                num(Some(e.rms_final)),
+                num(Some(len.value(e.rms_final))),
                 num(Some(e.rms_final_pct)),
-                num(e.per_frame.last().map(|f| f.max))
+                num(e.per_frame.last().map(|f| len.value(f.max)))
             );
         }
         if let Some(c) = &r.photometric {

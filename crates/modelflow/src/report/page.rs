@@ -12,6 +12,7 @@ use super::{html, photometric};
 use crate::base::camera::Projection;
 use crate::base::image::RgbImage;
 use crate::base::mesh::Mesh;
+use crate::base::units::Length;
 use crate::error::{Error, Result};
 use crate::fsutil;
 use crate::input::imageio;
@@ -605,16 +606,17 @@ fn error_sheet(
         })
         .collect::<Result<Vec<_>>>()?;
     let diag = scene.mesh.bbox_diagonal();
+    let len = Length::of(scene.units);
     let bar = overlay::colour_bar(
         colormap::viridis,
         max,
         h,
-        "vertex error (scene units, % of bbox diag.)",
+        &format!("vertex error ({}, % of bbox diag.)", len.unit()),
         |v| {
             if diag > 0.0 {
-                format!("{} ({:.2}%)", fmt_sig(v), 100.0 * v / diag)
+                format!("{} ({:.2}%)", fmt_sig(len.value(v)), 100.0 * v / diag)
             } else {
-                fmt_sig(v)
+                fmt_sig(len.value(v))
             }
         },
     );

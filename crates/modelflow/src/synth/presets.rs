@@ -35,6 +35,7 @@ use crate::base::camera::{look_at, Camera, Projection};
 use crate::base::image::RgbImage;
 use crate::base::lens::{DistortMap, Distortion, Lens};
 use crate::base::mesh::{grid, Mesh};
+use crate::base::units::Units;
 use crate::error::{Error, Result};
 use crate::input::imageio::write_png;
 use crate::input::meshio::write_obj;
@@ -746,6 +747,7 @@ impl Synthetic {
                 })
                 .collect(),
             ground_truth: Some("truth/{frame:04}.obj".to_string()),
+            units: Some(Units::Metres),
         }
     }
 }

@@ -82,6 +82,7 @@ pub fn write_scene(dir: &Path) -> (PathBuf, SceneFile) {
         mesh: "mesh/initial.obj".into(),
         cameras: cams,
         ground_truth: Some("truth/{frame:04}.obj".into()),
+        units: Some(modelflow::base::Units::Metres),
     };
     let path = dir.join("scene.json");
     file.write(&path).unwrap();

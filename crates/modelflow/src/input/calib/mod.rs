@@ -65,6 +65,7 @@ pub fn scene_file(
             })
             .collect(),
         ground_truth: None,
+        units: None,
     }
 }
 
