@@ -9,6 +9,7 @@ mod bench;
 mod capture;
 mod demo;
 mod eval;
+mod export;
 mod import;
 mod progress;
 mod report;
@@ -41,6 +42,8 @@ enum Command {
     Baseline(baseline::Args),
     /// Score a run folder against the scene's ground truth.
     Eval(eval::Args),
+    /// Write a run as one animated file for a 3D package: USD, glTF, PC2 or MDD.
+    Export(export::Args),
     /// Write a scene file from a calibration made by another tool (COLMAP, OpenCV, Metashape).
     Import(import::Args),
     /// Write an HTML report comparing runs: error plot, overlays, oblique and error views.
@@ -83,6 +86,7 @@ fn main() -> std::process::ExitCode {
         Command::Bench(a) => bench::run(a),
         Command::Demo(a) => demo::run(a),
         Command::Eval(a) => eval::run(a),
+        Command::Export(a) => export::run(a),
         Command::Import(a) => import::run(a),
         Command::Report(a) => report::run(a),
         Command::Track(a) => track::run(a, &sub),

@@ -94,3 +94,81 @@ fn results_are_the_same_whatever_the_thread_count() {
     assert_eq!(o.status.code(), Some(1));
     assert!(String::from_utf8_lossy(&o.stderr).contains("--threads 0: expected 1 to 1024"));
 }
+
+/// An artist's mesh has texture coordinates with seams and normals: `track` writes them into
+/// every frame as the input had them (the same `vt` table and indices), and `export` takes
+/// them on into USD.
+#[test]
+fn track_keeps_the_input_meshes_uvs_and_normals() {
+    let dir = tempfile::tempdir().unwrap();
+    let sample = concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../../fixtures/blender-cloth-sample"
+    );
+    let m = modelflow::input::read_mesh(&std::path::Path::new(sample).join("mesh/initial.obj"))
+        .unwrap();
+    // Every corner its own vt (a seam everywhere), one vn per vertex pointing +z... and vertex
+    // order kept.
+    let mut text = String::new();
+    for p in &m.positions {
+        text += &format!("v {} {} {}\n", p.x, p.y, p.z);
+    }
+    for (i, _) in m.triangles.iter().enumerate() {
+        for k in 0..3 {
+            text += &format!("vt {} {}\n", (i % 97) as f64 / 97.0, k as f64 / 3.0);
+        }
+    }
+    text += "vn 0 0 1\nvn 0 1 0\n";
+    for (i, t) in m.triangles.iter().enumerate() {
+        let [a, b, c] = t.map(|v| v + 1);
+        let vt = 3 * i + 1;
+        let vn = 1 + i % 2;
+        text += &format!("f {a}/{vt}/{vn} {b}/{}/{vn} {c}/{}/{vn}\n", vt + 1, vt + 2);
+    }
+    let mesh = dir.path().join("artist.obj");
+    std::fs::write(&mesh, &text).unwrap();
+    let out = dir.path().join("run");
+    let o = Command::new(env!("CARGO_BIN_EXE_modelflow"))
+        .args(["track", "--frames", "0..2", "--scene"])
+        .arg(format!("{sample}/scene.json"))
+        .arg("--mesh")
+        .arg(&mesh)
+        .arg("--out")
+        .arg(&out)
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let input = modelflow::input::read_mesh(&mesh).unwrap();
+    for f in 0..=2 {
+        let got = modelflow::input::read_mesh(&out.join(format!("{f:04}.obj"))).unwrap();
+        assert_eq!(got.corner_uvs, input.corner_uvs, "frame {f}");
+        let n = got.corner_normals.as_ref().expect("normals written");
+        assert_eq!(
+            n.table.index,
+            input.corner_normals.as_ref().unwrap().table.index
+        );
+        assert_eq!(n.table.values.len(), 2);
+    }
+    let usd = dir.path().join("artist.usda");
+    let o = Command::new(env!("CARGO_BIN_EXE_modelflow"))
+        .args(["export", "--run"])
+        .arg(&out)
+        .arg("--out")
+        .arg(&usd)
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let usda = std::fs::read_to_string(&usd).unwrap();
+    assert!(usda.contains("int[] primvars:st:indices = [0, 1, 2, 3, 4, 5,"));
+    assert!(usda.contains("interpolation = \"faceVarying\""));
+    // A file name that names no format, and no --format, is refused.
+    let o = Command::new(env!("CARGO_BIN_EXE_modelflow"))
+        .args(["export", "--run"])
+        .arg(&out)
+        .arg("--out")
+        .arg(dir.path().join("artist.fbx"))
+        .output()
+        .unwrap();
+    assert_eq!(o.status.code(), Some(1));
+    assert!(String::from_utf8_lossy(&o.stderr).contains(".usda, .glb, .pc2 or .mdd"));
+}

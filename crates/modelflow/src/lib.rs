@@ -21,6 +21,7 @@
 pub mod base;
 pub mod baseline;
 mod error;
+pub mod export;
 pub(crate) mod fsutil;
 pub mod input;
 pub mod report;

@@ -43,6 +43,61 @@ fn obj_round_trip_is_exact_with_and_without_uvs() {
     assert!(back.uvs.is_none());
 }
 
+/// Two quads folded along x = 1 as an artist's file has them: a UV seam (vertex 2 and 5 have
+/// two texture coordinates each), a hard edge (the fold's normals are split) and quads.
+const FOLDED: &str = "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nv 1 0 0\nv 1 1 0\nv 2 0 1\nv 2 1 1\n\
+    vt 0 0\nvt 0.5 0\nvt 0.5 1\nvt 0 1\nvt 0.6 0\nvt 1 0\nvt 1 1\nvt 0.6 1\n\
+    vn 0 0 1\nvn -0.7071067811865475 0 0.7071067811865475\n\
+    f 1/1/1 2/2/1 3/3/1 4/4/1\nf 2/5/2 7/6/2 8/7/2 3/8/2\n";
+
+#[test]
+fn obj_keeps_seams_and_normals_through_writing_and_moving() {
+    let dir = tempfile::tempdir().unwrap();
+    let m = read_mesh(&write(dir.path(), "folded.obj", FOLDED.as_bytes())).unwrap();
+    assert!(m.uvs.is_none(), "vertex 2 has two texture coordinates");
+    let uv = m.corner_uvs.as_ref().expect("face-varying uvs kept");
+    assert_eq!(uv.values.len(), 8);
+    assert_eq!(uv.index, vec![[0, 1, 2], [0, 2, 3], [4, 5, 6], [4, 6, 7]]);
+    let n = m.corner_normals.as_ref().expect("normals kept");
+    assert_eq!(
+        n.table.index,
+        vec![[0, 0, 0], [0, 0, 0], [1, 1, 1], [1, 1, 1]]
+    );
+    // Written and read back: the same tables, the same indices, the same normals.
+    let p = dir.path().join("out.obj");
+    write_obj(&p, &m).unwrap();
+    let text = std::fs::read_to_string(&p).unwrap();
+    assert!(text.contains("\nf 2/5/2 7/6/2 8/7/2\n"), "{text}");
+    let back = read_mesh(&p).unwrap();
+    assert_eq!(back.corner_uvs, m.corner_uvs);
+    assert_eq!(back.corner_normals, m.corner_normals);
+    // Turned 90 degrees about z, the normals turn with the surface; the uvs stay.
+    let turned: Vec<Point3<f64>> = m
+        .positions
+        .iter()
+        .map(|p| Point3::new(-p.y, p.x, p.z))
+        .collect();
+    let moved = m.with_positions(turned);
+    let normals = moved.current_normals().unwrap();
+    let want = [
+        [0.0, 0.0, 1.0],
+        [
+            0.0,
+            -std::f64::consts::FRAC_1_SQRT_2,
+            std::f64::consts::FRAC_1_SQRT_2,
+        ],
+    ];
+    for (got, want) in normals.iter().zip(want) {
+        for k in 0..3 {
+            assert!((got[k] - want[k]).abs() < 1e-12, "{normals:?}");
+        }
+    }
+    write_obj(&p, &moved).unwrap();
+    let back = read_mesh(&p).unwrap();
+    assert_eq!(back.corner_uvs, m.corner_uvs);
+    assert_eq!(back.corner_normals.unwrap().table.index, n.table.index);
+}
+
 #[test]
 fn obj_face_forms_quads_and_negative_indices() {
     let dir = tempfile::tempdir().unwrap();

@@ -1,9 +1,33 @@
 //! Triangle meshes: vertex positions, triangles as index triples, optional per-vertex texture
-//! coordinates, and the topology queries the tracker needs (edges, closedness, neighbours).
+//! coordinates, the input file's face-varying texture coordinates and normals (carried through
+//! tracking to the outputs), and the topology queries the tracker needs (edges, closedness,
+//! neighbours).
 //! Reading and writing files lives in `meshio`; this module does no I/O.
 
-use nalgebra::{Point3, Vector3};
+use nalgebra::{Point3, UnitQuaternion, Vector3};
 use std::collections::HashMap;
+use std::sync::Arc;
+
+/// A face-varying attribute as OBJ stores it: a table of values (`vt` or `vn` lines) and, per
+/// triangle, the table index of each of its three corners. A vertex on a UV seam or a hard edge
+/// has several.
+#[derive(Clone, Debug, PartialEq)]
+pub struct CornerTable<const N: usize> {
+    pub values: Vec<[f64; N]>,
+    /// One triple per triangle of the mesh, in the order of `Mesh::triangles`.
+    pub index: Vec<[u32; 3]>,
+}
+
+/// The input mesh's normals, carried with the surface as it deforms: each normal `n` of the
+/// table is turned, at every frame, by the smallest rotation that takes the area-weighted normal
+/// of the triangles sharing `n` in the input mesh (`rest`) to the same normal now. At the first
+/// frame every normal is exactly the input's; custom and split normals stay what the artist made.
+#[derive(Clone, Debug, PartialEq)]
+pub struct CornerNormals {
+    pub table: CornerTable<3>,
+    /// Per entry of `table.values`: the area-weighted normal of its triangles in the input mesh.
+    pub rest: Vec<Vector3<f64>>,
+}
 
 /// A triangle mesh. Every tracked frame shares the topology of the input mesh; only positions change.
 #[derive(Clone, Debug, PartialEq)]
@@ -12,6 +36,11 @@ pub struct Mesh {
     pub triangles: Vec<[u32; 3]>,
     /// Per-vertex texture coordinates, if the file had them (synthetic footage uses them).
     pub uvs: Option<Vec<[f64; 2]>>,
+    /// The input file's texture coordinates per triangle corner (`f v/vt`), when every corner
+    /// has one; shared by every frame's mesh.
+    pub corner_uvs: Option<Arc<CornerTable<2>>>,
+    /// The input file's normals per triangle corner (`f v//vn`), when every corner has one.
+    pub corner_normals: Option<Arc<CornerNormals>>,
 }
 
 impl Mesh {
@@ -20,6 +49,21 @@ impl Mesh {
             positions,
             triangles,
             uvs: None,
+            corner_uvs: None,
+            corner_normals: None,
+        }
+    }
+
+    /// Per-vertex texture coordinates (for renderers): the given ones, with no face-varying
+    /// attributes.
+    pub fn with_vertex_uvs(
+        positions: Vec<Point3<f64>>,
+        triangles: Vec<[u32; 3]>,
+        uvs: Vec<[f64; 2]>,
+    ) -> Self {
+        Mesh {
+            uvs: Some(uvs),
+            ..Mesh::new(positions, triangles)
         }
     }
 
@@ -30,7 +74,60 @@ impl Mesh {
             positions,
             triangles: self.triangles.clone(),
             uvs: self.uvs.clone(),
+            corner_uvs: self.corner_uvs.clone(),
+            corner_normals: self.corner_normals.clone(),
         }
+    }
+
+    /// The area-weighted normal (unnormalised: twice the area) of every triangle.
+    fn face_areas(&self) -> Vec<Vector3<f64>> {
+        self.triangles
+            .iter()
+            .map(|t| {
+                let [a, b, c] = t.map(|v| self.positions[v as usize]);
+                (b - a).cross(&(c - a))
+            })
+            .collect()
+    }
+
+    /// Per entry of a corner table: the unit area-weighted normal of the triangles whose corners
+    /// use it (zero when they have no area).
+    pub fn corner_group_normals(&self, index: &[[u32; 3]], entries: usize) -> Vec<Vector3<f64>> {
+        let mut sum = vec![Vector3::zeros(); entries];
+        for (t, n) in index.iter().zip(self.face_areas()) {
+            for &e in t {
+                sum[e as usize] += n;
+            }
+        }
+        sum.into_iter()
+            .map(|n| n.try_normalize(0.0).unwrap_or_else(Vector3::zeros))
+            .collect()
+    }
+
+    /// The input normals as they are at this mesh's positions (see [`CornerNormals`]); `None`
+    /// when the input had no normals on every corner.
+    pub fn current_normals(&self) -> Option<Vec<[f64; 3]>> {
+        let cn = self.corner_normals.as_ref()?;
+        let now = self.corner_group_normals(&cn.table.index, cn.table.values.len());
+        Some(
+            cn.table
+                .values
+                .iter()
+                .zip(cn.rest.iter().zip(&now))
+                .map(|(v, (rest, now))| {
+                    if rest == now {
+                        return *v;
+                    }
+                    match UnitQuaternion::rotation_between(rest, now) {
+                        Some(q) => {
+                            let n = q * Vector3::from(*v);
+                            [n.x, n.y, n.z]
+                        }
+                        None => *v,
+                    }
+                })
+                .collect(),
+        )
     }
 
     pub fn vertex_count(&self) -> usize {
@@ -135,11 +232,7 @@ pub fn grid(nx: usize, ny: usize, place: impl Fn(f64, f64) -> Point3<f64>) -> Me
             }
         }
     }
-    Mesh {
-        positions,
-        triangles,
-        uvs: Some(uvs),
-    }
+    Mesh::with_vertex_uvs(positions, triangles, uvs)
 }
 
 #[cfg(test)]

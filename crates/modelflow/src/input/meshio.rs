@@ -7,12 +7,13 @@
 //! the tracker and the ground truth depend on; `ply-rs` is no longer maintained. The subset we
 //! need (positions, optional texture coordinates, polygon faces) is small.
 
-use crate::base::mesh::Mesh;
+use crate::base::mesh::{CornerNormals, CornerTable, Mesh};
 use crate::error::{Error, Result};
 use crate::fsutil::write_atomic_with;
 use nalgebra::Point3;
 use std::io::Write;
 use std::path::Path;
+use std::sync::Arc;
 
 /// How much of [`validate`] a reader applies.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -162,19 +163,25 @@ pub fn validate(
     Ok(())
 }
 
-/// Parses OBJ text. Reads `v`, `vt` and `f` (forms `v`, `v/vt`, `v//vn`, `v/vt/vn`, negative
-/// indices relative to the end); polygons are fan-triangulated; every other statement is
-/// ignored. Per-vertex texture coordinates are kept only when the faces map each vertex to one
-/// `vt` consistently.
+/// Parses OBJ text. Reads `v`, `vt`, `vn` and `f` (forms `v`, `v/vt`, `v//vn`, `v/vt/vn`,
+/// negative indices relative to the end); polygons are fan-triangulated; every other statement
+/// is ignored. The faces' `vt` and `vn` indices are kept per triangle corner
+/// ([`Mesh::corner_uvs`], [`Mesh::corner_normals`]) when every corner has one; per-vertex
+/// texture coordinates ([`Mesh::uvs`]) only when the faces map each vertex to one `vt`
+/// consistently.
 pub fn parse_obj(path: &Path, text: &str, checks: Checks) -> Result<Mesh> {
     let mut positions: Vec<Point3<f64>> = Vec::new();
     let mut tex: Vec<[f64; 2]> = Vec::new();
+    let mut normals: Vec<[f64; 3]> = Vec::new();
     let mut triangles: Vec<[u32; 3]> = Vec::new();
+    // Per triangle corner: the vt and vn indices (kept while every corner has one).
+    let mut corner_vt: Option<Vec<[u32; 3]>> = Some(Vec::new());
+    let mut corner_vn: Option<Vec<[u32; 3]>> = Some(Vec::new());
     let mut tri_lines: Vec<usize> = Vec::new();
     // Vertex -> vt index seen in faces; `uv_ok` turns false on any inconsistency.
     let mut uv_of: Vec<Option<usize>> = Vec::new();
     let mut uv_ok = true;
-    let mut corners: Vec<(u32, Option<usize>)> = Vec::new();
+    let mut corners: Vec<(u32, Option<usize>, Option<u32>)> = Vec::new();
 
     for (lineno, raw) in text.lines().enumerate() {
         let line_no = lineno + 1;
@@ -201,6 +208,18 @@ pub fn parse_obj(path: &Path, text: &str, checks: Checks) -> Result<Mesh> {
                     Error::invalid(path, field(), format!("expected `vt u v`, got {raw:?}"))
                 })?;
                 tex.push(c);
+            }
+            "vn" => {
+                let c = parse_floats::<3>(&mut it)
+                    .filter(|c| c.iter().all(|v| v.is_finite()))
+                    .ok_or_else(|| {
+                        Error::invalid(
+                            path,
+                            field(),
+                            format!("expected `vn x y z` with finite numbers, got {raw:?}"),
+                        )
+                    })?;
+                normals.push(c);
             }
             "f" => {
                 corners.clear();
@@ -232,7 +251,22 @@ pub fn parse_obj(path: &Path, text: &str, checks: Checks) -> Result<Mesh> {
                         }
                         _ => None,
                     };
-                    corners.push((v, vt));
+                    let vn = match parts.next() {
+                        Some(s) if !s.is_empty() => {
+                            Some(resolve_index(s, normals.len()).ok_or_else(|| {
+                                Error::invalid(
+                                    path,
+                                    field(),
+                                    format!(
+                                        "normal index {s:?} out of range or not a number (there are {} vn so far)",
+                                        normals.len()
+                                    ),
+                                )
+                            })?)
+                        }
+                        _ => None,
+                    };
+                    corners.push((v, vt, vn));
                 }
                 if corners.len() < 3 {
                     return Err(Error::invalid(
@@ -241,7 +275,7 @@ pub fn parse_obj(path: &Path, text: &str, checks: Checks) -> Result<Mesh> {
                         format!("a face needs at least 3 vertices, got {raw:?}"),
                     ));
                 }
-                for &(v, vt) in corners.iter() {
+                for &(v, vt, _) in corners.iter() {
                     let v = v as usize;
                     if uv_of.len() <= v {
                         uv_of.resize(v + 1, None);
@@ -253,9 +287,22 @@ pub fn parse_obj(path: &Path, text: &str, checks: Checks) -> Result<Mesh> {
                         _ => {}
                     }
                 }
+                if corners.iter().any(|c| c.1.is_none()) {
+                    corner_vt = None;
+                }
+                if corners.iter().any(|c| c.2.is_none()) {
+                    corner_vn = None;
+                }
                 for k in 1..corners.len() - 1 {
-                    triangles.push([corners[0].0, corners[k].0, corners[k + 1].0]);
+                    let tri = [corners[0], corners[k], corners[k + 1]];
+                    triangles.push(tri.map(|c| c.0));
                     tri_lines.push(line_no);
+                    if let Some(t) = corner_vt.as_mut() {
+                        t.push(tri.map(|c| c.1.unwrap_or(0) as u32));
+                    }
+                    if let Some(n) = corner_vn.as_mut() {
+                        n.push(tri.map(|c| c.2.unwrap_or(0)));
+                    }
                 }
             }
             _ => {}
@@ -279,12 +326,30 @@ pub fn parse_obj(path: &Path, text: &str, checks: Checks) -> Result<Mesh> {
     } else {
         None
     };
-    let mesh = Mesh {
-        positions,
-        triangles,
+    let mut mesh = Mesh {
         uvs,
+        ..Mesh::new(positions, triangles)
     };
     validate(path, &mesh, checks, 1, |i| format!("line {}", tri_lines[i]))?;
+    let faces = !mesh.triangles.is_empty();
+    // A table that maps each vertex to the vt of the same number says no more than the
+    // per-vertex uvs (and is written back the same way).
+    let same_as_vertices = |index: &Vec<[u32; 3]>| {
+        tex.len() == mesh.positions.len() && mesh.uvs.is_some() && *index == mesh.triangles
+    };
+    mesh.corner_uvs = corner_vt
+        .filter(|index| faces && !tex.is_empty() && !same_as_vertices(index))
+        .map(|index| Arc::new(CornerTable { values: tex, index }));
+    if let Some(index) = corner_vn.filter(|_| faces && !normals.is_empty()) {
+        let rest = mesh.corner_group_normals(&index, normals.len());
+        mesh.corner_normals = Some(Arc::new(CornerNormals {
+            table: CornerTable {
+                values: normals,
+                index,
+            },
+            rest,
+        }));
+    }
     Ok(mesh)
 }
 
@@ -309,9 +374,16 @@ fn resolve_index(s: &str, count: usize) -> Option<u32> {
     (idx >= 0 && (idx as usize) < count && idx <= u32::MAX as i64).then_some(idx as u32)
 }
 
-/// Writes a mesh as OBJ atomically: positions (and `vt` when the mesh has uvs) in the shortest
-/// text that reads back to the same `f64`, then one `f` per triangle (1-based).
+/// Writes a mesh as OBJ atomically: positions in the shortest text that reads back to the same
+/// `f64`; the input file's texture coordinates and normals with their face-varying indices as
+/// the input had them (normals turned with the surface, [`Mesh::current_normals`]), or per-vertex
+/// texture coordinates; then one `f` per triangle (1-based).
 pub fn write_obj(path: &Path, mesh: &Mesh) -> Result<()> {
+    let vertex_uvs = mesh
+        .uvs
+        .as_ref()
+        .filter(|u| u.len() == mesh.positions.len() && mesh.corner_uvs.is_none());
+    let normals = mesh.current_normals();
     write_atomic_with(path, |w| {
         writeln!(
             w,
@@ -322,22 +394,38 @@ pub fn write_obj(path: &Path, mesh: &Mesh) -> Result<()> {
         for p in &mesh.positions {
             writeln!(w, "v {} {} {}", p.x, p.y, p.z)?;
         }
-        match &mesh.uvs {
-            Some(uvs) if uvs.len() == mesh.positions.len() => {
-                for uv in uvs {
-                    writeln!(w, "vt {} {}", uv[0], uv[1])?;
-                }
-                for t in &mesh.triangles {
-                    let [a, b, c] = t.map(|v| v as u64 + 1);
-                    writeln!(w, "f {a}/{a} {b}/{b} {c}/{c}")?;
+        if let Some(t) = &mesh.corner_uvs {
+            for uv in &t.values {
+                writeln!(w, "vt {} {}", uv[0], uv[1])?;
+            }
+        } else if let Some(uvs) = vertex_uvs {
+            for uv in uvs {
+                writeln!(w, "vt {} {}", uv[0], uv[1])?;
+            }
+        }
+        if let Some(ns) = &normals {
+            for n in ns {
+                writeln!(w, "vn {} {} {}", n[0], n[1], n[2])?;
+            }
+        }
+        let vn_index = mesh.corner_normals.as_ref().map(|n| &n.table.index);
+        for (i, t) in mesh.triangles.iter().enumerate() {
+            w.write_all(b"f")?;
+            for k in 0..3 {
+                let v = t[k] as u64 + 1;
+                let vt = match (&mesh.corner_uvs, vertex_uvs) {
+                    (Some(c), _) => Some(c.index[i][k] as u64 + 1),
+                    (None, Some(_)) => Some(v),
+                    _ => None,
+                };
+                match (vt, vn_index.map(|n| n[i][k] as u64 + 1)) {
+                    (None, None) => write!(w, " {v}")?,
+                    (Some(vt), None) => write!(w, " {v}/{vt}")?,
+                    (None, Some(vn)) => write!(w, " {v}//{vn}")?,
+                    (Some(vt), Some(vn)) => write!(w, " {v}/{vt}/{vn}")?,
                 }
             }
-            _ => {
-                for t in &mesh.triangles {
-                    let [a, b, c] = t.map(|v| v as u64 + 1);
-                    writeln!(w, "f {a} {b} {c}")?;
-                }
-            }
+            w.write_all(b"\n")?;
         }
         Ok(())
     })
@@ -720,9 +808,8 @@ fn read_ply_body(
     }
     let has_uv = !uvs.is_empty();
     let mesh = Mesh {
-        positions,
-        triangles,
         uvs: has_uv.then_some(uvs),
+        ..Mesh::new(positions, triangles)
     };
     validate(path, &mesh, checks, 0, |i| {
         format!("face[{}]", tri_faces[i])

@@ -496,11 +496,7 @@ fn lobed(opts: &SynthOptions, sphere: Mesh) -> Synthetic {
             ]
         })
         .collect();
-    let mesh = Mesh {
-        positions: truth[0].clone(),
-        triangles: sphere.triangles,
-        uvs: Some(uvs),
-    };
+    let mesh = Mesh::with_vertex_uvs(truth[0].clone(), sphere.triangles, uvs);
     let tex = Texture::new(opts.seed, 0.006);
     let skin = Skin::Cube(tex.bake_cube(BLOB_RADIUS, 512));
     let count = opts.camera_count();

@@ -1,0 +1,201 @@
+//! Results out, for the users' 3D packages: a tracked run (one OBJ per frame, as
+//! `run::read_run` reads it) becomes one animated file, USD (`.usda`), glTF 2.0 (`.glb`, morph
+//! targets), or a PC2 / MDD point cache with the first frame's mesh as OBJ beside it. Topology,
+//! texture coordinates and normals come from the run's first frame, positions from every frame.
+//! The file formats are written by hand (no maintained Rust crate writes USD or point caches;
+//! glTF's JSON is small enough to build with `serde_json`), each atomically. This module knows
+//! nothing of cameras, images or tracking.
+
+mod cache;
+mod gltf;
+mod usd;
+
+use crate::base::mesh::Mesh;
+use crate::base::units::Units;
+use crate::error::{Error, Result};
+use crate::fsutil::write_atomic_with;
+use crate::input::meshio::write_obj;
+use std::path::{Path, PathBuf};
+
+/// What [`export`] writes.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum ExportFormat {
+    /// USD text (`.usda`): one Mesh prim, points as time samples.
+    Usda,
+    /// Binary glTF 2.0 (`.glb`): the first frame's mesh, one morph target per frame and an
+    /// animation that plays them.
+    Glb,
+    /// PC2 point cache (Blender's Mesh Cache modifier, 3ds Max, Houdini).
+    Pc2,
+    /// MDD point cache (LightWave's; Blender, Houdini, Maya plug-ins).
+    Mdd,
+}
+
+impl ExportFormat {
+    pub const ALL: [ExportFormat; 4] = [
+        ExportFormat::Usda,
+        ExportFormat::Glb,
+        ExportFormat::Pc2,
+        ExportFormat::Mdd,
+    ];
+
+    /// The file extension (without the dot).
+    pub fn extension(self) -> &'static str {
+        match self {
+            ExportFormat::Usda => "usda",
+            ExportFormat::Glb => "glb",
+            ExportFormat::Pc2 => "pc2",
+            ExportFormat::Mdd => "mdd",
+        }
+    }
+
+    /// The format a file name's extension names, if any.
+    pub fn from_path(path: &Path) -> Option<ExportFormat> {
+        let ext = path.extension()?.to_str()?.to_ascii_lowercase();
+        ExportFormat::ALL.into_iter().find(|f| f.extension() == ext)
+    }
+}
+
+/// Options of [`export`].
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ExportOptions {
+    /// Frames per second of the footage: time codes and seconds of the animation.
+    pub fps: f64,
+    /// The unit of the coordinates (USD's `metersPerUnit`); `None`: not written.
+    pub units: Option<Units>,
+}
+
+impl Default for ExportOptions {
+    fn default() -> Self {
+        ExportOptions {
+            fps: 24.0,
+            units: None,
+        }
+    }
+}
+
+/// What [`export`] wrote.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ExportSummary {
+    pub frames: usize,
+    pub vertices: usize,
+    pub triangles: usize,
+    /// The files written, the animated file first.
+    pub files: Vec<PathBuf>,
+}
+
+/// Writes `frames` (frame number and mesh, ascending, all with the first one's triangles) as one
+/// animated file `out` in `format`. PC2 and MDD also write the first frame's mesh as OBJ beside
+/// `out` (same name, `.obj`), which is what the point cache deforms.
+pub fn export(
+    frames: &[(u32, Mesh)],
+    format: ExportFormat,
+    out: &Path,
+    opts: &ExportOptions,
+) -> Result<ExportSummary> {
+    if !(opts.fps.is_finite() && opts.fps > 0.0 && opts.fps <= 1000.0) {
+        return Err(Error::option(
+            "--fps",
+            opts.fps,
+            "frames per second in (0, 1000]",
+        ));
+    }
+    let Some((_, first)) = frames.first() else {
+        return Err(Error::option("frames", "none", "at least one frame mesh"));
+    };
+    for w in frames.windows(2) {
+        if w[1].0 <= w[0].0 {
+            return Err(Error::option(
+                "frames",
+                w[1].0,
+                "frame numbers in ascending order",
+            ));
+        }
+    }
+    for (f, m) in frames {
+        if m.positions.len() != first.positions.len() || m.triangles != first.triangles {
+            return Err(Error::Mismatch {
+                what: format!("frame {f}'s mesh"),
+                expected: format!(
+                    "the first frame's topology ({} vertices, {} triangles)",
+                    first.positions.len(),
+                    first.triangles.len()
+                ),
+                found: format!(
+                    "{} vertices, {} triangles{}",
+                    m.positions.len(),
+                    m.triangles.len(),
+                    if m.positions.len() == first.positions.len() {
+                        " (other triangles)"
+                    } else {
+                        ""
+                    }
+                ),
+            });
+        }
+    }
+    let mut files = vec![out.to_path_buf()];
+    match format {
+        ExportFormat::Usda => {
+            let text = usd::usda(frames, opts);
+            write_atomic_with(out, |w| std::io::Write::write_all(w, text.as_bytes()))?;
+        }
+        ExportFormat::Glb => {
+            let bytes = gltf::glb(frames, opts)?;
+            write_atomic_with(out, |w| std::io::Write::write_all(w, &bytes))?;
+        }
+        ExportFormat::Pc2 | ExportFormat::Mdd => {
+            let bytes = if format == ExportFormat::Pc2 {
+                cache::pc2(frames)?
+            } else {
+                cache::mdd(frames, opts.fps)
+            };
+            write_atomic_with(out, |w| std::io::Write::write_all(w, &bytes))?;
+            let obj = out.with_extension("obj");
+            write_obj(&obj, first)?;
+            files.push(obj);
+        }
+    }
+    Ok(ExportSummary {
+        frames: frames.len(),
+        vertices: first.positions.len(),
+        triangles: first.triangles.len(),
+        files,
+    })
+}
+
+/// Reads a run folder ([`crate::read_run`]) and [`export`]s it. Without `opts.units`, the unit is
+/// taken from the scene file named in the folder's `run.json`, when both can be read.
+pub fn export_run(
+    run: &Path,
+    format: ExportFormat,
+    out: &Path,
+    opts: &ExportOptions,
+) -> Result<ExportSummary> {
+    let frames = crate::run::read_run(run)?;
+    if frames.is_empty() {
+        return Err(Error::invalid(
+            run,
+            "frames",
+            "no frame meshes (files like 0000.obj) in this folder",
+        ));
+    }
+    let units = opts.units.or_else(|| scene_units(run));
+    export(&frames, format, out, &ExportOptions { units, ..*opts })
+}
+
+/// The `units` of the scene a run folder's manifest names, when both files read.
+fn scene_units(run: &Path) -> Option<Units> {
+    let manifest = crate::run::Manifest::read(&run.join("run.json")).ok()?;
+    let path = &manifest.scene.path;
+    let text = std::fs::read_to_string(path).ok()?;
+    crate::input::SceneFile::parse(path, &text).ok()?.units
+}
+
+/// Seconds of frame `frame` when `first` is at 0.
+fn seconds(frame: u32, first: u32, fps: f64) -> f64 {
+    (frame - first) as f64 / fps
+}
+
+#[cfg(test)]
+mod tests;

@@ -1,0 +1,155 @@
+//! Exports as their consumers read them: a run with UV seams, split normals and motion, and the
+//! Blender cloth sample's ground truth as a run, are exported to USD and opened by Pixar's USD
+//! library (`tools/check_usd.py`, with the `usd-core` package that `tools/pyenv.sh` installs;
+//! CI runs it, and without it the USD check says SKIPPED). The glTF is read back by the `gltf`
+//! crate; the point caches' layout is checked byte for byte in the library's unit tests.
+
+use modelflow::base::Units;
+use modelflow::export::{export_run, ExportFormat, ExportOptions};
+use modelflow::input::{read_mesh, write_obj};
+use nalgebra::{Point3, Rotation3, Vector3};
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+fn repo() -> PathBuf {
+    PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../.."))
+}
+
+/// Two quads folded along x = 1, with a UV seam and split normals (as in tests/meshio.rs).
+const FOLDED: &str = "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nv 1 0 0\nv 1 1 0\nv 2 0 1\nv 2 1 1\n\
+    vt 0 0\nvt 0.5 0\nvt 0.5 1\nvt 0 1\nvt 0.6 0\nvt 1 0\nvt 1 1\nvt 0.6 1\n\
+    vn 0 0 1\nvn -0.7071067811865475 0 0.7071067811865475\n\
+    f 1/1/1 2/2/1 3/3/1 4/4/1\nf 2/5/2 7/6/2 8/7/2 3/8/2\n";
+
+/// A run folder of the folded quads turning and travelling over frames 5..=14.
+fn folded_run(dir: &Path) -> PathBuf {
+    let src = dir.join("folded.obj");
+    std::fs::write(&src, FOLDED).unwrap();
+    let m = read_mesh(&src).unwrap();
+    let run = dir.join("run");
+    std::fs::create_dir_all(&run).unwrap();
+    for f in 5..15u32 {
+        let t = (f - 5) as f64;
+        let r = Rotation3::from_axis_angle(&Vector3::y_axis(), 0.1 * t);
+        let moved: Vec<Point3<f64>> = m
+            .positions
+            .iter()
+            .map(|p| r * p + Vector3::new(0.03 * t, 0.0, 0.2))
+            .collect();
+        write_obj(&run.join(format!("{f:04}.obj")), &m.with_positions(moved)).unwrap();
+    }
+    run
+}
+
+/// The Python that has `pxr` (Pixar's USD): `$MODELFLOW_PYTHON` or the venv `tools/pyenv.sh`
+/// makes in `target/pyenv`.
+fn usd_python() -> Option<PathBuf> {
+    let candidates = std::env::var_os("MODELFLOW_PYTHON")
+        .map(PathBuf::from)
+        .into_iter()
+        .chain([repo().join("target/pyenv/bin/python")]);
+    for p in candidates {
+        let ok = Command::new(&p)
+            .args(["-c", "import pxr"])
+            .output()
+            .is_ok_and(|o| o.status.success());
+        if ok {
+            return Some(p);
+        }
+    }
+    None
+}
+
+fn check_usd(run: &Path, usd: &Path, extra: &[&str]) {
+    let Some(py) = usd_python() else {
+        if std::env::var_os("CI").is_some() {
+            panic!("CI must check USD files with usd-core: run tools/pyenv.sh first");
+        }
+        eprintln!(
+            "SKIPPED: the USD check needs usd-core; run tools/pyenv.sh (or set MODELFLOW_PYTHON)"
+        );
+        return;
+    };
+    let out = Command::new(py)
+        .arg(repo().join("tools/check_usd.py"))
+        .arg(run)
+        .arg(usd)
+        .args(extra)
+        .output()
+        .unwrap();
+    let text = format!(
+        "{}{}",
+        String::from_utf8_lossy(&out.stdout),
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert!(out.status.success(), "{text}");
+    assert!(text.contains("usd check OK"), "{text}");
+    eprintln!("{text}");
+}
+
+#[test]
+fn usd_export_opens_in_pixar_usd_with_seams_normals_and_motion() {
+    let dir = tempfile::tempdir().unwrap();
+    let run = folded_run(dir.path());
+    let usd = dir.path().join("folded.usda");
+    let opts = ExportOptions {
+        fps: 25.0,
+        units: Some(Units::Centimetres),
+    };
+    let s = export_run(&run, ExportFormat::Usda, &usd, &opts).unwrap();
+    assert_eq!((s.frames, s.vertices, s.triangles), (10, 8, 4));
+    check_usd(&run, &usd, &["--fps", "25", "--meters-per-unit", "0.01"]);
+}
+
+#[test]
+fn usd_export_of_the_cloth_sample_opens_in_pixar_usd() {
+    let dir = tempfile::tempdir().unwrap();
+    let run = repo().join("fixtures/blender-cloth-sample/truth");
+    let usd = dir.path().join("cloth.usda");
+    export_run(&run, ExportFormat::Usda, &usd, &ExportOptions::default()).unwrap();
+    check_usd(&run, &usd, &[]);
+}
+
+#[test]
+fn point_caches_come_with_the_first_frame_as_obj_and_glb_reads_back() {
+    let dir = tempfile::tempdir().unwrap();
+    let run = folded_run(dir.path());
+    for (format, name) in [
+        (ExportFormat::Pc2, "c.pc2"),
+        (ExportFormat::Mdd, "c.mdd"),
+        (ExportFormat::Glb, "c.glb"),
+    ] {
+        let out = dir.path().join(name);
+        let s = export_run(&run, format, &out, &ExportOptions::default()).unwrap();
+        assert_eq!(s.files[0], out);
+        if format != ExportFormat::Glb {
+            // The OBJ beside the cache is the run's first frame, seams and normals included.
+            let obj = read_mesh(&s.files[1]).unwrap();
+            let first = read_mesh(&run.join("0005.obj")).unwrap();
+            assert_eq!(obj, first);
+        }
+    }
+    // The glTF: 4 triangles, 12 corners; the seam and the hard edge split the 8 vertices into 8
+    // glTF vertices (each corner group here has one uv and one normal).
+    let (doc, buffers, _) = gltf::import(dir.path().join("c.glb")).unwrap();
+    let prim = doc.meshes().next().unwrap().primitives().next().unwrap();
+    let reader = prim.reader(|b| Some(&buffers[b.index()]));
+    assert_eq!(reader.read_positions().unwrap().count(), 8);
+    assert_eq!(reader.read_normals().unwrap().count(), 8);
+    assert_eq!(reader.read_morph_targets().count(), 10);
+}
+
+#[test]
+fn a_run_folder_without_frames_is_refused_by_name() {
+    let dir = tempfile::tempdir().unwrap();
+    let e = export_run(
+        dir.path(),
+        ExportFormat::Usda,
+        &dir.path().join("x.usda"),
+        &ExportOptions::default(),
+    )
+    .unwrap_err()
+    .to_string();
+    assert!(e.contains("no frame meshes"), "{e}");
+    assert!(!dir.path().join("x.usda").exists());
+}

@@ -1,0 +1,113 @@
+"""Imports modelflow's glTF, PC2 and MDD exports into Blender (the `bpy` package) and checks the
+vertex positions Blender evaluates at the first, middle and last frame against the run folder's
+OBJs (within 1e-6 of the run's largest coordinate; the files hold 32-bit floats).
+
+    python tools/check_blender.py RUN_DIR STEM      # reads STEM.glb, STEM.pc2, STEM.mdd, STEM.obj
+
+The glTF importer turns glTF's +Y up into Blender's +Z up: (x, y, z) -> (x, -z, y); the OBJ is
+imported with forward Y, up Z so that its coordinates stay as they are. `tools/check_blender.sh`
+makes the environment and runs this on a tracked run.
+"""
+
+import os
+import sys
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+import bpy  # noqa: E402
+from objread import close, read_run, scale_of  # noqa: E402
+
+
+def reset():
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+
+
+def evaluated(obj, frame):
+    bpy.context.scene.frame_set(frame)
+    dg = bpy.context.evaluated_depsgraph_get()
+    ev = obj.evaluated_get(dg)
+    m = ev.to_mesh()
+    pts = [tuple(v.co) for v in m.vertices]
+    ev.to_mesh_clear()
+    return pts
+
+
+def check_cache(run, stem, ext, fps, frames, scale):
+    reset()
+    bpy.context.scene.render.fps = int(fps)
+    bpy.ops.wm.obj_import(filepath=stem + ".obj", forward_axis="Y", up_axis="Z")
+    obj = bpy.context.selected_objects[0]
+    mod = obj.modifiers.new("cache", "MESH_CACHE")
+    mod.cache_format = ext.upper()
+    mod.filepath = stem + "." + ext
+    mod.frame_start = frames[0]
+    mod.forward_axis = "POS_Y"
+    mod.up_axis = "POS_Z"
+    out = []
+    for f in sorted({frames[0], frames[len(frames) // 2], frames[-1]}):
+        w, ok = close(evaluated(obj, f), run[f]["v"], scale)
+        out.append((f, w, ok))
+    return out
+
+
+def check_glb(run, stem, fps, frames, scale):
+    reset()
+    bpy.context.scene.render.fps = int(fps)
+    bpy.ops.import_scene.gltf(filepath=stem + ".glb")
+    obj = [o for o in bpy.context.scene.objects if o.type == "MESH"][0]
+    keys = obj.data.shape_keys
+    n = len(keys.key_blocks) - 1 if keys else 0
+    if n != len(frames):
+        return [(None, f"{n} shape keys for {len(frames)} frames", False)]
+    # Blender's frame for each run frame: the animation starts at Blender frame 0 or 1; find it
+    # from the action's first keyframe.
+    action = keys.animation_data.action
+    start = min(min(k.co[0] for k in fc.keyframe_points) for fc in _fcurves(action))
+    base = [tuple(v.co) for v in obj.data.vertices]
+    # glTF vertices -> run vertices: nearest first-frame vertex (in Blender's axes).
+    first = [(x, -z, y) for (x, y, z) in run[frames[0]]["v"]]
+    index = _nearest(base, first)
+    out = []
+    for f in sorted({frames[0], frames[len(frames) // 2], frames[-1]}):
+        pts = evaluated(obj, int(round(start + (f - frames[0]))))
+        want = [(lambda p: (p[0], -p[2], p[1]))(run[f]["v"][i]) for i in index]
+        w, ok = close(pts, want, scale)
+        out.append((f, w, ok))
+    return out
+
+
+def _fcurves(action):
+    if hasattr(action, "fcurves") and len(action.fcurves):
+        return action.fcurves
+    # Blender 4.4+ layered actions.
+    return [fc for layer in action.layers for strip in layer.strips
+            for bag in strip.channelbags for fc in bag.fcurves]
+
+
+def _nearest(points, targets):
+    idx = []
+    for p in points:
+        best = min(range(len(targets)), key=lambda i: sum((a - b) ** 2 for a, b in zip(p, targets[i])))
+        idx.append(best)
+    return idx
+
+
+def main():
+    run_dir, stem = sys.argv[1], sys.argv[2]
+    fps = float(sys.argv[3]) if len(sys.argv) > 3 else 24.0
+    run = read_run(run_dir)
+    frames = list(run)
+    scale = scale_of(run[frames[0]]["v"])
+    results = {
+        "glb": check_glb(run, stem, fps, frames, scale),
+        "pc2": check_cache(run, stem, "pc2", fps, frames, scale),
+        "mdd": check_cache(run, stem, "mdd", fps, frames, scale),
+    }
+    bad = False
+    for name, rows in results.items():
+        for f, w, ok in rows:
+            print(f"blender {bpy.app.version_string} {name}: frame {f}: largest difference {w} -> {'ok' if ok else 'FAILED'}")
+            bad |= not ok
+    sys.exit(1 if bad else 0)
+
+
+main()

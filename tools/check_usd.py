@@ -1,0 +1,89 @@
+"""Opens a modelflow USD export with Pixar's USD library (the `usd-core` package) and checks it
+against the run folder it came from: the topology, the texture coordinates and normals with
+their face-varying indices, the time codes, and the points at the first, middle and last frame
+(within 1e-6 of the run's largest coordinate; USD stores points as 32-bit floats).
+
+    python tools/check_usd.py RUN_DIR FILE.usda [--fps 24] [--meters-per-unit 1]
+"""
+
+import argparse
+import os
+import sys
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from objread import close, read_run, scale_of  # noqa: E402
+from pxr import Usd, UsdGeom  # noqa: E402
+
+
+def main():
+    ap = argparse.ArgumentParser()
+    ap.add_argument("run")
+    ap.add_argument("usd")
+    ap.add_argument("--fps", type=float, default=24.0)
+    ap.add_argument("--meters-per-unit", type=float)
+    a = ap.parse_args()
+    run = read_run(a.run)
+    frames = list(run)
+    first = run[frames[0]]
+    stage = Usd.Stage.Open(a.usd)
+    if stage is None:
+        sys.exit(f"{a.usd}: USD could not open it")
+    fail = []
+    prim = stage.GetDefaultPrim().GetChild("mesh")
+    mesh = UsdGeom.Mesh(prim)
+    if not mesh:
+        sys.exit(f"{a.usd}: no Mesh prim under the default prim")
+    if stage.GetStartTimeCode() != frames[0] or stage.GetEndTimeCode() != frames[-1]:
+        fail.append(f"time codes {stage.GetStartTimeCode()}..{stage.GetEndTimeCode()}, run {frames[0]}..{frames[-1]}")
+    if stage.GetTimeCodesPerSecond() != a.fps:
+        fail.append(f"timeCodesPerSecond {stage.GetTimeCodesPerSecond()}, expected {a.fps}")
+    if a.meters_per_unit is not None and UsdGeom.GetStageMetersPerUnit(stage) != a.meters_per_unit:
+        fail.append(f"metersPerUnit {UsdGeom.GetStageMetersPerUnit(stage)}, expected {a.meters_per_unit}")
+    if list(mesh.GetFaceVertexIndicesAttr().Get()) != first["fv"]:
+        fail.append("faceVertexIndices differ from the OBJ's faces")
+    if set(mesh.GetFaceVertexCountsAttr().Get()) != {3}:
+        fail.append("faces are not all triangles")
+    api = UsdGeom.PrimvarsAPI(prim)
+    if first["vt"]:
+        st = api.GetPrimvar("st")
+        vals = [tuple(x) for x in st.Get()]
+        if st.GetInterpolation() == "faceVarying":
+            idx = list(st.GetIndices())
+            got = [vals[i] for i in idx]
+            want = [first["vt"][i] for i in first["ft"]]
+        else:
+            got = vals
+            want = first["vt"]
+        w, ok = close(got, want, 1.0)
+        if not ok:
+            fail.append(f"texture coordinates differ by {w}")
+    if first["vn"]:
+        nv = api.GetPrimvar("normals")
+        if nv.GetInterpolation() != "faceVarying":
+            fail.append(f"normals interpolation {nv.GetInterpolation()}")
+        idx = list(nv.GetIndices())
+        for f in (frames[0], frames[-1]):
+            vals = [tuple(x) for x in nv.Get(f)]
+            got = [vals[i] for i in idx]
+            want = [run[f]["vn"][i] for i in run[f]["fn"]]
+            w, ok = close(got, want, 1.0)
+            if not ok:
+                fail.append(f"frame {f}: normals differ by {w}")
+    scale = scale_of(first["v"])
+    checked = sorted({frames[0], frames[len(frames) // 2], frames[-1]})
+    for f in checked:
+        pts = [tuple(p) for p in mesh.GetPointsAttr().Get(f)]
+        if len(pts) != len(run[f]["v"]):
+            fail.append(f"frame {f}: {len(pts)} points, the OBJ has {len(run[f]['v'])}")
+            continue
+        w, ok = close(pts, run[f]["v"], scale)
+        if not ok:
+            fail.append(f"frame {f}: points differ by {w} (scale {scale})")
+    if fail:
+        print(f"usd check FAILED ({a.usd}):\n  " + "\n  ".join(fail))
+        sys.exit(1)
+    print(f"usd check OK: {a.usd} opened by USD {Usd.GetVersion()}, {len(frames)} frames, "
+          f"points equal the run's OBJs at frames {checked} (within 1e-6 of {scale:.3g})")
+
+
+main()

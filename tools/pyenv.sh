@@ -1,0 +1,11 @@
+#!/usr/bin/env bash
+# Makes the Python environment the export checks use: target/pyenv with Pixar's USD library
+# (usd-core). Run from anywhere; idempotent. The tests find it at target/pyenv/bin/python.
+set -euo pipefail
+root="$(cd "$(dirname "$0")/.." && pwd)"
+env="$root/target/pyenv"
+if ! "$env/bin/python" -c "import pxr" 2>/dev/null; then
+    python3 -m venv "$env" || { apt-get install -y -q python3-venv >/dev/null && python3 -m venv "$env"; }
+    "$env/bin/pip" install -q --disable-pip-version-check usd-core
+fi
+"$env/bin/python" -c "from pxr import Usd; print('pyenv: usd-core', Usd.GetVersion())"
