@@ -1,7 +1,8 @@
 """Opens a modelflow USD export with Pixar's USD library (the `usd-core` package) and checks it
 against the run folder it came from: the topology, the texture coordinates and normals with
-their face-varying indices, the time codes, and the points at the first, middle and last frame
-(within 1e-6 of the run's largest coordinate; USD stores points as 32-bit floats).
+their face-varying indices, the time codes, the points at the first, middle and last frame
+(within 1e-6 of the run's largest coordinate; USD stores points as 32-bit floats), and the
+per-vertex confidence primvars against the run's confidence files.
 
     python tools/check_usd.py RUN_DIR FILE.usda [--fps 24] [--meters-per-unit 1]
 """
@@ -79,11 +80,32 @@ def main():
         w, ok = close(pts, run[f]["v"], scale)
         if not ok:
             fail.append(f"frame {f}: points differ by {w} (scale {scale})")
+    # Per-vertex confidence: the primvars equal the run's confidence files (32-bit floats).
+    conf = sorted(n for n in os.listdir(a.run) if n.endswith(".confidence.csv"))
+    if conf:
+        import csv
+        name = conf[len(conf) // 2]
+        f = int(name.split(".")[0])
+        rows = list(csv.DictReader(open(os.path.join(a.run, name))))
+        for field in ("information", "residual", "sigma"):
+            pv = api.GetPrimvar(field)
+            got = list(pv.Get(f)) if pv else []
+            want = [float(r[field]) for r in rows]
+            if len(got) != len(want) or pv.GetInterpolation() != "vertex":
+                fail.append(f"frame {f}: primvar {field}: {len(got)} values, the run has {len(want)}")
+                continue
+            for g, w in zip(got, want):
+                if not (g == w or abs(g - w) <= 1e-6 * abs(w)):
+                    fail.append(f"frame {f}: primvar {field}: {g} where the run has {w}")
+                    break
+        checked_conf = f" and confidence at frame {f}"
+    else:
+        checked_conf = ""
     if fail:
         print(f"usd check FAILED ({a.usd}):\n  " + "\n  ".join(fail))
         sys.exit(1)
     print(f"usd check OK: {a.usd} opened by USD {Usd.GetVersion()}, {len(frames)} frames, "
-          f"points equal the run's OBJs at frames {checked} (within 1e-6 of {scale:.3g})")
+          f"points equal the run's OBJs at frames {checked} (within 1e-6 of {scale:.3g}){checked_conf}")
 
 
 main()

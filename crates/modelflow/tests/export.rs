@@ -111,6 +111,38 @@ fn usd_export_of_the_cloth_sample_opens_in_pixar_usd() {
 }
 
 #[test]
+fn usd_export_of_a_tracked_run_carries_its_confidence() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene =
+        modelflow::input::Scene::load(&repo().join("fixtures/blender-cloth-sample/scene.json"))
+            .unwrap()
+            .with_frames(0, 3)
+            .unwrap();
+    let run = dir.path().join("run");
+    modelflow::track_scene(
+        &scene,
+        &modelflow::TrackOptions::default(),
+        &run,
+        &modelflow::RunOptions::default(),
+        &mut |_| {},
+    )
+    .unwrap();
+    // One confidence file per solved frame, one row per vertex, every vertex of the cloth seen.
+    for f in 1..=3 {
+        let c =
+            modelflow::run::read_confidence(&run.join(modelflow::run::confidence_file(f))).unwrap();
+        assert_eq!(c.len(), scene.mesh.positions.len());
+        assert!(c
+            .iter()
+            .all(|c| c.information > 0.0 && c.sigma().is_finite()));
+    }
+    assert!(!run.join(modelflow::run::confidence_file(0)).exists());
+    let usd = dir.path().join("tracked.usda");
+    export_run(&run, ExportFormat::Usda, &usd, &ExportOptions::default()).unwrap();
+    check_usd(&run, &usd, &[]);
+}
+
+#[test]
 fn point_caches_come_with_the_first_frame_as_obj_and_glb_reads_back() {
     let dir = tempfile::tempdir().unwrap();
     let run = folded_run(dir.path());

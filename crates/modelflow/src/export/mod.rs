@@ -15,6 +15,7 @@ use crate::base::units::Units;
 use crate::error::{Error, Result};
 use crate::fsutil::write_atomic_with;
 use crate::input::meshio::write_obj;
+use crate::tracker::VertexConfidence;
 use std::path::{Path, PathBuf};
 
 /// What [`export`] writes.
@@ -86,9 +87,12 @@ pub struct ExportSummary {
 
 /// Writes `frames` (frame number and mesh, ascending, all with the first one's triangles) as one
 /// animated file `out` in `format`. PC2 and MDD also write the first frame's mesh as OBJ beside
-/// `out` (same name, `.obj`), which is what the point cache deforms.
+/// `out` (same name, `.obj`), which is what the point cache deforms. `confidence` (frame and
+/// per-vertex confidence, as `track` writes it beside each solved frame; may be empty) goes into
+/// USD as the `information`, `residual` and `sigma` primvars.
 pub fn export(
     frames: &[(u32, Mesh)],
+    confidence: &[(u32, Vec<VertexConfidence>)],
     format: ExportFormat,
     out: &Path,
     opts: &ExportOptions,
@@ -134,10 +138,20 @@ pub fn export(
             });
         }
     }
+    if let Some((f, c)) = confidence
+        .iter()
+        .find(|(_, c)| c.len() != first.positions.len())
+    {
+        return Err(Error::Mismatch {
+            what: format!("frame {f}'s confidence"),
+            expected: format!("{} vertices", first.positions.len()),
+            found: format!("{}", c.len()),
+        });
+    }
     let mut files = vec![out.to_path_buf()];
     match format {
         ExportFormat::Usda => {
-            let text = usd::usda(frames, opts);
+            let text = usd::usda(frames, confidence, opts);
             write_atomic_with(out, |w| std::io::Write::write_all(w, text.as_bytes()))?;
         }
         ExportFormat::Glb => {
@@ -164,7 +178,7 @@ pub fn export(
     })
 }
 
-/// Reads a run folder ([`crate::read_run`]) and [`export`]s it. Without `opts.units`, the unit is
+/// Reads a run folder ([`crate::read_run`]) and its confidence files, and [`export`]s it. Without `opts.units`, the unit is
 /// taken from the scene file named in the folder's `run.json`, when both can be read.
 pub fn export_run(
     run: &Path,
@@ -181,7 +195,20 @@ pub fn export_run(
         ));
     }
     let units = opts.units.or_else(|| scene_units(run));
-    export(&frames, format, out, &ExportOptions { units, ..*opts })
+    let mut confidence = Vec::new();
+    for (f, _) in &frames {
+        let p = run.join(crate::run::confidence_file(*f));
+        if p.is_file() {
+            confidence.push((*f, crate::run::read_confidence(&p)?));
+        }
+    }
+    export(
+        &frames,
+        &confidence,
+        format,
+        out,
+        &ExportOptions { units, ..*opts },
+    )
 }
 
 /// The `units` of the scene a run folder's manifest names, when both files read.

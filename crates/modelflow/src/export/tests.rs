@@ -58,6 +58,7 @@ fn mismatched_topology_and_bad_fps_are_refused() {
     fr[1].1.triangles.pop();
     let e = export(
         &fr,
+        &[],
         ExportFormat::Usda,
         &dir.path().join("a.usda"),
         &ExportOptions::default(),
@@ -66,6 +67,7 @@ fn mismatched_topology_and_bad_fps_are_refused() {
     assert!(e.to_string().contains("frame 11's mesh"), "{e}");
     let e = export(
         &frames(2),
+        &[],
         ExportFormat::Usda,
         &dir.path().join("a.usda"),
         &ExportOptions {
@@ -75,6 +77,16 @@ fn mismatched_topology_and_bad_fps_are_refused() {
     )
     .unwrap_err();
     assert!(e.to_string().contains("--fps"), "{e}");
+    let short = vec![(10, vec![VertexConfidence::default(); 5])];
+    let e = export(
+        &frames(2),
+        &short,
+        ExportFormat::Usda,
+        &dir.path().join("a.usda"),
+        &ExportOptions::default(),
+    )
+    .unwrap_err();
+    assert!(e.to_string().contains("frame 10's confidence"), "{e}");
     assert!(!dir.path().join("a.usda").exists());
 }
 
@@ -83,7 +95,7 @@ fn glb_reads_back_with_the_gltf_crate() {
     let dir = tempfile::tempdir().unwrap();
     let fr = frames(4);
     let out = dir.path().join("t.glb");
-    let s = export(&fr, ExportFormat::Glb, &out, &ExportOptions::default()).unwrap();
+    let s = export(&fr, &[], ExportFormat::Glb, &out, &ExportOptions::default()).unwrap();
     assert_eq!((s.frames, s.vertices, s.triangles), (4, 6, 4));
     let (doc, buffers, _) = ::gltf::import(&out).unwrap();
     let mesh = doc.meshes().next().unwrap();

@@ -2,14 +2,21 @@
 //! topology once (`faceVertexCounts`, `faceVertexIndices`, right-handed), `points` and `extent`
 //! as time samples at the frame numbers, texture coordinates as the `st` primvar (face-varying
 //! with indices, or per vertex) and normals as the `normals` primvar (face-varying, time
-//! samples). The stage's time codes are the frame numbers at `fps` per second.
+//! samples). The stage's time codes are the frame numbers at `fps` per second. A tracked run's
+//! per-vertex confidence becomes the `information`, `residual` and `sigma` primvars (per vertex,
+//! time samples at the solved frames; `sigma` is `inf` where nothing constrains the vertex).
 
 use super::ExportOptions;
 use crate::base::mesh::Mesh;
+use crate::tracker::VertexConfidence;
 use std::fmt::Write;
 
 /// The `.usda` text of `frames`.
-pub(crate) fn usda(frames: &[(u32, Mesh)], opts: &ExportOptions) -> String {
+pub(crate) fn usda(
+    frames: &[(u32, Mesh)],
+    confidence: &[(u32, Vec<VertexConfidence>)],
+    opts: &ExportOptions,
+) -> String {
     let (f0, first) = (&frames[0].0, &frames[0].1);
     let last = frames[frames.len() - 1].0;
     let mut o = String::new();
@@ -95,9 +102,34 @@ pub(crate) fn usda(frames: &[(u32, Mesh)], opts: &ExportOptions) -> String {
         });
         indices(&mut o, "primvars:normals:indices", &n.table.index);
     }
+    if !confidence.is_empty() {
+        let fields: [(&str, ConfidenceField); 3] = [
+            ("information", |c| c.information),
+            ("residual", |c| c.residual),
+            ("sigma", |c| c.sigma()),
+        ];
+        for (name, value) in fields {
+            let _ = writeln!(
+                o,
+                "        float[] primvars:{name} (\n            interpolation = \"vertex\"\n        )"
+            );
+            let _ = writeln!(o, "        float[] primvars:{name}.timeSamples = {{");
+            for (f, c) in confidence {
+                let _ = write!(o, "            {f}: [");
+                list(&mut o, c.iter(), |o, c| {
+                    let _ = write!(o, "{:?}", value(c) as f32);
+                });
+                o.push_str("],\n");
+            }
+            o.push_str("        }\n");
+        }
+    }
     o.push_str("    }\n}\n");
     o
 }
+
+/// One number of a vertex's confidence.
+type ConfidenceField = fn(&VertexConfidence) -> f64;
 
 /// Writes the items separated by ", ".
 fn list<T>(o: &mut String, items: impl Iterator<Item = T>, mut item: impl FnMut(&mut String, T)) {

@@ -13,6 +13,7 @@ pub(super) struct Figures {
     pub overlays: Vec<(String, String)>,
     pub obliques: Vec<(String, String)>,
     pub error_maps: Vec<(String, String)>,
+    pub confidence_maps: Vec<(String, String)>,
 }
 
 const STYLE: &str = "body{font-family:system-ui,-apple-system,'Segoe UI',Roboto,'DejaVu Sans',sans-serif;\
@@ -230,6 +231,15 @@ pub(super) fn page(
             esc(&scene.cameras[0].name)
         );
         figures(&mut o, &figs.error_maps, "error-coloured mesh");
+    }
+    if !figs.confidence_maps.is_empty() {
+        let _ = writeln!(o, "<h2>Per-vertex confidence</h2>");
+        let _ = writeln!(
+            o,
+            "<p>Each tracked run's mesh seen from camera {}, coloured by how well the images pin each vertex down: σ, one standard deviation of its position along its worst-constrained direction (the residual of its pixels over the square root of the smallest eigenvalue of its 3×3 block of the photometric normal equations; <code>NNNN.confidence.csv</code> in the run folder). Dark is well constrained; grey vertices are constrained by no pixel of any camera (hidden, outside every view, or rejected as outliers) and follow the regularisers alone. One scale for all frames and runs. Runs without confidence files (e.g. the baseline) are not shown.</p>",
+            esc(&scene.cameras[0].name)
+        );
+        figures(&mut o, &figs.confidence_maps, "confidence-coloured mesh");
     }
     let _ = writeln!(
         o,

@@ -23,6 +23,7 @@ use crate::report::eval::{self, EvalReport};
 use crate::report::overlay::{self, WireStyle};
 use crate::report::plot::{LinePlot, Series};
 use crate::synth::render::{self, RenderOptions, Surface};
+use crate::tracker::VertexConfidence;
 use nalgebra::Point3;
 use rayon::prelude::*;
 use std::path::{Path, PathBuf};
@@ -265,6 +266,35 @@ pub fn write_report(
             imageio::write_png(&path, &sheet)?;
             files.push(path);
             figures.error_maps.push((format!("frame {f}"), name));
+        }
+    }
+    // Confidence maps of the runs that wrote confidence files, at the drawn frames that have them.
+    let confidence: Vec<Vec<(u32, Vec<VertexConfidence>)>> = loaded
+        .iter()
+        .map(|r| {
+            frames
+                .iter()
+                .filter_map(|&f| {
+                    let p = r.dir.join(crate::run::confidence_file(f));
+                    p.is_file()
+                        .then(|| crate::run::read_confidence(&p).map(|c| (f, c)))
+                })
+                .filter(|c| {
+                    c.as_ref()
+                        .map_or(true, |(_, c)| c.len() == scene.mesh.positions.len())
+                })
+                .collect::<Result<Vec<_>>>()
+        })
+        .collect::<Result<_>>()?;
+    if let Some(scale) = sigma_scale(&confidence) {
+        for &f in &frames {
+            if let Some(sheet) = confidence_sheet(scene, &loaded, &confidence, f, scale, opts)? {
+                let name = format!("confidence_f{f:04}.png");
+                let path = out_dir.join(&name);
+                imageio::write_png(&path, &sheet)?;
+                files.push(path);
+                figures.confidence_maps.push((format!("frame {f}"), name));
+            }
         }
     }
     let index = out_dir.join("index.html");
@@ -622,6 +652,114 @@ fn error_sheet(
     );
     panels.push(bar);
     Ok(overlay::side_by_side(&panels, 6, SHEET_BG))
+}
+
+/// The σ colour scale, logarithmic: `(lo, hi)`, the 2nd and 98th percentiles of the finite σ
+/// over the drawn frames and runs (σ spans orders of magnitude between the middle of a
+/// textured surface and its grazing rim); `None` when there is none.
+fn sigma_scale(confidence: &[Vec<(u32, Vec<VertexConfidence>)>]) -> Option<(f64, f64)> {
+    let mut s: Vec<f64> = confidence
+        .iter()
+        .flatten()
+        .flat_map(|(_, c)| c.iter().map(VertexConfidence::sigma))
+        .filter(|v| v.is_finite() && *v > 0.0)
+        .collect();
+    if s.is_empty() {
+        return None;
+    }
+    s.sort_by(f64::total_cmp);
+    let at = |q: f64| s[((s.len() - 1) as f64 * q) as usize];
+    let (lo, hi) = (at(0.02), at(0.98));
+    Some(if hi > lo {
+        (lo, hi)
+    } else {
+        (lo / 2.0, lo * 2.0)
+    })
+}
+
+/// Colour of a vertex no pixel constrains.
+const UNCONSTRAINED: Rgb = [0.55, 0.55, 0.55];
+
+/// Each run with confidence at `frame`: its mesh from the first camera coloured by σ (viridis over
+/// log σ in `scale`, grey where unconstrained), with a colour bar; `None` when no run has it.
+fn confidence_sheet(
+    scene: &Scene,
+    runs: &[Run],
+    confidence: &[Vec<(u32, Vec<VertexConfidence>)>],
+    frame: u32,
+    scale: (f64, f64),
+    opts: &ReportOptions,
+) -> Result<Option<RgbImage>> {
+    let (lo, hi) = (scale.0.ln(), scale.1.ln());
+    let cam0 = &scene.cameras[0];
+    let s = panel_scale(cam0.width, opts.min_panel_width);
+    let proj = overlay::magnified(cam0.at(frame), s);
+    let (w, h) = (
+        (cam0.width as f64 * s) as usize,
+        (cam0.height as f64 * s) as usize,
+    );
+    let ropts = RenderOptions {
+        background: [0.08; 3],
+        ..RenderOptions::default()
+    };
+    let shown: Vec<(&Run, &Vec<VertexConfidence>)> = runs
+        .iter()
+        .zip(confidence)
+        .filter_map(|(r, c)| c.iter().find(|(f, _)| *f == frame).map(|(_, c)| (r, c)))
+        .collect();
+    if shown.is_empty() {
+        return Ok(None);
+    }
+    let mut panels = shown
+        .par_iter()
+        .map(|(run, conf)| {
+            let mesh = run.at(scene, frame);
+            let colours: Vec<[f32; 3]> = conf
+                .iter()
+                .map(|c| {
+                    let s = c.sigma();
+                    if s.is_finite() {
+                        colormap::viridis(((s.max(1e-300).ln() - lo) / (hi - lo)).clamp(0.0, 1.0))
+                    } else {
+                        UNCONSTRAINED
+                    }
+                })
+                .collect();
+            let mut p = render::render(
+                mesh,
+                &[],
+                &Surface::VertexColors(&colours),
+                &proj,
+                w,
+                h,
+                &ropts,
+            )?;
+            let unconstrained = conf.iter().filter(|c| c.information == 0.0).count();
+            draw::label(
+                &mut p,
+                &format!(
+                    "{} — {} — frame {frame} — {unconstrained} of {} vertices unconstrained",
+                    run.name,
+                    cam0.name,
+                    conf.len()
+                ),
+                6.0,
+                6.0,
+                14.0,
+            );
+            Ok(p)
+        })
+        .collect::<Result<Vec<_>>>()?;
+    let len = Length::of(scene.units);
+    let bar = overlay::colour_bar(
+        colormap::viridis,
+        1.0,
+        h,
+        &format!("sigma ({}, log scale); grey: unconstrained", len.unit()),
+        |t| fmt_sig(len.value((lo + t * (hi - lo)).exp())),
+    );
+    panels.push(bar);
+    Ok(Some(overlay::side_by_side(&panels, 6, SHEET_BG)))
 }
 
 /// A number with about 3 significant digits, for labels.

@@ -11,13 +11,14 @@
 //! drops what lies past the last complete frame (a torn log line, a mesh without its line) and
 //! any temporary file a crash left.
 
-use super::layout::{self, frame_file, LOG, MANIFEST};
+use super::layout::{self, confidence_file, frame_file, LOG, MANIFEST};
 use super::log::{read_log, FrameLog, LogWriter};
 use super::manifest::{now, Manifest, Method, Options, Resumption, Status};
 use crate::base::mesh::Mesh;
 use crate::error::{Error, Result};
 use crate::input::meshio::{read_mesh_with, Checks};
 use crate::input::scene::Scene;
+use crate::tracker::VertexConfidence;
 use nalgebra::Point3;
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
@@ -230,6 +231,11 @@ impl RunFolder {
         crate::input::meshio::write_obj(&self.dir.join(frame_file(frame)), mesh)
     }
 
+    /// Writes a solved frame's per-vertex confidence (atomically), before its mesh.
+    pub fn write_confidence(&mut self, frame: u32, confidence: &[VertexConfidence]) -> Result<()> {
+        layout::write_confidence(&self.dir.join(confidence_file(frame)), confidence)
+    }
+
     /// Appends a solved frame's log line, after its mesh: the frame is complete.
     pub fn append(&mut self, line: &FrameLog) -> Result<()> {
         self.log.append(line)?;
@@ -426,9 +432,10 @@ fn truncate_to_complete(dir: &Path, m: &Manifest) -> Result<Option<u32>> {
     // Meshes past the last complete frame belong to the interrupted frame(s).
     let from = last.map_or(first, |l| l + 1);
     for f in from..=m.scene.last {
-        let p = dir.join(frame_file(f));
-        if p.is_file() {
-            std::fs::remove_file(&p).map_err(|e| Error::io(&p, e))?;
+        for p in [dir.join(frame_file(f)), dir.join(confidence_file(f))] {
+            if p.is_file() {
+                std::fs::remove_file(&p).map_err(|e| Error::io(&p, e))?;
+            }
         }
     }
     Ok(last)

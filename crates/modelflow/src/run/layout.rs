@@ -5,6 +5,7 @@
 use crate::base::mesh::Mesh;
 use crate::error::{Error, Result};
 use crate::input::meshio::{read_mesh_with, Checks};
+use crate::tracker::VertexConfidence;
 use rayon::prelude::*;
 use std::path::{Path, PathBuf};
 
@@ -16,6 +17,76 @@ pub const LOG: &str = "log.jsonl";
 /// Name of a frame's mesh in a run folder: `{frame:04}.obj`.
 pub fn frame_file(frame: u32) -> String {
     format!("{frame:04}.obj")
+}
+
+/// Name of a solved frame's per-vertex confidence in a run folder: `{frame:04}.confidence.csv`.
+pub fn confidence_file(frame: u32) -> String {
+    format!("{frame:04}.confidence.csv")
+}
+
+/// The header line of a confidence file.
+pub(crate) const CONFIDENCE_HEADER: &str = "vertex,information,residual,sigma,pixels";
+
+/// The frame of a file named as a run names its confidence files, or `None`.
+pub(crate) fn layout_confidence(name: &str) -> Option<u32> {
+    let stem = name.strip_suffix(".confidence.csv")?;
+    (stem.len() >= 4 && stem.bytes().all(|c| c.is_ascii_digit()))
+        .then(|| stem.parse().ok())
+        .flatten()
+}
+
+/// Writes a frame's per-vertex confidence as CSV (atomically): one row per vertex, numbers in
+/// their shortest round-trip form, `inf` for the sigma of a vertex nothing constrains.
+pub fn write_confidence(path: &Path, confidence: &[VertexConfidence]) -> Result<()> {
+    crate::fsutil::write_atomic_with(path, |w| {
+        use std::io::Write;
+        writeln!(w, "{CONFIDENCE_HEADER}")?;
+        for (i, c) in confidence.iter().enumerate() {
+            writeln!(
+                w,
+                "{i},{},{},{},{}",
+                c.information,
+                c.residual,
+                c.sigma(),
+                c.pixels
+            )?;
+        }
+        Ok(())
+    })
+}
+
+/// Reads a confidence file written by [`write_confidence`]; errors name the file and line.
+pub fn read_confidence(path: &Path) -> Result<Vec<VertexConfidence>> {
+    let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
+    let mut lines = text.lines();
+    if lines.next() != Some(CONFIDENCE_HEADER) {
+        return Err(Error::invalid(
+            path,
+            "line 1",
+            format!("expected the header {CONFIDENCE_HEADER:?}"),
+        ));
+    }
+    let mut out = Vec::new();
+    for (i, line) in lines.enumerate() {
+        let bad = || {
+            Error::invalid(
+                path,
+                format!("line {}", i + 2),
+                format!("expected 5 comma-separated fields for vertex {i}, got {line:?}"),
+            )
+        };
+        let f: Vec<&str> = line.split(',').collect();
+        if f.len() != 5 || f[0].parse::<usize>().ok() != Some(i) {
+            return Err(bad());
+        }
+        let num = |k: usize| f[k].parse::<f64>().map_err(|_| bad());
+        out.push(VertexConfidence {
+            information: num(1)?,
+            residual: num(2)?,
+            pixels: num(4)?,
+        });
+    }
+    Ok(out)
 }
 
 /// The frame number in a file stem: its last run of ASCII digits (`0007` -> 7, `frame_12` -> 12).
@@ -41,7 +112,11 @@ pub(crate) fn layout_frame(name: &str) -> Option<u32> {
 /// Whether a file name belongs to the run-folder layout: the manifest, the log, a frame mesh,
 /// or a temporary file of one of them (`fsutil`'s `.{name}.{pid}.tmp`, left by a crash).
 pub(crate) fn is_layout_file(name: &str) -> bool {
-    name == MANIFEST || name == LOG || layout_frame(name).is_some() || layout_temporary(name)
+    name == MANIFEST
+        || name == LOG
+        || layout_frame(name).is_some()
+        || layout_confidence(name).is_some()
+        || layout_temporary(name)
 }
 
 /// Whether `name` is `fsutil`'s temporary for a layout file.
@@ -54,7 +129,10 @@ pub(crate) fn layout_temporary(name: &str) -> bool {
     };
     !pid.is_empty()
         && pid.bytes().all(|c| c.is_ascii_digit())
-        && (target == MANIFEST || target == LOG || layout_frame(target).is_some())
+        && (target == MANIFEST
+            || target == LOG
+            || layout_frame(target).is_some()
+            || layout_confidence(target).is_some())
 }
 
 /// Reads a folder of frame meshes: every `.obj` file whose stem holds a number (the frame: the

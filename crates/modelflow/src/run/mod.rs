@@ -11,7 +11,10 @@ mod log;
 mod manifest;
 
 pub use folder::{write_run, OpenMode, Opened, RunFolder, RunOptions};
-pub use layout::{frame_file, frame_number, read_run, LOG, MANIFEST};
+pub use layout::{
+    confidence_file, frame_file, frame_number, read_confidence, read_run, write_confidence, LOG,
+    MANIFEST,
+};
 pub use log::{read_frame_log, FrameDetail, FrameLog};
 pub use manifest::{
     inputs_checksum, Manifest, Method, Options, Resumption, SceneRecord, Status, RUN_FORMAT,

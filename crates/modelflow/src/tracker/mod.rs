@@ -25,4 +25,5 @@ pub use sequence::{prepare, FrameReport, Prepared, StepTiming, Tracker};
 pub use shot::{median, track_scene, TrackSummary};
 pub use solve::{
     GainModel, Interpolation, IterationSummary, Loss, SolveSummary, SolverOptions, StopReason,
+    VertexConfidence,
 };

@@ -19,7 +19,9 @@ use crate::tracker::options::{OptionsUsed, TrackOptions};
 use crate::tracker::patch::{PatchOptions, PatchSet};
 use crate::tracker::pyramid::Pyramid;
 use crate::tracker::regularise::{self, EdgeSet, FrameContext, Regulariser};
-use crate::tracker::solve::{Loss, Motion, Problem, SolveSummary, SolverOptions, StopReason};
+use crate::tracker::solve::{
+    Loss, Motion, Problem, SolveSummary, SolverOptions, StopReason, VertexConfidence,
+};
 use nalgebra::Point3;
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
@@ -52,6 +54,10 @@ pub struct FrameReport {
     pub timing: StepTiming,
     /// Per-level solver summaries, coarse to fine.
     pub levels: Vec<SolveSummary>,
+    /// Per vertex, how well the finest level's images constrain it at the solution (written
+    /// beside the frame's mesh, not into the log).
+    #[serde(skip)]
+    pub confidence: Vec<VertexConfidence>,
 }
 
 /// Time split of one frame's step, seconds.
@@ -64,6 +70,9 @@ pub struct StepTiming {
     pub patches: f64,
     /// The Gauss–Newton solves.
     pub solve: f64,
+    /// The per-vertex confidence at the solution (one more linearisation).
+    #[serde(default)]
+    pub confidence: f64,
 }
 
 struct Template {
@@ -299,6 +308,7 @@ impl Tracker {
         let mut cost_after = 0.0;
         let mut pixels = 0;
         let mut stop = StopReason::NoData;
+        let mut confidence = Vec::new();
         // The constant-velocity prediction when there is a velocity, the previous shape
         // otherwise: the membrane's reference (it penalises changes of the deformation's rate).
         let predicted_shape: Vec<Point3<f64>> = match &self.before_prev {
@@ -411,9 +421,14 @@ impl Tracker {
                 cost_after = summary.final_cost;
                 pixels = summary.pixels;
                 stop = summary.stop;
+                let tc = Instant::now();
+                confidence = problem.vertex_confidence(&x, &robust);
+                timing.confidence = tc.elapsed().as_secs_f64();
             }
             summaries.push(summary);
-            timing.solve += ts.elapsed().as_secs_f64();
+            // The confidence is timed apart.
+            let own = if level == 0 { timing.confidence } else { 0.0 };
+            timing.solve += ts.elapsed().as_secs_f64() - own;
         }
         let iterations = summaries.iter().map(|s| s.iterations.len()).sum();
         let stalled = !summaries
@@ -445,6 +460,7 @@ impl Tracker {
             stalled,
             timing,
             levels: summaries,
+            confidence,
         })
     }
 }

@@ -130,6 +130,9 @@ fn track_into(
         if report.stalled {
             stalled_frames.push(frame);
         }
+        if !report.confidence.is_empty() {
+            folder.write_confidence(frame, &report.confidence)?;
+        }
         folder.write_mesh(
             frame,
             &scene.mesh.with_positions(tracker.positions().to_vec()),

@@ -177,6 +177,34 @@ pub enum StopReason {
     Cancelled,
 }
 
+/// How well the images pin one vertex down at a solution: the photometric normal equations'
+/// 3×3 block of the vertex (robust weights included, summed over the pixels of its triangles in
+/// every camera, not normalised) and the residual of those pixels.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct VertexConfidence {
+    /// The block's smallest eigenvalue, in (image value per scene unit)²: how much the cost
+    /// rises when the vertex moves along its worst-constrained direction. 0 when no pixel of any
+    /// camera constrains it (unseen, occluded, or every pixel rejected by the loss).
+    pub information: f64,
+    /// Root mean robust residual of the pixels of its triangles (RGB, image values 0..1).
+    pub residual: f64,
+    /// Weighted pixels of its triangles that were compared.
+    pub pixels: f64,
+}
+
+impl VertexConfidence {
+    /// One standard deviation of the vertex's position along its worst-constrained direction,
+    /// in scene units: `residual / sqrt(information)` (the Gauss–Newton covariance of the vertex
+    /// alone, σ²·(JᵀJ)⁻¹, with the residual as σ). Infinite when nothing constrains it.
+    pub fn sigma(&self) -> f64 {
+        if self.information > 0.0 {
+            self.residual / self.information.sqrt()
+        } else {
+            f64::INFINITY
+        }
+    }
+}
+
 /// One Gauss–Newton iteration.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct IterationSummary {
@@ -216,6 +244,8 @@ pub struct SolveSummary {
 struct TriAccum {
     cost: f64,
     pixels: u32,
+    /// Σ of the pixels' weights (the patches' `weight`).
+    weight: f64,
     h: [Matrix3<f64>; 6],
     g: [Vector3<f64>; 3],
 }
@@ -359,6 +389,7 @@ impl Problem<'_> {
         let mut acc = TriAccum {
             cost: 0.0,
             pixels: 0,
+            weight: 0.0,
             h: [Matrix3::zeros(); 6],
             g: [Vector3::zeros(); 3],
         };
@@ -488,6 +519,7 @@ impl Problem<'_> {
                 };
                 acc.cost += pw * rho;
                 acc.pixels += 1;
+                acc.weight += pw;
                 if !system {
                     continue;
                 }
@@ -613,6 +645,57 @@ impl Problem<'_> {
         let mut b = vec![Vector3::zeros(); x.len()];
         let (cost, _) = self.evaluate(x, opts, Some((&mut a, &mut b)));
         (cost, a, b)
+    }
+
+    /// Per vertex, how well the images constrain it at `x` ([`VertexConfidence`]): one more
+    /// linearisation, summed per vertex in triangle order (deterministic).
+    pub fn vertex_confidence(
+        &self,
+        x: &[Point3<f64>],
+        opts: &SolverOptions,
+    ) -> Vec<VertexConfidence> {
+        let parts: Vec<TriAccum> = self
+            .by_triangle
+            .par_iter()
+            .with_min_len(16)
+            .map_init(Scratch::default, |scratch, (t, r)| {
+                self.triangle(*t, r, x, opts, true, scratch)
+            })
+            .collect();
+        let n = x.len();
+        let mut block = vec![Matrix3::<f64>::zeros(); n];
+        let mut cost = vec![0.0f64; n];
+        let mut weight = vec![0.0f64; n];
+        for ((t, _), acc) in self.by_triangle.iter().zip(&parts) {
+            let tri = self.triangles[*t as usize];
+            for (i, &v) in tri.iter().enumerate() {
+                // PAIRS[i] = (i, i) for i < 3: the vertex's own block.
+                block[v as usize] += acc.h[i];
+                cost[v as usize] += acc.cost;
+                weight[v as usize] += acc.weight;
+            }
+        }
+        (0..n)
+            .map(|v| {
+                let information = if weight[v] > 0.0 {
+                    nalgebra::SymmetricEigen::new(block[v])
+                        .eigenvalues
+                        .min()
+                        .max(0.0)
+                } else {
+                    0.0
+                };
+                VertexConfidence {
+                    information,
+                    residual: if weight[v] > 0.0 {
+                        (cost[v] / weight[v]).max(0.0).sqrt()
+                    } else {
+                        0.0
+                    },
+                    pixels: weight[v],
+                }
+            })
+            .collect()
     }
 
     /// Cost at `x` (no system).
