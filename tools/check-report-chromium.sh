@@ -2,7 +2,9 @@
 # Opens a modelflow report's index.html in headless Chromium (Debian package `chromium`), takes a
 # full-page screenshot and fails if the browser logs a console error or a failed resource load
 # (a missing or undecodable image), if the page references the network, or if the screenshot is
-# missing. Usage: tools/check-report-chromium.sh REPORT_DIR [SCREENSHOT.png]
+# missing. With a flipbook, it also opens the page at the flipbook's middle frame
+# (index.html#frame=N) and fails unless the page's script moved the slider and the image there.
+# Usage: tools/check-report-chromium.sh REPORT_DIR [SCREENSHOT.png]
 set -euo pipefail
 
 dir=${1:?usage: $0 REPORT_DIR [SCREENSHOT.png]}
@@ -66,4 +68,14 @@ fi
 grep -q 'TITLE .' "$dom" || { echo "FAIL: the page did not load or has no <h1> title" >&2; exit 1; }
 imgs=$(grep -o 'IMG-OK' "$dom" | wc -l)
 [ -s "$shot" ] || { echo "FAIL: no screenshot written" >&2; exit 1; }
-echo "OK: $index rendered ($imgs images, no console errors); screenshot $shot"
+book=""
+if [ -d "$(dirname "$index")/flipbook" ]; then
+  frames=($(ls "$(dirname "$index")/flipbook" | sed -n 's/^f0*\([0-9][0-9]*\)\.jpg$/\1/p' | sort -n))
+  mid=${frames[$(( ${#frames[@]} / 2 ))]}
+  timeout 120 chromium "${flags[@]}" --dump-dom "file://$index#frame=$mid" >"$dom" 2>>"$log"
+  grep -q "<span id=\"fb-label\"[^>]*>frame $mid</span>" "$dom" \
+    && grep -q "flipbook/f$(printf %04d "$mid").jpg" "$dom" \
+    || { echo "FAIL: the flipbook did not move to frame $mid (index.html#frame=$mid)" >&2; exit 1; }
+  book=", flipbook of ${#frames[@]} frames scrubs to frame $mid"
+fi
+echo "OK: $index rendered ($imgs images, no console errors$book); screenshot $shot"

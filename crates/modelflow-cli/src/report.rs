@@ -1,5 +1,5 @@
 //! `modelflow report`: writes an HTML report (error or photometric-cost plot, wireframe overlays,
-//! oblique views, error-coloured meshes) comparing runs on a scene.
+//! oblique views, error and confidence maps, a flipbook of every frame) comparing runs on a scene.
 
 use anyhow::{bail, Context};
 use modelflow::input::Scene;
@@ -27,6 +27,13 @@ pub struct Args {
     /// Degrees the oblique camera is turned about the vertical axis (-180 to 180).
     #[arg(long, default_value_t = 60.0)]
     oblique_degrees: f64,
+    /// Put every run's error map on one colour scale (default: each run on its own, so that a
+    /// good run's map stays readable beside a bad one).
+    #[arg(long)]
+    shared_scale: bool,
+    /// Leave out the flipbook (every frame's overlays as JPEGs, scrubbable in the page).
+    #[arg(long)]
+    no_flipbook: bool,
 }
 
 pub fn run(args: Args) -> anyhow::Result<()> {
@@ -44,6 +51,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let opts = ReportOptions {
         frames: args.overlay_frames,
         oblique_degrees: args.oblique_degrees,
+        shared_error_scale: args.shared_scale,
+        flipbook: !args.no_flipbook,
         ..ReportOptions::default()
     };
     let summary = write_report(&scene, &runs, &opts, &args.out)

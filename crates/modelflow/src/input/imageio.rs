@@ -132,6 +132,25 @@ pub fn write_png(path: &Path, img: &RgbImage) -> Result<()> {
     encode_png(path, DynamicImage::ImageRgb8(buf))
 }
 
+/// Writes an 8-bit RGB JPEG atomically at `quality` (1–100); values are clamped to [0, 1].
+pub fn write_jpeg(path: &Path, img: &RgbImage, quality: u8) -> Result<()> {
+    let raw: Vec<u8> = img
+        .pixels()
+        .iter()
+        .flat_map(|p| p.map(|c| quantise::<255>(c) as u8))
+        .collect();
+    let mut bytes = Vec::new();
+    image::codecs::jpeg::JpegEncoder::new_with_quality(&mut bytes, quality.clamp(1, 100))
+        .encode(
+            &raw,
+            img.width() as u32,
+            img.height() as u32,
+            image::ExtendedColorType::Rgb8,
+        )
+        .map_err(|e| Error::invalid(path, "image", format!("cannot encode JPEG: {e}")))?;
+    write_atomic(path, &bytes)
+}
+
 /// Writes a 16-bit RGB PNG atomically; values are clamped to [0, 1] (NaN to 0) and rounded.
 pub fn write_png16(path: &Path, img: &RgbImage) -> Result<()> {
     let raw: Vec<u16> = img

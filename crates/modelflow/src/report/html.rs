@@ -14,6 +14,8 @@ pub(super) struct Figures {
     pub obliques: Vec<(String, String)>,
     pub error_maps: Vec<(String, String)>,
     pub confidence_maps: Vec<(String, String)>,
+    /// Frames of the flipbook (`flipbook/fNNNN.jpg`); empty: none.
+    pub flipbook: Vec<u32>,
 }
 
 const STYLE: &str = "body{font-family:system-ui,-apple-system,'Segoe UI',Roboto,'DejaVu Sans',sans-serif;\
@@ -41,6 +43,69 @@ fn figures(o: &mut String, items: &[(String, String)], alt: &str) {
     }
 }
 
+/// The scene's name for a title: its folder and file stem (`blender-hard-sample / scene`), as
+/// a user names the shot, rather than the bare `scene.json`.
+fn scene_title(path: &std::path::Path) -> String {
+    let stem = path
+        .file_stem()
+        .map(|s| s.to_string_lossy().into_owned())
+        .unwrap_or_else(|| path.display().to_string());
+    let folder = path.canonicalize().ok().and_then(|p| {
+        p.parent()
+            .and_then(|d| d.file_name())
+            .map(|d| d.to_string_lossy().into_owned())
+    });
+    match folder {
+        Some(d) if !d.is_empty() => format!("{d} / {stem}"),
+        _ => stem,
+    }
+}
+
+/// The flipbook: one image per frame (`flipbook/fNNNN.jpg`), a slider, play/pause and the arrow
+/// keys; the images are preloaded so that scrubbing is smooth.
+fn flipbook_section(o: &mut String, runs: &[RunSummary], frames: &[u32], cameras: usize) {
+    let _ = writeln!(o, "<h2>Flipbook</h2>");
+    let legend = runs
+        .iter()
+        .enumerate()
+        .map(|(i, r)| {
+            format!(
+                "<span class=\"swatch\" style=\"background:{}\"></span>{}",
+                crate::report::draw::css(crate::report::colormap::overlay_colour(i)),
+                esc(&r.name)
+            )
+        })
+        .collect::<Vec<_>>()
+        .join(" &nbsp; ");
+    let _ = writeln!(
+        o,
+        "<p>{} frames, all {cameras} cameras side by side, every run's wireframe on the footage ({legend}; hidden edges faint). Drag the slider, press play (or the space bar), step with ← →; <code>index.html#frame=N</code> opens at frame N.</p>",
+        frames.len()
+    );
+    let list = frames
+        .iter()
+        .map(|f| f.to_string())
+        .collect::<Vec<_>>()
+        .join(",");
+    let _ = writeln!(
+        o,
+        "<div class=\"flipbook\"><img id=\"fb-img\" src=\"flipbook/f{:04}.jpg\" alt=\"wireframes over all cameras, one frame\" style=\"max-width:100%\">\n<div style=\"display:flex;gap:.8em;align-items:center;margin:.4em 0\"><button id=\"fb-play\" type=\"button\">▶ play</button><input id=\"fb-slider\" type=\"range\" min=\"0\" max=\"{}\" value=\"0\" style=\"flex:1\"><span id=\"fb-label\" style=\"min-width:7em\">frame {}</span></div></div>",
+        frames[0],
+        frames.len() - 1,
+        frames[0]
+    );
+    let _ = writeln!(
+        o,
+        "<script>(function(){{const F=[{list}];const img=document.getElementById('fb-img'),s=document.getElementById('fb-slider'),l=document.getElementById('fb-label'),b=document.getElementById('fb-play');\
+const src=f=>'flipbook/f'+String(f).padStart(4,'0')+'.jpg';const cache=F.map(f=>{{const i=new Image();i.src=src(f);return i;}});let k=0,timer=null;\
+function show(i){{k=(i+F.length)%F.length;s.value=k;img.src=cache[k].src;l.textContent='frame '+F[k];}}\
+function play(on){{if(on&&!timer){{timer=setInterval(()=>show(k+1),1000/12);b.textContent='❚❚ pause';}}else if(!on&&timer){{clearInterval(timer);timer=null;b.textContent='▶ play';}}}}\
+s.addEventListener('input',()=>{{play(false);show(+s.value);}});b.addEventListener('click',()=>play(!timer));\
+const m=location.hash.match(/frame=(\\d+)/);if(m&&F.indexOf(+m[1])>=0)show(F.indexOf(+m[1]));\
+document.addEventListener('keydown',e=>{{if(e.target.tagName==='INPUT'&&e.target!==s)return;if(e.key==='ArrowRight'){{play(false);show(k+1);e.preventDefault();}}else if(e.key==='ArrowLeft'){{play(false);show(k-1);e.preventDefault();}}else if(e.key===' '){{play(!timer);e.preventDefault();}}}});}})();</script>"
+    );
+}
+
 pub(super) fn page(
     scene: &Scene,
     runs: &[RunSummary],
@@ -49,13 +114,7 @@ pub(super) fn page(
     figs: &Figures,
     opts: &ReportOptions,
 ) -> String {
-    let title = format!(
-        "modelflow report — {}",
-        scene.path.file_name().map_or_else(
-            || scene.path.display().to_string(),
-            |n| n.to_string_lossy().into_owned()
-        )
-    );
+    let title = format!("modelflow report — {}", scene_title(&scene.path));
     let has_truth = scene.ground_truth.is_some();
     let len = Length::of(scene.units);
     let mut o = String::new();
@@ -140,9 +199,16 @@ pub(super) fn page(
     }
     let _ = writeln!(
         o,
-        "<figure><img src=\"{p}.png\" alt=\"{p} per frame, one line per run\"><figcaption>Also as <a href=\"{p}.svg\">SVG</a>.</figcaption></figure>",
+        "<figure><img src=\"{p}.png\" alt=\"{p} per frame, one line per run\"><figcaption>Also as <a href=\"{p}.svg\">SVG</a>. Dashed lines: the frames drawn below.</figcaption></figure>",
         p = plot_stem
     );
+    if has_truth {
+        let _ = writeln!(
+            o,
+            "<figure><img src=\"error_length.png\" alt=\"RMS vertex error in {u} per frame, one line per run\"><figcaption>The same in {u}. Also as <a href=\"error_length.svg\">SVG</a>.</figcaption></figure>",
+            u = len.unit()
+        );
+    }
     let _ = writeln!(o, "<table>");
     if has_truth {
         let _ = writeln!(
@@ -208,6 +274,9 @@ pub(super) fn page(
         .map(|f| f.to_string())
         .collect::<Vec<_>>()
         .join(", ");
+    if !figs.flipbook.is_empty() {
+        flipbook_section(&mut o, runs, &figs.flipbook, scene.cameras.len());
+    }
     let _ = writeln!(o, "<h2>Wireframes over the input images</h2>");
     let _ = writeln!(
         o,
@@ -227,7 +296,8 @@ pub(super) fn page(
         let _ = writeln!(o, "<h2>Per-vertex error</h2>");
         let _ = writeln!(
             o,
-            "<p>Each run's mesh seen from camera {}, coloured by the distance of each vertex to its ground-truth position (viridis; one scale for all frames and runs, shown by the colour bar).</p>",
+            "<p>Each run's mesh seen from camera {}, coloured by the distance of each vertex to its ground-truth position (viridis; {}).</p>",
+            if opts.shared_error_scale { "one scale for all frames and runs, shown by the colour bar" } else { "each run on its own scale, the largest error of that run over the drawn frames, shown by the colour bar beside it; --shared-scale puts all runs on one" },
             esc(&scene.cameras[0].name)
         );
         figures(&mut o, &figs.error_maps, "error-coloured mesh");

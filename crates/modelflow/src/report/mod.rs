@@ -1,12 +1,14 @@
 //! Turning runs into figures: scoring against ground truth (`eval`), colours (`colormap`), 2-D
 //! drawing and text (`draw`), line plots (`plot`), mesh pictures (`overlay`, filled meshes
 //! through `synth::render`), the photometric quality measure for footage without ground truth
-//! (`photometric`) and the self-contained HTML page that ties them together (`page`, `html`).
+//! (`photometric`), the scrubbable flipbook of every frame's overlays (`flipbook`) and the
+//! HTML page that ties them together (`page`, `html`).
 //! It reads run folders through `run`; it never runs a tracker.
 
 pub(crate) mod colormap;
 pub(crate) mod draw;
 mod eval;
+mod flipbook;
 mod html;
 pub(crate) mod overlay;
 mod page;

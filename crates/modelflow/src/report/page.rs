@@ -20,6 +20,7 @@ use crate::input::scene::Scene;
 use crate::report::colormap;
 use crate::report::draw::{self, Rgb};
 use crate::report::eval::{self, EvalReport};
+use crate::report::flipbook;
 use crate::report::overlay::{self, WireStyle};
 use crate::report::plot::{LinePlot, Series};
 use crate::synth::render::{self, RenderOptions, Surface};
@@ -37,6 +38,11 @@ pub struct ReportOptions {
     pub oblique_degrees: f64,
     /// Camera images narrower than this are magnified (by a whole factor) for the panels.
     pub min_panel_width: usize,
+    /// Write the flipbook (every frame's overlays, scrubbable in the page).
+    pub flipbook: bool,
+    /// One error colour scale for all runs (to compare them); otherwise each run's error map has
+    /// its own scale, so that a good run's map is readable next to a bad one.
+    pub shared_error_scale: bool,
 }
 
 impl Default for ReportOptions {
@@ -45,6 +51,8 @@ impl Default for ReportOptions {
             frames: None,
             oblique_degrees: 60.0,
             min_panel_width: 480,
+            flipbook: true,
+            shared_error_scale: false,
         }
     }
 }
@@ -161,9 +169,36 @@ pub fn write_report(
                         .collect(),
                 })
                 .collect(),
+            marks: frames.iter().map(|&f| f as f64).collect(),
             width: 960,
             height: 480,
         };
+        // The same in length units (mm when the scene gives its unit).
+        let len = Length::of(scene.units);
+        let length_plot = LinePlot {
+            title: "RMS vertex error against ground truth".into(),
+            y_label: format!("RMS vertex error ({})", len.unit()),
+            series: plot
+                .series
+                .iter()
+                .zip(&reports)
+                .map(|(s, rep)| Series {
+                    points: rep
+                        .per_frame
+                        .iter()
+                        .map(|e| [e.frame as f64, len.value(e.rms)])
+                        .collect(),
+                    ..s.clone()
+                })
+                .collect(),
+            ..plot.clone()
+        };
+        let png = out_dir.join("error_length.png");
+        let svg = out_dir.join("error_length.svg");
+        imageio::write_png(&png, &length_plot.render())?;
+        fsutil::write_atomic(&svg, length_plot.to_svg().as_bytes())?;
+        files.push(png);
+        files.push(svg);
         for ((r, rep), s) in loaded.iter().zip(reports).zip(&seconds) {
             summaries.push(RunSummary {
                 name: r.name.clone(),
@@ -200,6 +235,7 @@ pub fn write_report(
                         .collect(),
                 })
                 .collect(),
+            marks: frames.iter().map(|&f| f as f64).collect(),
             width: 960,
             height: 480,
         };
@@ -258,9 +294,9 @@ pub fn write_report(
         figures.obliques.push((format!("frame {f}"), name));
     }
     if let Some(truth) = &truth {
-        let max = error_scale(scene, &loaded, truth);
+        let max = error_scales(scene, &loaded, truth, opts.shared_error_scale);
         for (f, gt) in truth {
-            let sheet = error_sheet(scene, &loaded, gt, *f, max, opts)?;
+            let sheet = error_sheet(scene, &loaded, gt, *f, &max, opts)?;
             let name = format!("errormap_f{f:04}.png");
             let path = out_dir.join(&name);
             imageio::write_png(&path, &sheet)?;
@@ -296,6 +332,20 @@ pub fn write_report(
                 figures.confidence_maps.push((format!("frame {f}"), name));
             }
         }
+    }
+    if opts.flipbook {
+        let fb_frames = flipbook::frames(scene);
+        let meshes: Vec<(&str, Vec<&Mesh>)> = loaded
+            .iter()
+            .map(|r| {
+                (
+                    r.name.as_str(),
+                    fb_frames.iter().map(|&f| r.at(scene, f)).collect(),
+                )
+            })
+            .collect();
+        files.extend(flipbook::write(scene, &meshes, &fb_frames, out_dir)?);
+        figures.flipbook = fb_frames;
     }
     let index = out_dir.join("index.html");
     let page = html::page(scene, &summaries, &frames, plot_stem, &figures, opts);
@@ -569,32 +619,39 @@ fn vertex_errors(mesh: &Mesh, truth: &Mesh) -> Vec<f64> {
         .collect()
 }
 
-/// The top of the error colour scale: the largest vertex error over the drawn frames and runs.
-fn error_scale(scene: &Scene, runs: &[Run], truth: &[(u32, Mesh)]) -> f64 {
-    let mut max = 0.0f64;
-    for (f, gt) in truth {
-        for r in runs {
-            max = vertex_errors(r.at(scene, *f), gt)
-                .into_iter()
-                .fold(max, f64::max);
-        }
+/// The top of each run's error colour scale: its largest vertex error over the drawn frames, or
+/// the largest over all runs when `shared`.
+fn error_scales(scene: &Scene, runs: &[Run], truth: &[(u32, Mesh)], shared: bool) -> Vec<f64> {
+    let mut max: Vec<f64> = runs
+        .iter()
+        .map(|r| {
+            truth.iter().fold(0.0f64, |m, (f, gt)| {
+                vertex_errors(r.at(scene, *f), gt)
+                    .into_iter()
+                    .fold(m, f64::max)
+            })
+        })
+        .collect();
+    if shared {
+        let all = max.iter().copied().fold(0.0, f64::max);
+        max.iter_mut().for_each(|m| *m = all);
     }
-    if max > 0.0 {
-        max
-    } else {
-        // All exact: any positive scale shows them at the bottom of the map.
-        scene.mesh.bbox_diagonal().max(1.0) * 1e-3
-    }
+    // All exact: any positive scale shows them at the bottom of the map.
+    let floor = scene.mesh.bbox_diagonal().max(1.0) * 1e-3;
+    max.into_iter()
+        .map(|m| if m > 0.0 { m } else { floor })
+        .collect()
 }
 
 /// Each run's mesh at `frame` from the first camera, coloured by vertex error (viridis over
-/// `[0, max]`), side by side with a colour bar.
+/// `[0, max[run]]`), with a colour bar after each run, or one after all when the scales are
+/// equal.
 fn error_sheet(
     scene: &Scene,
     runs: &[Run],
     truth: &Mesh,
     frame: u32,
-    max: f64,
+    max: &[f64],
     opts: &ReportOptions,
 ) -> Result<RgbImage> {
     let cam0 = &scene.cameras[0];
@@ -608,9 +665,10 @@ fn error_sheet(
         background: [0.08; 3],
         ..RenderOptions::default()
     };
-    let mut panels = runs
+    let panels = runs
         .par_iter()
-        .map(|run| {
+        .zip(max)
+        .map(|(run, &max)| {
             let mesh = run.at(scene, frame);
             let colours: Vec<[f32; 3]> = vertex_errors(mesh, truth)
                 .iter()
@@ -637,21 +695,32 @@ fn error_sheet(
         .collect::<Result<Vec<_>>>()?;
     let diag = scene.mesh.bbox_diagonal();
     let len = Length::of(scene.units);
-    let bar = overlay::colour_bar(
-        colormap::viridis,
-        max,
-        h,
-        &format!("vertex error ({}, % of bbox diag.)", len.unit()),
-        |v| {
-            if diag > 0.0 {
-                format!("{} ({:.2}%)", fmt_sig(len.value(v)), 100.0 * v / diag)
-            } else {
-                fmt_sig(len.value(v))
-            }
-        },
-    );
-    panels.push(bar);
-    Ok(overlay::side_by_side(&panels, 6, SHEET_BG))
+    let bar = |max: f64| {
+        overlay::colour_bar(
+            colormap::viridis,
+            max,
+            h,
+            &format!("vertex error ({}, % of bbox diag.)", len.unit()),
+            |v| {
+                if diag > 0.0 {
+                    format!("{} ({:.2}%)", fmt_sig(len.value(v)), 100.0 * v / diag)
+                } else {
+                    fmt_sig(len.value(v))
+                }
+            },
+        )
+    };
+    let mut sheet = Vec::with_capacity(2 * panels.len());
+    if max.windows(2).all(|w| w[0] == w[1]) {
+        sheet.extend(panels);
+        sheet.push(bar(max[0]));
+    } else {
+        for (p, &m) in panels.into_iter().zip(max) {
+            sheet.push(p);
+            sheet.push(bar(m));
+        }
+    }
+    Ok(overlay::side_by_side(&sheet, 6, SHEET_BG))
 }
 
 /// The σ colour scale, logarithmic: `(lo, hi)`, the 2nd and 98th percentiles of the finite σ

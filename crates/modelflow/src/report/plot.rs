@@ -22,15 +22,30 @@ pub struct LinePlot {
     pub x_label: String,
     pub y_label: String,
     pub series: Vec<Series>,
+    /// x positions marked by a dashed vertical line (e.g. the frames drawn elsewhere in the
+    /// report), labelled at the top.
+    pub marks: Vec<f64>,
     pub width: u32,
     pub height: u32,
 }
+
+/// Colour of the marks.
+const MARK: Rgb = [0.55, 0.55, 0.55];
 
 const TITLE_PX: f32 = 18.0;
 const LABEL_PX: f32 = 14.0;
 const TICK_PX: f32 = 12.0;
 const INK: Rgb = [0.1, 0.1, 0.1];
 const GRID: Rgb = [0.88, 0.88, 0.88];
+
+/// A mark's label: the x value, as a whole number when it is one (frames).
+fn format_mark(v: f64) -> String {
+    if v.fract() == 0.0 {
+        format!("{v:.0}")
+    } else {
+        format!("{v}")
+    }
+}
 
 /// Axis ticks: the axis range and the tick values with their labels.
 #[derive(Clone, Debug, PartialEq)]
@@ -222,6 +237,26 @@ impl LinePlot {
             draw::text(&mut img, s, x, b + 16.0, TICK_PX, INK, Anchor::Centre);
         }
         draw::stroke_rect(&mut img, l, t, r, b, INK, 1.0);
+        for &m in &self.marks {
+            let x = lay.px([m, lay.y.lo])[0];
+            if x < l || x > r {
+                continue;
+            }
+            let mut y = t;
+            while y < b {
+                draw::line(&mut img, [x, y], [x, (y + 5.0).min(b)], MARK, 1.0, 1.0);
+                y += 9.0;
+            }
+            draw::text(
+                &mut img,
+                &format_mark(m),
+                x,
+                t - 8.0,
+                TICK_PX,
+                MARK,
+                Anchor::Centre,
+            );
+        }
         for (s, parts) in self.series.iter().zip(self.runs(&lay)) {
             for part in &parts {
                 draw::polyline(&mut img, part, s.colour, 2.0, 1.0);
@@ -321,6 +356,23 @@ impl LinePlot {
             r - l,
             b - t
         );
+        for &m in &self.marks {
+            let x = lay.px([m, lay.y.lo])[0];
+            if x < l || x > r {
+                continue;
+            }
+            let mc = draw::css(MARK);
+            let _ = writeln!(
+                o,
+                r#"<line x1="{x:.1}" y1="{t:.1}" x2="{x:.1}" y2="{b:.1}" stroke="{mc}" stroke-dasharray="5 4"/>"#
+            );
+            let _ = writeln!(
+                o,
+                r#"<text x="{x:.1}" y="{:.1}" font-size="{TICK_PX}" text-anchor="middle" dominant-baseline="central" fill="{mc}">{}</text>"#,
+                t - 8.0,
+                xml_escape(&format_mark(m))
+            );
+        }
         for (s, parts) in self.series.iter().zip(self.runs(&lay)) {
             let c = draw::css(s.colour);
             let _ = writeln!(
@@ -444,6 +496,7 @@ pub(crate) mod tests {
 
     fn sample() -> LinePlot {
         LinePlot {
+            marks: vec![2.0],
             title: "RMS vertex error".into(),
             x_label: "frame".into(),
             y_label: "RMS vertex error (% of bbox diagonal)".into(),

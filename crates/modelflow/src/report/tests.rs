@@ -133,6 +133,59 @@ fn report_with_ground_truth_shows_errors_overlays_and_only_local_decodable_files
         html.contains("<td>700</td>") && html.contains("(ms, median)"),
         "time per frame in the table"
     );
+
+    // The title names the scene by its folder and file, not "scene.json".
+    assert!(html.contains("<h1>modelflow report — blender-cloth-sample / scene</h1>"));
+    // The flipbook: one JPEG per frame with every camera, scrubbed by a slider.
+    let book: Vec<u32> = (0..12).collect();
+    assert!(
+        html.contains("const F=[0,1,2,3,4,5,6,7,8,9,10,11]"),
+        "frame list"
+    );
+    assert!(html.contains("id=\"fb-slider\"") && html.contains("max=\"11\""));
+    for f in &book {
+        let p = out.join(format!("flipbook/f{f:04}.jpg"));
+        assert!(summary.files.contains(&p), "flipbook frame {f}");
+        let img = imageio::read_rgb(&p).unwrap();
+        // Two 320-pixel cameras side by side (the sample is 320 × 240).
+        assert!(
+            img.width() > 2 * 320 && img.height() > 240,
+            "{}",
+            img.width()
+        );
+    }
+    // The error plot also in length (scene units here: the sample gives no unit), with the
+    // drawn frames marked.
+    let len_svg = std::fs::read_to_string(out.join("error_length.svg")).unwrap();
+    assert_well_formed(&len_svg);
+    assert!(len_svg.contains("RMS vertex error (scene units)"));
+    assert_eq!(
+        svg.matches("stroke-dasharray").count(),
+        3,
+        "frames 0, 5, 11 marked"
+    );
+    assert!(links.contains(&"error_length.png".to_string()));
+
+    // Error maps: each run on its own scale (a colour bar per run) unless shared (one bar).
+    let shared_out = tmp.path().join("shared");
+    let shared = ReportOptions {
+        shared_error_scale: true,
+        flipbook: false,
+        ..ReportOptions::default()
+    };
+    write_report(&scene, &runs, &shared, &shared_out).unwrap();
+    let own = imageio::read_rgb(&out.join("errormap_f0005.png")).unwrap();
+    let one = imageio::read_rgb(&shared_out.join("errormap_f0005.png")).unwrap();
+    assert!(
+        own.width() > one.width() + 100,
+        "{} vs {}",
+        own.width(),
+        one.width()
+    );
+    assert!(!shared_out.join("flipbook").exists());
+    assert!(!std::fs::read_to_string(shared_out.join("index.html"))
+        .unwrap()
+        .contains("fb-slider"));
 }
 
 #[test]
