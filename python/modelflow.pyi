@@ -1,0 +1,79 @@
+"""Type stubs of the `modelflow` extension module (Model Flow: markerless capture of deforming
+geometry from calibrated multi-view footage). Lengths are in the scene's unit; images are
+(height, width, 3) arrays, float32 in 0..1 or uint8; positions are (V, 3) float64 arrays."""
+
+from os import PathLike
+from typing import Any, Dict, List, Optional, Sequence, Union
+
+import numpy as np
+import numpy.typing as npt
+
+__version__: str
+
+_Path = Union[str, PathLike]
+_Image = Union[npt.NDArray[np.float32], npt.NDArray[np.uint8]]
+
+class ModelflowError(Exception):
+    """A bad file or value (the message names the file and field, or the option), or a failed run."""
+
+class Scene:
+    """A scene: calibrated cameras, footage and the mesh lined up with the first frame."""
+
+    @staticmethod
+    def load(path: _Path) -> "Scene":
+        """Loads and checks a scene file (modelflow-scene/1)."""
+    def with_frames(self, first: int, last: int) -> "Scene":
+        """The same scene restricted to frames first..=last (the mesh lined up with `first`)."""
+    @property
+    def first(self) -> int: ...
+    @property
+    def last(self) -> int: ...
+    @property
+    def cameras(self) -> List[str]:
+        """The cameras' names, in the scene's order."""
+    @property
+    def units(self) -> Optional[str]:
+        """The scene's length unit ("m", "cm", "mm") or None."""
+    @property
+    def positions(self) -> npt.NDArray[np.float64]:
+        """The mesh's vertex positions at the first frame, (V, 3)."""
+    @property
+    def triangles(self) -> npt.NDArray[np.uint32]:
+        """The mesh's triangles, (T, 3) vertex indices."""
+    def load_images(self, frame: int) -> List[npt.NDArray[np.float32]]:
+        """Every camera's image of `frame` as the tracker sees it (undistorted), (H, W, 3) in 0..1."""
+    def ground_truth(self, frame: int) -> Optional[npt.NDArray[np.float64]]:
+        """The ground-truth positions at `frame`, (V, 3), or None without ground truth."""
+
+class Tracker:
+    """The Model Flow tracker in memory: images in, positions out, one frame at a time."""
+
+    def __init__(
+        self,
+        scene: Scene,
+        images: Optional[Sequence[_Image]] = None,
+        options: Optional[Dict[str, Any]] = None,
+    ) -> None:
+        """A tracker at the scene's first frame. `images`: that frame's images (default: read
+        from the scene). `options`: tracker options by their JSON names, over the defaults."""
+    def step(self, frame: int, images: Sequence[_Image]) -> Dict[str, Any]:
+        """Solves `frame` from its images (one per camera, in the scene's order). Returns the
+        frame's report, with the per-vertex confidence as arrays "information", "residual",
+        "sigma"."""
+    @property
+    def positions(self) -> npt.NDArray[np.float64]:
+        """The current vertex positions, (V, 3)."""
+
+def track_scene(
+    scene: Scene, out: _Path, options: Optional[Dict[str, Any]] = None, force: bool = False
+) -> Dict[str, Any]:
+    """Tracks the whole scene into the run folder `out`, as `modelflow track` does."""
+
+def evaluate(scene: Scene, run: _Path) -> Dict[str, Any]:
+    """Scores a run folder against the scene's ground truth (per-frame and mean RMS error)."""
+
+def export(run: _Path, out: _Path, fps: float = 24.0) -> List[str]:
+    """Writes a run folder as .usda, .glb, .pc2 or .mdd (from `out`'s extension)."""
+
+def read_run(run: _Path) -> Dict[int, npt.NDArray[np.float64]]:
+    """A run folder's frame meshes: {frame: (V, 3) positions}."""

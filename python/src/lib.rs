@@ -1,0 +1,405 @@
+//! The Python package `modelflow`: a thin layer over the Rust library, the same way the CLI is.
+//! Scenes load from their files; images go in as `numpy` arrays of shape (H, W, 3) (float32 in
+//! 0..1, or uint8), positions come out as float64 arrays of shape (V, 3); reports come back as
+//! the dicts of the JSON the CLI writes. No algorithm lives here.
+
+use ::modelflow as mf;
+use mf::base::RgbImage;
+use numpy::ndarray::{Array1, Array2, Array3};
+use numpy::{IntoPyArray, PyArray1, PyArray2, PyArray3, PyReadonlyArray3};
+use pyo3::create_exception;
+use pyo3::exceptions::PyException;
+use pyo3::prelude::*;
+use pyo3::types::PyDict;
+use std::path::PathBuf;
+
+create_exception!(
+    modelflow,
+    ModelflowError,
+    PyException,
+    "An error of modelflow: a bad file or value (the message names the file and field, or the option), or a failed run."
+);
+
+fn err(e: mf::Error) -> PyErr {
+    ModelflowError::new_err(e.to_string())
+}
+
+/// A JSON-serialisable value as the Python object `json.loads` makes of it.
+fn to_py<'py, T: serde::Serialize>(py: Python<'py>, v: &T) -> PyResult<Bound<'py, PyAny>> {
+    let text = serde_json::to_string(v).map_err(|e| ModelflowError::new_err(e.to_string()))?;
+    py.import("json")?.call_method1("loads", (text,))
+}
+
+/// A (N, 3) float64 array of points.
+fn points<'py>(
+    py: Python<'py>,
+    p: impl ExactSizeIterator<Item = [f64; 3]>,
+) -> Bound<'py, PyArray2<f64>> {
+    let n = p.len();
+    let flat: Vec<f64> = p.flatten().collect();
+    Array2::from_shape_vec((n, 3), flat)
+        .expect("n rows of 3")
+        .into_pyarray(py)
+}
+
+fn mesh_points<'py>(py: Python<'py>, m: &mf::base::Mesh) -> Bound<'py, PyArray2<f64>> {
+    points(py, m.positions.iter().map(|p| [p.x, p.y, p.z]))
+}
+
+/// Options as a dict (the JSON names of `TrackOptions`, as in a run's `run.json`), laid over the
+/// defaults; `None`: the defaults.
+fn track_options(
+    py: Python<'_>,
+    options: Option<&Bound<'_, PyDict>>,
+) -> PyResult<mf::TrackOptions> {
+    let Some(d) = options else {
+        return Ok(mf::TrackOptions::default());
+    };
+    let given: String = py.import("json")?.call_method1("dumps", (d,))?.extract()?;
+    let given: serde_json::Value = serde_json::from_str(&given)
+        .map_err(|e| ModelflowError::new_err(format!("options: {e}")))?;
+    let mut base = serde_json::to_value(mf::TrackOptions::default())
+        .map_err(|e| ModelflowError::new_err(e.to_string()))?;
+    fn lay(base: &mut serde_json::Value, over: &serde_json::Value, path: &str) -> PyResult<()> {
+        let (Some(b), Some(o)) = (base.as_object_mut(), over.as_object()) else {
+            *base = over.clone();
+            return Ok(());
+        };
+        for (k, v) in o {
+            let here = if path.is_empty() {
+                k.clone()
+            } else {
+                format!("{path}.{k}")
+            };
+            match b.get_mut(k) {
+                Some(slot) if slot.is_object() => lay(slot, v, &here)?,
+                Some(slot) => *slot = v.clone(),
+                None => {
+                    return Err(ModelflowError::new_err(format!(
+                        "options: unknown option {here:?}; the options are {}",
+                        b.keys().cloned().collect::<Vec<_>>().join(", ")
+                    )))
+                }
+            }
+        }
+        Ok(())
+    }
+    lay(&mut base, &given, "")?;
+    let opts: mf::TrackOptions = serde_json::from_value(base)
+        .map_err(|e| ModelflowError::new_err(format!("options: {e}")))?;
+    opts.validate().map_err(err)?;
+    Ok(opts)
+}
+
+/// An image from a (H, W, 3) numpy array, float32 in 0..1 or uint8.
+fn image(i: usize, a: &Bound<'_, PyAny>) -> PyResult<RgbImage> {
+    let shape_err = |shape: &[usize]| {
+        ModelflowError::new_err(format!(
+            "images[{i}]: expected an array of shape (height, width, 3), got shape {shape:?}"
+        ))
+    };
+    let from = |h: usize, w: usize, data: Vec<[f32; 3]>| {
+        RgbImage::from_pixels(w, h, data)
+            .ok_or_else(|| ModelflowError::new_err(format!("images[{i}]: empty image")))
+    };
+    if let Ok(arr) = a.extract::<PyReadonlyArray3<f32>>() {
+        let v = arr.as_array();
+        let s = v.shape().to_vec();
+        if s[2] != 3 {
+            return Err(shape_err(&s));
+        }
+        let data = v
+            .outer_iter()
+            .flat_map(|row| {
+                row.outer_iter()
+                    .map(|px| [px[0], px[1], px[2]])
+                    .collect::<Vec<_>>()
+            })
+            .collect();
+        return from(s[0], s[1], data);
+    }
+    if let Ok(arr) = a.extract::<PyReadonlyArray3<u8>>() {
+        let v = arr.as_array();
+        let s = v.shape().to_vec();
+        if s[2] != 3 {
+            return Err(shape_err(&s));
+        }
+        let data = v
+            .outer_iter()
+            .flat_map(|row| {
+                row.outer_iter()
+                    .map(|px| [px[0], px[1], px[2]].map(|c| c as f32 / 255.0))
+                    .collect::<Vec<_>>()
+            })
+            .collect();
+        return from(s[0], s[1], data);
+    }
+    Err(ModelflowError::new_err(format!(
+        "images[{i}]: expected a numpy array of float32 (0..1) or uint8, shape (height, width, 3)"
+    )))
+}
+
+fn image_array<'py>(py: Python<'py>, img: &RgbImage) -> Bound<'py, PyArray3<f32>> {
+    let flat: Vec<f32> = img.pixels().iter().flatten().copied().collect();
+    Array3::from_shape_vec((img.height(), img.width(), 3), flat)
+        .expect("h × w × 3")
+        .into_pyarray(py)
+}
+
+/// A scene: calibrated cameras, footage and the mesh lined up with the first frame
+/// (`docs/scene-format.md`).
+#[pyclass(name = "Scene", module = "modelflow", frozen)]
+struct Scene {
+    inner: mf::Scene,
+}
+
+#[pymethods]
+impl Scene {
+    /// Loads and checks a scene file (`modelflow-scene/1`).
+    #[staticmethod]
+    fn load(path: PathBuf) -> PyResult<Self> {
+        Ok(Scene {
+            inner: mf::Scene::load(&path).map_err(err)?,
+        })
+    }
+
+    /// The same scene restricted to frames `first..=last` (the mesh is taken as lined up with
+    /// `first`).
+    fn with_frames(&self, first: u32, last: u32) -> PyResult<Self> {
+        Ok(Scene {
+            inner: self.inner.with_frames(first, last).map_err(err)?,
+        })
+    }
+
+    /// The first frame.
+    #[getter]
+    fn first(&self) -> u32 {
+        self.inner.first
+    }
+
+    /// The last frame.
+    #[getter]
+    fn last(&self) -> u32 {
+        self.inner.last
+    }
+
+    /// The cameras' names, in the scene's order.
+    #[getter]
+    fn cameras(&self) -> Vec<String> {
+        self.inner.cameras.iter().map(|c| c.name.clone()).collect()
+    }
+
+    /// The scene's length unit ("m", "cm", "mm") or None.
+    #[getter]
+    fn units(&self) -> Option<&'static str> {
+        self.inner.units.map(|u| u.name())
+    }
+
+    /// The mesh's vertex positions at the first frame, (V, 3) float64.
+    #[getter]
+    fn positions<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray2<f64>> {
+        mesh_points(py, &self.inner.mesh)
+    }
+
+    /// The mesh's triangles, (T, 3) uint32 vertex indices.
+    #[getter]
+    fn triangles<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray2<u32>> {
+        let n = self.inner.mesh.triangles.len();
+        let flat: Vec<u32> = self
+            .inner
+            .mesh
+            .triangles
+            .iter()
+            .flatten()
+            .copied()
+            .collect();
+        Array2::from_shape_vec((n, 3), flat)
+            .expect("n × 3")
+            .into_pyarray(py)
+    }
+
+    /// Every camera's image of `frame`, as the tracker sees it (undistorted when the camera has
+    /// a lens): a list of (H, W, 3) float32 arrays in 0..1.
+    fn load_images<'py>(
+        &self,
+        py: Python<'py>,
+        frame: u32,
+    ) -> PyResult<Vec<Bound<'py, PyArray3<f32>>>> {
+        let imgs = self.inner.load_images(frame).map_err(err)?;
+        Ok(imgs.iter().map(|i| image_array(py, i)).collect())
+    }
+
+    /// The ground-truth positions at `frame`, (V, 3) float64, or None without ground truth.
+    fn ground_truth<'py>(
+        &self,
+        py: Python<'py>,
+        frame: u32,
+    ) -> PyResult<Option<Bound<'py, PyArray2<f64>>>> {
+        Ok(self
+            .inner
+            .ground_truth(frame)
+            .transpose()
+            .map_err(err)?
+            .map(|m| mesh_points(py, &m)))
+    }
+
+    fn __repr__(&self) -> String {
+        format!(
+            "Scene({:?}: frames {}..={}, {} cameras, {} vertices)",
+            self.inner.path.display().to_string(),
+            self.inner.first,
+            self.inner.last,
+            self.inner.cameras.len(),
+            self.inner.mesh.positions.len()
+        )
+    }
+}
+
+/// The Model Flow tracker in memory: images in, positions out, one frame at a time.
+#[pyclass(name = "Tracker", module = "modelflow", unsendable)]
+struct Tracker {
+    inner: mf::Tracker,
+}
+
+#[pymethods]
+impl Tracker {
+    /// A tracker at the scene's first frame, with the scene's mesh and cameras. `images`: the
+    /// first frame's images (default: read from the scene). `options`: a dict of tracker
+    /// options by their JSON names (as in a run's `run.json`, e.g. `{"levels": 3,
+    /// "regularisation": {"spring_k": 0.5}}`), laid over the defaults.
+    #[new]
+    #[pyo3(signature = (scene, images=None, options=None))]
+    fn new(
+        py: Python<'_>,
+        scene: &Scene,
+        images: Option<Vec<Bound<'_, PyAny>>>,
+        options: Option<&Bound<'_, PyDict>>,
+    ) -> PyResult<Self> {
+        let s = &scene.inner;
+        let opts =
+            track_options(py, options)?.resolved_for(s.cameras.iter().map(|c| (c.width, c.height)));
+        let first = match images {
+            Some(a) => a
+                .iter()
+                .enumerate()
+                .map(|(i, a)| image(i, a))
+                .collect::<PyResult<Vec<_>>>()?,
+            None => s.load_images(s.first).map_err(err)?,
+        };
+        Ok(Tracker {
+            inner: mf::Tracker::new(&s.mesh, s.cameras.clone(), s.first, &first, opts)
+                .map_err(err)?,
+        })
+    }
+
+    /// Solves `frame` from its images (one (H, W, 3) array per camera, in the scene's camera
+    /// order): the mesh moves there. Returns the frame's report as a dict (iterations, costs,
+    /// stop reason, timing, per-level solver summaries) with the per-vertex confidence added as
+    /// float64 arrays: "information", "residual", "sigma".
+    fn step<'py>(
+        &mut self,
+        py: Python<'py>,
+        frame: u32,
+        images: Vec<Bound<'py, PyAny>>,
+    ) -> PyResult<Bound<'py, PyAny>> {
+        let imgs = images
+            .iter()
+            .enumerate()
+            .map(|(i, a)| image(i, a))
+            .collect::<PyResult<Vec<_>>>()?;
+        let report = self.inner.step(frame, &imgs).map_err(err)?;
+        let d = to_py(py, &report)?;
+        let col = |f: fn(&mf::tracker::VertexConfidence) -> f64| -> Bound<'py, PyArray1<f64>> {
+            Array1::from_iter(report.confidence.iter().map(f)).into_pyarray(py)
+        };
+        d.set_item("information", col(|c| c.information))?;
+        d.set_item("residual", col(|c| c.residual))?;
+        d.set_item("sigma", col(|c| c.sigma()))?;
+        Ok(d)
+    }
+
+    /// The current vertex positions, (V, 3) float64.
+    #[getter]
+    fn positions<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray2<f64>> {
+        points(py, self.inner.positions().iter().map(|p| [p.x, p.y, p.z]))
+    }
+}
+
+/// Tracks the whole scene into the run folder `out` (as `modelflow track` does: one OBJ and one
+/// confidence file per frame, `log.jsonl`, `run.json`). `options` as for `Tracker`. `force`
+/// replaces an earlier run's files there. Returns the summary as a dict.
+#[pyfunction]
+#[pyo3(signature = (scene, out, options=None, force=false))]
+fn track_scene<'py>(
+    py: Python<'py>,
+    scene: &Scene,
+    out: PathBuf,
+    options: Option<&Bound<'py, PyDict>>,
+    force: bool,
+) -> PyResult<Bound<'py, PyAny>> {
+    let opts = track_options(py, options)?;
+    let run = mf::RunOptions {
+        mode: if force {
+            mf::OpenMode::Force
+        } else {
+            mf::OpenMode::New
+        },
+        ..mf::RunOptions::default()
+    };
+    let summary = mf::track_scene(&scene.inner, &opts, &out, &run, &mut |_| {}).map_err(err)?;
+    to_py(py, &summary)
+}
+
+/// Scores a run folder (one OBJ per frame) against the scene's ground truth; returns the report
+/// as a dict (per-frame RMS and max error, means, the same over the seen vertices; lengths in
+/// the scene's unit, named by "units").
+#[pyfunction]
+fn evaluate<'py>(py: Python<'py>, scene: &Scene, run: PathBuf) -> PyResult<Bound<'py, PyAny>> {
+    let frames = mf::read_run(&run).map_err(err)?;
+    let report = mf::evaluate(&scene.inner, &frames).map_err(err)?;
+    to_py(py, &report)
+}
+
+/// Writes a run folder as one animated file for a 3D package; the format comes from `out`'s
+/// extension (.usda, .glb, .pc2, .mdd). Returns the files written.
+#[pyfunction]
+#[pyo3(signature = (run, out, fps=24.0))]
+fn export(run: PathBuf, out: PathBuf, fps: f64) -> PyResult<Vec<PathBuf>> {
+    let format = mf::export::ExportFormat::from_path(&out).ok_or_else(|| {
+        ModelflowError::new_err(format!(
+            "{}: give a file ending in .usda, .glb, .pc2 or .mdd",
+            out.display()
+        ))
+    })?;
+    let opts = mf::export::ExportOptions {
+        fps,
+        ..Default::default()
+    };
+    Ok(mf::export::export_run(&run, format, &out, &opts)
+        .map_err(err)?
+        .files)
+}
+
+/// Reads a run folder's frame meshes: {frame: (V, 3) float64 positions}.
+#[pyfunction]
+fn read_run<'py>(py: Python<'py>, run: PathBuf) -> PyResult<Bound<'py, PyDict>> {
+    let d = PyDict::new(py);
+    for (f, m) in mf::read_run(&run).map_err(err)? {
+        d.set_item(f, mesh_points(py, &m))?;
+    }
+    Ok(d)
+}
+
+#[pymodule]
+#[pyo3(name = "modelflow")]
+fn modelflow_py(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    m.add("__version__", env!("CARGO_PKG_VERSION"))?;
+    m.add("ModelflowError", m.py().get_type::<ModelflowError>())?;
+    m.add_class::<Scene>()?;
+    m.add_class::<Tracker>()?;
+    m.add_function(wrap_pyfunction!(track_scene, m)?)?;
+    m.add_function(wrap_pyfunction!(evaluate, m)?)?;
+    m.add_function(wrap_pyfunction!(export, m)?)?;
+    m.add_function(wrap_pyfunction!(read_run, m)?)?;
+    Ok(())
+}
