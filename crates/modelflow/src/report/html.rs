@@ -208,6 +208,10 @@ pub(super) fn page(
             "<figure><img src=\"error_length.png\" alt=\"RMS vertex error in {u} per frame, one line per run\"><figcaption>The same in {u}. Also as <a href=\"error_length.svg\">SVG</a>.</figcaption></figure>",
             u = len.unit()
         );
+        let _ = writeln!(
+            o,
+            "<figure><img src=\"vertex_error_bands.png\" alt=\"median, 90th percentile and largest vertex error per frame, per run\"><figcaption>How the error spreads over the mesh: per frame, the median, 90th percentile and largest vertex error of each run (lighter: higher percentile). Also as <a href=\"vertex_error_bands.svg\">SVG</a>.</figcaption></figure>"
+        );
     }
     let _ = writeln!(o, "<table>");
     if has_truth {

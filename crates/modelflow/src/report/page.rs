@@ -193,6 +193,38 @@ pub fn write_report(
                 .collect(),
             ..plot.clone()
         };
+        // How the error spreads over the vertices, per frame: median, 90th percentile and max.
+        let bands_plot = LinePlot {
+            title: "Vertex error over the mesh: median, 90th percentile, max".into(),
+            y_label: format!("vertex error ({})", len.unit()),
+            series: error_bands(scene, &loaded)?
+                .into_iter()
+                .enumerate()
+                .flat_map(|(i, (name, bands))| {
+                    let c = colormap::run_colour(i);
+                    let fade = |t: f32| c.map(|v| v + (1.0 - v) * t);
+                    ["median", "90th percentile", "max"]
+                        .into_iter()
+                        .enumerate()
+                        .map(move |(k, what)| Series {
+                            name: format!("{name} {what}"),
+                            colour: fade([0.0, 0.35, 0.6][k]),
+                            points: bands
+                                .iter()
+                                .map(|(f, b)| [*f as f64, len.value(b[k])])
+                                .collect(),
+                        })
+                        .collect::<Vec<_>>()
+                })
+                .collect(),
+            ..plot.clone()
+        };
+        let png = out_dir.join("vertex_error_bands.png");
+        let svg = out_dir.join("vertex_error_bands.svg");
+        imageio::write_png(&png, &bands_plot.render())?;
+        fsutil::write_atomic(&svg, bands_plot.to_svg().as_bytes())?;
+        files.push(png);
+        files.push(svg);
         let png = out_dir.join("error_length.png");
         let svg = out_dir.join("error_length.svg");
         imageio::write_png(&png, &length_plot.render())?;
@@ -611,6 +643,42 @@ fn oblique_sheet(
 }
 
 /// Distance of each vertex to its ground-truth position.
+/// Per run, per scene frame: the median, 90th percentile and largest vertex error.
+#[allow(clippy::type_complexity)]
+fn error_bands(scene: &Scene, runs: &[Run]) -> Result<Vec<(String, Vec<(u32, [f64; 3])>)>> {
+    let per_frame: Vec<Vec<[f64; 3]>> = scene
+        .frames()
+        .collect::<Vec<_>>()
+        .par_iter()
+        .map(|&f| {
+            let gt = scene.ground_truth(f).expect("scene has ground truth")?;
+            Ok(runs
+                .iter()
+                .map(|r| {
+                    let mut e = vertex_errors(r.at(scene, f), &gt);
+                    e.sort_by(f64::total_cmp);
+                    let q = |p: f64| e[((e.len() - 1) as f64 * p).round() as usize];
+                    [q(0.5), q(0.9), e[e.len() - 1]]
+                })
+                .collect())
+        })
+        .collect::<Result<_>>()?;
+    Ok(runs
+        .iter()
+        .enumerate()
+        .map(|(i, r)| {
+            (
+                r.name.clone(),
+                scene
+                    .frames()
+                    .zip(&per_frame)
+                    .map(|(f, b)| (f, b[i]))
+                    .collect(),
+            )
+        })
+        .collect())
+}
+
 fn vertex_errors(mesh: &Mesh, truth: &Mesh) -> Vec<f64> {
     mesh.positions
         .iter()

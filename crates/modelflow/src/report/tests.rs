@@ -165,6 +165,18 @@ fn report_with_ground_truth_shows_errors_overlays_and_only_local_decodable_files
         "frames 0, 5, 11 marked"
     );
     assert!(links.contains(&"error_length.png".to_string()));
+    // The error's spread over the mesh: three lines per run; the drifting run's vertices all
+    // move by the same amount, so its median, 90th percentile and max coincide (0.11 at 11).
+    let bands = std::fs::read_to_string(out.join("vertex_error_bands.svg")).unwrap();
+    assert_well_formed(&bands);
+    for name in [
+        "exact median",
+        "drift &amp; co 90th percentile",
+        "drift &amp; co max",
+    ] {
+        assert!(bands.contains(&format!(">{name}</text>")), "{name}");
+    }
+    assert!(links.contains(&"vertex_error_bands.png".to_string()));
 
     // Error maps: each run on its own scale (a colour bar per run) unless shared (one bar).
     let shared_out = tmp.path().join("shared");
