@@ -93,50 +93,40 @@ fn track_options(
 
 /// An image from a (H, W, 3) numpy array, float32 in 0..1 or uint8.
 fn image(i: usize, a: &Bound<'_, PyAny>) -> PyResult<RgbImage> {
-    let shape_err = |shape: &[usize]| {
-        ModelflowError::new_err(format!(
-            "images[{i}]: expected an array of shape (height, width, 3), got shape {shape:?}"
-        ))
-    };
-    let from = |h: usize, w: usize, data: Vec<[f32; 3]>| {
-        RgbImage::from_pixels(w, h, data)
-            .ok_or_else(|| ModelflowError::new_err(format!("images[{i}]: empty image")))
-    };
     if let Ok(arr) = a.extract::<PyReadonlyArray3<f32>>() {
-        let v = arr.as_array();
-        let s = v.shape().to_vec();
-        if s[2] != 3 {
-            return Err(shape_err(&s));
-        }
-        let data = v
-            .outer_iter()
-            .flat_map(|row| {
-                row.outer_iter()
-                    .map(|px| [px[0], px[1], px[2]])
-                    .collect::<Vec<_>>()
-            })
-            .collect();
-        return from(s[0], s[1], data);
+        return image_from(i, arr, |c| c);
     }
     if let Ok(arr) = a.extract::<PyReadonlyArray3<u8>>() {
-        let v = arr.as_array();
-        let s = v.shape().to_vec();
-        if s[2] != 3 {
-            return Err(shape_err(&s));
-        }
-        let data = v
-            .outer_iter()
-            .flat_map(|row| {
-                row.outer_iter()
-                    .map(|px| [px[0], px[1], px[2]].map(|c| c as f32 / 255.0))
-                    .collect::<Vec<_>>()
-            })
-            .collect();
-        return from(s[0], s[1], data);
+        return image_from(i, arr, |c| c as f32 / 255.0);
     }
     Err(ModelflowError::new_err(format!(
         "images[{i}]: expected a numpy array of float32 (0..1) or uint8, shape (height, width, 3)"
     )))
+}
+
+/// The image of a (H, W, 3) array whose values `value` turns into 0..1.
+fn image_from<T: numpy::Element + Copy>(
+    i: usize,
+    arr: PyReadonlyArray3<'_, T>,
+    value: impl Fn(T) -> f32,
+) -> PyResult<RgbImage> {
+    let v = arr.as_array();
+    let &[h, w, 3] = v.shape() else {
+        return Err(ModelflowError::new_err(format!(
+            "images[{i}]: expected an array of shape (height, width, 3), got shape {:?}",
+            v.shape()
+        )));
+    };
+    let data = v
+        .outer_iter()
+        .flat_map(|row| {
+            row.outer_iter()
+                .map(|px| [value(px[0]), value(px[1]), value(px[2])])
+                .collect::<Vec<_>>()
+        })
+        .collect();
+    RgbImage::from_pixels(w, h, data)
+        .ok_or_else(|| ModelflowError::new_err(format!("images[{i}]: empty image")))
 }
 
 fn image_array<'py>(py: Python<'py>, img: &RgbImage) -> Bound<'py, PyArray3<f32>> {

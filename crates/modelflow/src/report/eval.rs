@@ -23,6 +23,9 @@ pub struct FrameError {
     pub rms_pct: f64,
     /// Largest vertex distance.
     pub max: f64,
+    /// Median and 90th percentile of the vertex distances (how the error spreads over the mesh).
+    pub median: f64,
+    pub p90: f64,
     /// The RMS over the vertices seen by some camera in the ground truth (0 when none is).
     pub seen_rms: f64,
     pub seen_rms_pct: f64,
@@ -107,8 +110,10 @@ pub fn evaluate(scene: &Scene, run: &[(u32, Mesh)]) -> Result<EvalReport> {
             }
             let seen = seen_vertices(&scene.cameras, frame, &truth);
             let (mut sum, mut max, mut seen_sum, mut seen_count) = (0.0f64, 0.0f64, 0.0, 0);
+            let mut d2s = Vec::with_capacity(mesh.positions.len());
             for ((a, b), &s) in mesh.positions.iter().zip(&truth.positions).zip(&seen) {
                 let d2 = (a - b).norm_squared();
+                d2s.push(d2);
                 sum += d2;
                 max = max.max(d2);
                 if s {
@@ -117,12 +122,19 @@ pub fn evaluate(scene: &Scene, run: &[(u32, Mesh)]) -> Result<EvalReport> {
                 }
             }
             let rms = (sum / mesh.positions.len() as f64).sqrt();
+            d2s.sort_by(f64::total_cmp);
+            let quantile = |q: f64| {
+                d2s.get(((d2s.len().max(1) - 1) as f64 * q).round() as usize)
+                    .map_or(0.0, |d2| d2.sqrt())
+            };
             let seen_rms = (seen_sum / seen_count.max(1) as f64).sqrt();
             Ok(FrameError {
                 frame,
                 rms,
                 rms_pct: pct(rms, scale),
                 max: max.sqrt(),
+                median: quantile(0.5),
+                p90: quantile(0.9),
                 seen_rms,
                 seen_rms_pct: pct(seen_rms, scale),
                 seen: seen_count,

@@ -19,7 +19,7 @@ use crate::input::imageio;
 use crate::input::scene::Scene;
 use crate::report::colormap;
 use crate::report::draw::{self, Rgb};
-use crate::report::eval::{self, EvalReport};
+use crate::report::eval::{self, EvalReport, FrameError};
 use crate::report::flipbook;
 use crate::report::overlay::{self, WireStyle};
 use crate::report::plot::{LinePlot, Series};
@@ -197,24 +197,27 @@ pub fn write_report(
         let bands_plot = LinePlot {
             title: "Vertex error over the mesh: median, 90th percentile, max".into(),
             y_label: format!("vertex error ({})", len.unit()),
-            series: error_bands(scene, &loaded)?
-                .into_iter()
+            series: reports
+                .iter()
+                .zip(&loaded)
                 .enumerate()
-                .flat_map(|(i, (name, bands))| {
+                .flat_map(|(i, (rep, r))| {
                     let c = colormap::run_colour(i);
                     let fade = |t: f32| c.map(|v| v + (1.0 - v) * t);
-                    ["median", "90th percentile", "max"]
-                        .into_iter()
-                        .enumerate()
-                        .map(move |(k, what)| Series {
-                            name: format!("{name} {what}"),
-                            colour: fade([0.0, 0.35, 0.6][k]),
-                            points: bands
-                                .iter()
-                                .map(|(f, b)| [*f as f64, len.value(b[k])])
-                                .collect(),
-                        })
-                        .collect::<Vec<_>>()
+                    let band: [(&str, f32, Band); 3] = [
+                        ("median", 0.0, |e| e.median),
+                        ("90th percentile", 0.35, |e| e.p90),
+                        ("max", 0.6, |e| e.max),
+                    ];
+                    band.map(|(what, t, value)| Series {
+                        name: format!("{} {what}", r.name),
+                        colour: fade(t),
+                        points: rep
+                            .per_frame
+                            .iter()
+                            .map(|e| [e.frame as f64, len.value(value(e))])
+                            .collect(),
+                    })
                 })
                 .collect(),
             ..plot.clone()
@@ -344,12 +347,21 @@ pub fn write_report(
                 .iter()
                 .filter_map(|&f| {
                     let p = r.dir.join(crate::run::confidence_file(f));
-                    p.is_file()
-                        .then(|| crate::run::read_confidence(&p).map(|c| (f, c)))
-                })
-                .filter(|c| {
-                    c.as_ref()
-                        .map_or(true, |(_, c)| c.len() == scene.mesh.positions.len())
+                    p.is_file().then(|| {
+                        let c = crate::run::read_confidence(&p)?;
+                        if c.len() != scene.mesh.positions.len() {
+                            return Err(Error::invalid(
+                                &p,
+                                "rows",
+                                format!(
+                                    "{} vertices, but the scene mesh has {}",
+                                    c.len(),
+                                    scene.mesh.positions.len()
+                                ),
+                            ));
+                        }
+                        Ok((f, c))
+                    })
                 })
                 .collect::<Result<Vec<_>>>()
         })
@@ -643,42 +655,6 @@ fn oblique_sheet(
 }
 
 /// Distance of each vertex to its ground-truth position.
-/// Per run, per scene frame: the median, 90th percentile and largest vertex error.
-#[allow(clippy::type_complexity)]
-fn error_bands(scene: &Scene, runs: &[Run]) -> Result<Vec<(String, Vec<(u32, [f64; 3])>)>> {
-    let per_frame: Vec<Vec<[f64; 3]>> = scene
-        .frames()
-        .collect::<Vec<_>>()
-        .par_iter()
-        .map(|&f| {
-            let gt = scene.ground_truth(f).expect("scene has ground truth")?;
-            Ok(runs
-                .iter()
-                .map(|r| {
-                    let mut e = vertex_errors(r.at(scene, f), &gt);
-                    e.sort_by(f64::total_cmp);
-                    let q = |p: f64| e[((e.len() - 1) as f64 * p).round() as usize];
-                    [q(0.5), q(0.9), e[e.len() - 1]]
-                })
-                .collect())
-        })
-        .collect::<Result<_>>()?;
-    Ok(runs
-        .iter()
-        .enumerate()
-        .map(|(i, r)| {
-            (
-                r.name.clone(),
-                scene
-                    .frames()
-                    .zip(&per_frame)
-                    .map(|(f, b)| (f, b[i]))
-                    .collect(),
-            )
-        })
-        .collect())
-}
-
 fn vertex_errors(mesh: &Mesh, truth: &Mesh) -> Vec<f64> {
     mesh.positions
         .iter()
@@ -711,6 +687,46 @@ fn error_scales(scene: &Scene, runs: &[Run], truth: &[(u32, Mesh)], shared: bool
         .collect()
 }
 
+/// One line of the vertex-error bands plot: a statistic of a frame's vertex errors.
+type Band = fn(&FrameError) -> f64;
+
+/// One run's mesh at `frame` seen from the first camera (magnified like the overlays), filled
+/// with per-vertex `colours` on a dark background and labelled "run — camera — frame{note}".
+fn coloured_panel(
+    scene: &Scene,
+    mesh: &Mesh,
+    frame: u32,
+    colours: &[[f32; 3]],
+    run: &str,
+    note: &str,
+    opts: &ReportOptions,
+) -> Result<RgbImage> {
+    let cam0 = &scene.cameras[0];
+    let s = panel_scale(cam0.width, opts.min_panel_width);
+    let proj = overlay::magnified(cam0.at(frame), s);
+    let ropts = RenderOptions {
+        background: [0.08; 3],
+        ..RenderOptions::default()
+    };
+    let mut p = render::render(
+        mesh,
+        &[],
+        &Surface::VertexColors(colours),
+        &proj,
+        (cam0.width as f64 * s) as usize,
+        (cam0.height as f64 * s) as usize,
+        &ropts,
+    )?;
+    draw::label(
+        &mut p,
+        &format!("{run} — {} — frame {frame}{note}", cam0.name),
+        6.0,
+        6.0,
+        14.0,
+    );
+    Ok(p)
+}
+
 /// Each run's mesh at `frame` from the first camera, coloured by vertex error (viridis over
 /// `[0, max[run]]`), with a colour bar after each run, or one after all when the scales are
 /// equal.
@@ -722,17 +738,6 @@ fn error_sheet(
     max: &[f64],
     opts: &ReportOptions,
 ) -> Result<RgbImage> {
-    let cam0 = &scene.cameras[0];
-    let s = panel_scale(cam0.width, opts.min_panel_width);
-    let proj = overlay::magnified(cam0.at(frame), s);
-    let (w, h) = (
-        (cam0.width as f64 * s) as usize,
-        (cam0.height as f64 * s) as usize,
-    );
-    let ropts = RenderOptions {
-        background: [0.08; 3],
-        ..RenderOptions::default()
-    };
     let panels = runs
         .par_iter()
         .zip(max)
@@ -742,25 +747,10 @@ fn error_sheet(
                 .iter()
                 .map(|e| colormap::viridis(e / max))
                 .collect();
-            let mut p = render::render(
-                mesh,
-                &[],
-                &Surface::VertexColors(&colours),
-                &proj,
-                w,
-                h,
-                &ropts,
-            )?;
-            draw::label(
-                &mut p,
-                &format!("{} — {} — frame {frame}", run.name, cam0.name),
-                6.0,
-                6.0,
-                14.0,
-            );
-            Ok(p)
+            coloured_panel(scene, mesh, frame, &colours, &run.name, "", opts)
         })
         .collect::<Result<Vec<_>>>()?;
+    let h = panels[0].height();
     let diag = scene.mesh.bbox_diagonal();
     let len = Length::of(scene.units);
     let bar = |max: f64| {
@@ -828,17 +818,6 @@ fn confidence_sheet(
     opts: &ReportOptions,
 ) -> Result<Option<RgbImage>> {
     let (lo, hi) = (scale.0.ln(), scale.1.ln());
-    let cam0 = &scene.cameras[0];
-    let s = panel_scale(cam0.width, opts.min_panel_width);
-    let proj = overlay::magnified(cam0.at(frame), s);
-    let (w, h) = (
-        (cam0.width as f64 * s) as usize,
-        (cam0.height as f64 * s) as usize,
-    );
-    let ropts = RenderOptions {
-        background: [0.08; 3],
-        ..RenderOptions::default()
-    };
     let shown: Vec<(&Run, &Vec<VertexConfidence>)> = runs
         .iter()
         .zip(confidence)
@@ -862,31 +841,15 @@ fn confidence_sheet(
                     }
                 })
                 .collect();
-            let mut p = render::render(
-                mesh,
-                &[],
-                &Surface::VertexColors(&colours),
-                &proj,
-                w,
-                h,
-                &ropts,
-            )?;
             let unconstrained = conf.iter().filter(|c| c.information == 0.0).count();
-            draw::label(
-                &mut p,
-                &format!(
-                    "{} — {} — frame {frame} — {unconstrained} of {} vertices unconstrained",
-                    run.name,
-                    cam0.name,
-                    conf.len()
-                ),
-                6.0,
-                6.0,
-                14.0,
+            let note = format!(
+                " — {unconstrained} of {} vertices unconstrained",
+                conf.len()
             );
-            Ok(p)
+            coloured_panel(scene, mesh, frame, &colours, &run.name, &note, opts)
         })
         .collect::<Result<Vec<_>>>()?;
+    let h = panels[0].height();
     let len = Length::of(scene.units);
     let bar = overlay::colour_bar(
         colormap::viridis,
