@@ -1,16 +1,24 @@
-#!/usr/bin/env bash
 # The Python package's checks, as CI runs them: formatting and lints of its Rust crate
-# (python/), `pip install ./python` into target/pyenv (tools/pyenv.sh makes it; the build takes
-# minutes the first time), then pytest on python/tests against the CLI binary that
-# `cargo build` made (MODELFLOW_BIN, default target/debug/modelflow).
+# (python/), a wheel built by maturin and installed into target/pyenv (tools/pyenv.sh makes it),
+# then pytest on python/tests against the CLI binary that `cargo build` made (MODELFLOW_BIN,
+# default target/debug/modelflow).
+#
+# The wheel is built with the dev profile into the workspace's target folder: python/Cargo.toml
+# copies the workspace's profiles and python/Cargo.lock pins the same versions, so the
+# dependencies `cargo build` already compiled are reused instead of compiled again in release
+# (that saved minutes of CI). A user's `pip install ./python` builds in release as usual.
 set -euo pipefail
 root="$(cd "$(dirname "$0")/.." && pwd)"
 cd "$root"
 tools/pyenv.sh >/dev/null
 py="$root/target/pyenv/bin/python"
 cargo fmt --manifest-path python/Cargo.toml --check
-PYO3_PYTHON="$py" cargo clippy --manifest-path python/Cargo.toml --release -q -- -D warnings
-"$py" -m pip install -q --disable-pip-version-check ./python
+export CARGO_TARGET_DIR="$root/target"
+PYO3_PYTHON="$py" cargo clippy --manifest-path python/Cargo.toml -q -- -D warnings
+wheels="$root/target/python-wheels"
+rm -rf "$wheels"
+"$py" -m maturin build -q --profile dev -i "$py" -m python/Cargo.toml --out "$wheels"
+"$py" -m pip install -q --disable-pip-version-check --force-reinstall --no-deps "$wheels"/modelflow-*.whl
 export MODELFLOW_BIN="${MODELFLOW_BIN:-$root/target/debug/modelflow}"
 [ -x "$MODELFLOW_BIN" ] || cargo build -q --bin modelflow
 "$py" -m pytest -q python/tests
