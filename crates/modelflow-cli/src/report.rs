@@ -31,6 +31,10 @@ pub struct Args {
     /// good run's map stays readable beside a bad one).
     #[arg(long)]
     shared_scale: bool,
+    /// The frame whose photometric residual image is drawn, against the previous frame and the
+    /// first (default: the last frame; must come after the first).
+    #[arg(long, value_name = "N")]
+    residual_frame: Option<u32>,
     /// Leave out the flipbook (every frame's overlays as JPEGs, scrubbable in the page).
     #[arg(long)]
     no_flipbook: bool,
@@ -53,6 +57,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         oblique_degrees: args.oblique_degrees,
         shared_error_scale: args.shared_scale,
         flipbook: !args.no_flipbook,
+        residual_frame: args.residual_frame,
         ..ReportOptions::default()
     };
     let summary = write_report(&scene, &runs, &opts, &args.out)

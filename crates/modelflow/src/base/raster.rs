@@ -137,7 +137,7 @@ pub fn rasterize(
 }
 
 #[inline]
-fn screen_barycentric(p: &[[f64; 2]; 3], area: f64, x: f64, y: f64) -> [f64; 3] {
+pub(crate) fn screen_barycentric(p: &[[f64; 2]; 3], area: f64, x: f64, y: f64) -> [f64; 3] {
     let e = |a: [f64; 2], b: [f64; 2]| (b[0] - a[0]) * (y - a[1]) - (b[1] - a[1]) * (x - a[0]);
     [
         e(p[1], p[2]) / area,

@@ -14,6 +14,8 @@ pub(super) struct Figures {
     pub obliques: Vec<(String, String)>,
     pub error_maps: Vec<(String, String)>,
     pub confidence_maps: Vec<(String, String)>,
+    /// The residual image: (frame, file, (run, reference frame, RMS) per row).
+    pub residual: Option<(u32, String, Vec<(String, u32, f64)>)>,
     /// Frames of the flipbook (`flipbook/fNNNN.jpg`); empty: none.
     pub flipbook: Vec<u32>,
 }
@@ -301,8 +303,8 @@ pub(super) fn page(
         let _ = writeln!(
             o,
             "<p>Each run's mesh seen from camera {}, coloured by the distance of each vertex to its ground-truth position (viridis; {}).</p>",
-            if opts.shared_error_scale { "one scale for all frames and runs, shown by the colour bar" } else { "each run on its own scale, the largest error of that run over the drawn frames, shown by the colour bar beside it; --shared-scale puts all runs on one" },
-            esc(&scene.cameras[0].name)
+            esc(&scene.cameras[0].name),
+            if opts.shared_error_scale { "one scale for all frames and runs, shown by the colour bar" } else { "each run on its own scale, the largest error of that run over the drawn frames, shown by the colour bar beside it; --shared-scale puts all runs on one" }
         );
         figures(&mut o, &figs.error_maps, "error-coloured mesh");
     }
@@ -314,6 +316,31 @@ pub(super) fn page(
             esc(&scene.cameras[0].name)
         );
         figures(&mut o, &figs.confidence_maps, "confidence-coloured mesh");
+    }
+    if let Some((t, file, rows)) = &figs.residual {
+        let _ = writeln!(o, "<h2>Photometric residual at frame {t}</h2>");
+        let _ = writeln!(
+            o,
+            "<p>What each run leaves unexplained in the footage, pixel by pixel, in every camera: for each pixel the run's mesh covers at frame {t}, the colour there minus the colour at the same surface point in the reference frame (found through the run's mesh at both frames, as the tracker's warp does), as the RMS over R, G and B (images in 0–1). The previous frame is what the tracker matches frame by frame; the first frame is its anchor against drift. A run that sticks to the surface leaves only noise, lighting change and highlights; one that slides leaves the texture's edges. Pixels whose surface point was hidden at the reference frame are left dark. The runs share one colour scale per reference frame (the first frame's residual also holds every change of lighting since, so it gets its own). <code>--residual-frame N</code> picks the frame.</p>"
+        );
+        let _ = writeln!(
+            o,
+            "<table><tr><th>run</th><th>against frame</th><th>RMS residual (0–1)</th></tr>"
+        );
+        for (run, r, rms) in rows {
+            let _ = writeln!(
+                o,
+                "<tr><td>{}</td><td>{r}</td><td>{}</td></tr>",
+                esc(run),
+                num(Some(*rms))
+            );
+        }
+        let _ = writeln!(o, "</table>");
+        figures(
+            &mut o,
+            &[(format!("frame {t}"), file.clone())],
+            "photometric residual",
+        );
     }
     let _ = writeln!(
         o,

@@ -1,7 +1,7 @@
 //! Turning runs into figures: scoring against ground truth (`eval`), colours (`colormap`), 2-D
 //! drawing and text (`draw`), line plots (`plot`), mesh pictures (`overlay`, filled meshes
 //! through `synth::render`), the photometric quality measure for footage without ground truth
-//! (`photometric`), the scrubbable flipbook of every frame's overlays (`flipbook`) and the
+//! (`photometric`), the photometric residual image of one frame (`residual`), the scrubbable flipbook of every frame's overlays (`flipbook`) and the
 //! HTML page that ties them together (`page`, `html`).
 //! It reads run folders through `run`; it never runs a tracker.
 
@@ -14,6 +14,9 @@ pub(crate) mod overlay;
 mod page;
 pub(crate) mod photometric;
 pub(crate) mod plot;
+mod residual;
 
 pub use eval::{evaluate, EvalReport, FrameError};
-pub use page::{seconds_per_frame, write_report, ReportOptions, ReportSummary, RunSummary};
+pub use page::{
+    seconds_per_frame, write_report, ReportOptions, ReportSummary, ResidualRow, RunSummary,
+};

@@ -201,6 +201,21 @@ pub fn side_by_side(panels: &[RgbImage], gap: usize, background: Rgb) -> RgbImag
     out
 }
 
+/// Stacks rows vertically (left-aligned) with a `gap` of `background`, as `side_by_side` does
+/// across.
+pub fn stacked(rows: &[RgbImage], gap: usize, background: Rgb) -> RgbImage {
+    let w = rows.iter().map(|p| p.width()).max().unwrap_or(1);
+    let h: usize =
+        rows.iter().map(|p| p.height()).sum::<usize>() + gap * rows.len().saturating_sub(1);
+    let mut out = draw::filled(w.max(1), h.max(1), background);
+    let mut y = 0;
+    for r in rows {
+        draw::blit(&mut out, r, 0, y as i64);
+        y += r.height() + gap;
+    }
+    out
+}
+
 /// A vertical colour bar for `map` over `[0, max]`, `height` px tall, with `ticks` labelled by
 /// `label(value)` and a `title` above it, on a white background.
 pub fn colour_bar(

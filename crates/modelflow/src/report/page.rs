@@ -7,7 +7,7 @@
 //! Every file is written atomically (`fsutil`); the pictures come from `plot`, `overlay` and
 //! `render`, the errors from `eval`, the photometric cost from `report::photometric`.
 
-use super::{html, photometric};
+use super::{html, photometric, residual};
 
 use crate::base::camera::Projection;
 use crate::base::image::RgbImage;
@@ -43,6 +43,9 @@ pub struct ReportOptions {
     /// One error colour scale for all runs (to compare them); otherwise each run's error map has
     /// its own scale, so that a good run's map is readable next to a bad one.
     pub shared_error_scale: bool,
+    /// The frame whose photometric residual image is drawn (against the previous frame and the
+    /// first); `None`: the last frame. Must be after the scene's first frame.
+    pub residual_frame: Option<u32>,
 }
 
 impl Default for ReportOptions {
@@ -53,6 +56,7 @@ impl Default for ReportOptions {
             min_panel_width: 480,
             flipbook: true,
             shared_error_scale: false,
+            residual_frame: None,
         }
     }
 }
@@ -81,6 +85,21 @@ pub struct ReportSummary {
     pub runs: Vec<RunSummary>,
     /// The frames the pictures were drawn for.
     pub frames: Vec<u32>,
+    /// The photometric residual figure's numbers: per run and reference frame (the previous, then
+    /// the first), the RMS residual over every camera's covered pixels; empty when not drawn.
+    pub residual: Vec<ResidualRow>,
+}
+
+/// One row of the photometric residual figure.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ResidualRow {
+    pub run: String,
+    /// The frame the residual is drawn at.
+    pub frame: u32,
+    /// The frame it is measured against.
+    pub reference: u32,
+    /// RMS over R, G, B and every covered pixel of every camera (images in 0..1).
+    pub rms: f64,
 }
 
 /// One run as loaded: its mesh per scene frame.
@@ -133,6 +152,21 @@ pub fn write_report(
         }
     }
     let frames = chosen_frames(scene, opts.frames.as_deref())?;
+    let residual_frame = match opts.residual_frame {
+        Some(f) if !(scene.first < f && f <= scene.last) => {
+            return Err(Error::option(
+                "--residual-frame",
+                f,
+                format!(
+                    "a frame after the scene's first: {}..={}",
+                    scene.first + 1,
+                    scene.last
+                ),
+            ));
+        }
+        Some(f) => Some(f),
+        None => (scene.last > scene.first).then_some(scene.last),
+    };
     let loaded: Vec<Run> = runs
         .iter()
         .map(|(name, dir)| load_run(scene, name, dir))
@@ -377,6 +411,24 @@ pub fn write_report(
             }
         }
     }
+    let mut residual_rows = Vec::new();
+    if let Some(t) = residual_frame {
+        let (sheet, rms) = residual_sheet(scene, &loaded, t, opts)?;
+        let name = format!("residual_f{t:04}.png");
+        let path = out_dir.join(&name);
+        imageio::write_png(&path, &sheet)?;
+        files.push(path);
+        figures.residual = Some((t, name, rms.clone()));
+        residual_rows = rms
+            .into_iter()
+            .map(|(run, reference, rms)| ResidualRow {
+                run,
+                frame: t,
+                reference,
+                rms,
+            })
+            .collect();
+    }
     if opts.flipbook {
         let fb_frames = flipbook::frames(scene);
         let meshes: Vec<(&str, Vec<&Mesh>)> = loaded
@@ -399,6 +451,7 @@ pub fn write_report(
         files,
         runs: summaries,
         frames,
+        residual: residual_rows,
     })
 }
 
@@ -860,6 +913,120 @@ fn confidence_sheet(
     );
     panels.push(bar);
     Ok(Some(overlay::side_by_side(&panels, 6, SHEET_BG)))
+}
+
+/// Each run's photometric residual image at frame `t` in every camera (see `report::residual`):
+/// one row against the previous frame and, when that is not the first, one against the first;
+/// one colour scale per reference frame, shared by the runs, shown by the bar ending each row. Also returns each row's
+/// RMS residual over the cameras' covered pixels, `(run, reference frame, rms)`.
+fn residual_sheet(
+    scene: &Scene,
+    runs: &[Run],
+    t: u32,
+    opts: &ReportOptions,
+) -> Result<(RgbImage, Vec<(String, u32, f64)>)> {
+    let now = scene.load_images(t)?;
+    let mut refs = vec![(t - 1, scene.load_images(t - 1)?)];
+    if t - 1 != scene.first {
+        refs.push((scene.first, scene.load_images(scene.first)?));
+    }
+    // rows[run-major]: (run, reference index, maps per camera).
+    let mut rows = Vec::new();
+    for run in runs {
+        for (j, (r, imgs)) in refs.iter().enumerate() {
+            let maps: Vec<residual::ResidualMap> = (0..scene.cameras.len())
+                .map(|c| {
+                    let cam = &scene.cameras[c];
+                    residual::residual_map(
+                        run.at(scene, t),
+                        cam.at(t),
+                        &now[c],
+                        run.at(scene, *r),
+                        cam.at(*r),
+                        &imgs[c],
+                    )
+                })
+                .collect();
+            rows.push((run, j, maps));
+        }
+    }
+    // One scale per reference frame, shared by the runs: the first frame's residual also holds
+    // every lighting change since, and would flatten the previous frame's.
+    let tops: Vec<f64> = (0..refs.len())
+        .map(|j| {
+            let maps: Vec<&residual::ResidualMap> = rows
+                .iter()
+                .filter(|(_, k, _)| *k == j)
+                .flat_map(|(_, _, m)| m)
+                .collect();
+            residual::scale(&maps)
+        })
+        .collect();
+    let mut rms_rows = Vec::new();
+    let pictures: Vec<RgbImage> = rows
+        .iter()
+        .map(|(run, j, maps)| {
+            let (r, top) = (refs[*j].0, tops[*j]);
+            let (mut sum, mut n) = (0.0, 0usize);
+            let mut panels: Vec<RgbImage> = maps
+                .iter()
+                .enumerate()
+                .map(|(c, m)| {
+                    let (rms, k) = m.rms();
+                    sum += rms * rms * k as f64;
+                    n += k;
+                    let cam = &scene.cameras[c];
+                    let mut p = residual::picture(m, &now[c], top, colormap::viridis);
+                    // Keep wide sheets viewable: halve panels wider than 1000 px, magnify small.
+                    if p.width() > 1000 {
+                        p = p.downsample2();
+                    } else {
+                        p = overlay::magnify_image(
+                            &p,
+                            panel_scale(cam.width, opts.min_panel_width),
+                        );
+                    }
+                    let against = if *j == 1 {
+                        format!("first frame {r}")
+                    } else {
+                        format!("frame {r}")
+                    };
+                    draw::label(
+                        &mut p,
+                        &format!(
+                            "{} — {} — frame {t} against {against} — RMS {} over {k} px",
+                            run.name,
+                            cam.name,
+                            fmt_sig(rms)
+                        ),
+                        6.0,
+                        6.0,
+                        14.0,
+                    );
+                    p
+                })
+                .collect();
+            rms_rows.push((
+                run.name.clone(),
+                r,
+                if n > 0 {
+                    (sum / n as f64).sqrt()
+                } else {
+                    f64::NAN
+                },
+            ));
+            let h = panels[0].height();
+            panels.push(overlay::colour_bar(
+                colormap::viridis,
+                top,
+                h,
+                &format!("|RGB difference| to frame {r} (RMS of channels, 0-1)"),
+                fmt_sig,
+            ));
+            overlay::side_by_side(&panels, 6, SHEET_BG)
+        })
+        .collect();
+    Ok((overlay::stacked(&pictures, 0, SHEET_BG), rms_rows))
 }
 
 /// A number with about 3 significant digits, for labels.

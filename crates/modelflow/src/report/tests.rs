@@ -107,6 +107,31 @@ fn report_with_ground_truth_shows_errors_overlays_and_only_local_decodable_files
         assert!(links.contains(&format!("errormap_f{f:04}.png")));
     }
     assert!(links.contains(&"error.png".to_string()) && links.contains(&"error.svg".to_string()));
+    // The residual image of the last frame, against frame 10 and the first: the run on the
+    // surface leaves far less than the one sliding 1 cm per frame (10 cm by frame 10), and more
+    // against the first frame than the previous one (it has slid further since).
+    assert!(links.contains(&"residual_f0011.png".to_string()));
+    let rms = |run: &str, reference: u32| {
+        summary
+            .residual
+            .iter()
+            .find(|r| r.run == run && r.reference == reference && r.frame == 11)
+            .unwrap_or_else(|| panic!("residual row {run} / {reference}"))
+            .rms
+    };
+    assert_eq!(summary.residual.len(), 4);
+    assert!(rms("exact", 10) < 0.02, "{:?}", summary.residual);
+    assert!(
+        rms("drift & co", 10) > 2.0 * rms("exact", 10),
+        "{:?}",
+        summary.residual
+    );
+    assert!(
+        rms("drift & co", 0) > rms("drift & co", 10),
+        "{:?}",
+        summary.residual
+    );
+    assert!(html.contains("Photometric residual at frame 11"));
     for f in &summary.files {
         assert!(f.is_file() && f.starts_with(&out));
     }
@@ -294,10 +319,21 @@ fn bad_runs_and_logs_are_named() {
         frames: Some(vec![40]),
         ..ReportOptions::default()
     };
-    let err = write_report(&scene, &[("r".into(), run)], &opts, &out)
+    let err = write_report(&scene, &[("r".into(), run.clone())], &opts, &out)
         .unwrap_err()
         .to_string();
     assert!(err.contains("frame 40") && err.contains("0..=11"), "{err}");
+    let opts = ReportOptions {
+        residual_frame: Some(0),
+        ..ReportOptions::default()
+    };
+    let err = write_report(&scene, &[("r".into(), run.clone())], &opts, &out)
+        .unwrap_err()
+        .to_string();
+    assert!(
+        err.contains("--residual-frame") && err.contains("1..=11"),
+        "{err}"
+    );
     assert!(
         !out.join("index.html").exists(),
         "nothing written on bad input"
