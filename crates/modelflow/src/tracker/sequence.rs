@@ -410,11 +410,12 @@ impl Tracker {
                 linearised = Some(lin);
                 summaries.push(summary);
             }
-            let (sol, mut summary, _) = solve(&x, linearised, &sopts, Motion::Free)?;
+            let (sol, mut summary, mut lin) = solve(&x, linearised, &sopts, Motion::Free)?;
             x = sol;
             if refine {
-                let (sol, refined, _) = solve(&x, None, &robust, Motion::Free)?;
+                let (sol, refined, refined_lin) = solve(&x, None, &robust, Motion::Free)?;
                 x = sol;
+                lin = refined_lin;
                 summaries.push(std::mem::replace(&mut summary, refined));
             }
             if level == 0 {
@@ -422,7 +423,8 @@ impl Tracker {
                 pixels = summary.pixels;
                 stop = summary.stop;
                 let tc = Instant::now();
-                confidence = problem.vertex_confidence(&x, &robust);
+                // Read from the last solve's linearisation, made at `x` with `robust`.
+                confidence = problem.confidence(&lin);
                 timing.confidence = tc.elapsed().as_secs_f64();
             }
             summaries.push(summary);

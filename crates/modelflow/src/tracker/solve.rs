@@ -589,12 +589,14 @@ impl Problem<'_> {
     }
 
     /// Cost at `x`; with `system`, also fills `a` and `b` (= −Jᵀr) of the normal equations.
+    /// Also returns each triangle's photometric sums (in `by_triangle` order), from which
+    /// [`Problem::confidence`] is read without another pass over the pixels.
     fn evaluate(
         &self,
         x: &[Point3<f64>],
         opts: &SolverOptions,
         system: Option<(&mut BlockSparse, &mut Vec<Vector3<f64>>)>,
-    ) -> (f64, usize) {
+    ) -> (f64, usize, Vec<TriAccum>) {
         let want = system.is_some();
         let parts: Vec<TriAccum> = self
             .by_triangle
@@ -629,7 +631,7 @@ impl Problem<'_> {
         for r in self.regularisers {
             cost += r.accumulate(x, sys.as_mut().map(|(a, b)| (&mut **a, &mut b[..])));
         }
-        (cost, pixels)
+        (cost, pixels, parts)
     }
 
     /// Cost at `x` and the normal equations there: `(cost, JᵀJ, −Jᵀr)` (for tests: the solver
@@ -643,30 +645,36 @@ impl Problem<'_> {
     ) -> (f64, BlockSparse, Vec<Vector3<f64>>) {
         let mut a = BlockSparse::new(x.len(), self.pattern);
         let mut b = vec![Vector3::zeros(); x.len()];
-        let (cost, _) = self.evaluate(x, opts, Some((&mut a, &mut b)));
+        let (cost, _, _) = self.evaluate(x, opts, Some((&mut a, &mut b)));
         (cost, a, b)
     }
 
     /// Per vertex, how well the images constrain it at `x` ([`VertexConfidence`]): one more
-    /// linearisation, summed per vertex in triangle order (deterministic).
+    /// linearisation. The tracker reads the same from the solve's last linearisation instead
+    /// ([`Problem::confidence`]); this is the reference it is tested against.
+    #[cfg(test)]
     pub fn vertex_confidence(
         &self,
         x: &[Point3<f64>],
         opts: &SolverOptions,
     ) -> Vec<VertexConfidence> {
-        let parts: Vec<TriAccum> = self
-            .by_triangle
-            .par_iter()
-            .with_min_len(16)
-            .map_init(Scratch::default, |scratch, (t, r)| {
-                self.triangle(*t, r, x, opts, true, scratch)
-            })
-            .collect();
-        let n = x.len();
+        let mut a = BlockSparse::new(x.len(), self.pattern);
+        let mut b = vec![Vector3::zeros(); x.len()];
+        let (_, _, parts) = self.evaluate(x, opts, Some((&mut a, &mut b)));
+        self.confidence_from(&parts, x.len())
+    }
+
+    /// Per vertex, how well the images constrain it at the positions `lin` was made at (what a
+    /// solve returned: its result), summed per vertex in triangle order (deterministic).
+    pub fn confidence(&self, lin: &Linearised) -> Vec<VertexConfidence> {
+        self.confidence_from(&lin.parts, lin.b.len())
+    }
+
+    fn confidence_from(&self, parts: &[TriAccum], n: usize) -> Vec<VertexConfidence> {
         let mut block = vec![Matrix3::<f64>::zeros(); n];
         let mut cost = vec![0.0f64; n];
         let mut weight = vec![0.0f64; n];
-        for ((t, _), acc) in self.by_triangle.iter().zip(&parts) {
+        for ((t, _), acc) in self.by_triangle.iter().zip(parts) {
             let tri = self.triangles[*t as usize];
             for (i, &v) in tri.iter().enumerate() {
                 // PAIRS[i] = (i, i) for i < 3: the vertex's own block.
@@ -746,18 +754,19 @@ impl Problem<'_> {
         let nv = start.len();
         let mut x = start.to_vec();
         let t_solve = Instant::now();
-        let (mut a, mut b, mut cost, mut pixels, mut pixel_evaluations) = match at_start {
-            Some(l) => (l.a, l.b, l.cost, l.pixels, 0u64),
+        let (mut a, mut b, mut cost, mut pixels, mut parts, mut pixel_evaluations) = match at_start
+        {
+            Some(l) => (l.a, l.b, l.cost, l.pixels, l.parts, 0u64),
             None => {
                 let mut a = BlockSparse::new(nv, self.pattern);
                 let mut b = vec![Vector3::zeros(); nv];
-                let (cost, pixels) = self.evaluate(&x, opts, Some((&mut a, &mut b)));
-                (a, b, cost, pixels, pixels as u64)
+                let (cost, pixels, parts) = self.evaluate(&x, opts, Some((&mut a, &mut b)));
+                (a, b, cost, pixels, parts, pixels as u64)
             }
         };
         let initial_cost = cost;
         let mut iterations = Vec::new();
-        let summary = |x, a, b, cost, pixels, pixel_evaluations, stop, iterations| {
+        let summary = |x, a, b, cost, pixels, parts, pixel_evaluations, stop, iterations| {
             (
                 x,
                 SolveSummary {
@@ -771,7 +780,13 @@ impl Problem<'_> {
                     stop,
                     iterations,
                 },
-                Linearised { a, b, cost, pixels },
+                Linearised {
+                    a,
+                    b,
+                    cost,
+                    pixels,
+                    parts,
+                },
             )
         };
         if (pixels == 0 && self.regularisers.is_empty()) || !cost.is_finite() {
@@ -780,7 +795,17 @@ impl Problem<'_> {
             } else {
                 StopReason::NonFinite
             };
-            return summary(x, a, b, cost, pixels, pixel_evaluations, stop, iterations);
+            return summary(
+                x,
+                a,
+                b,
+                cost,
+                pixels,
+                parts,
+                pixel_evaluations,
+                stop,
+                iterations,
+            );
         }
         let mut lm = opts.damping;
         let mut shrink = 1.0f64;
@@ -856,7 +881,7 @@ impl Problem<'_> {
                 };
                 break;
             }
-            let (new_cost, new_pixels) =
+            let (new_cost, new_pixels, new_parts) =
                 self.evaluate(&trial, opts, Some((&mut a_new, &mut b_new)));
             pixel_evaluations += new_pixels as u64;
             let change = new_cost - cost;
@@ -867,6 +892,7 @@ impl Problem<'_> {
                 std::mem::swap(&mut a, &mut a_new);
                 std::mem::swap(&mut b, &mut b_new);
                 pixels = new_pixels;
+                parts = new_parts;
                 cost = new_cost;
                 rejections = 0;
                 lm = (lm / 3.0).max(1e-7);
@@ -895,7 +921,17 @@ impl Problem<'_> {
                 break;
             }
         }
-        summary(x, a, b, cost, pixels, pixel_evaluations, stop, iterations)
+        summary(
+            x,
+            a,
+            b,
+            cost,
+            pixels,
+            parts,
+            pixel_evaluations,
+            stop,
+            iterations,
+        )
     }
 }
 
@@ -906,6 +942,8 @@ pub(crate) struct Linearised {
     b: Vec<Vector3<f64>>,
     cost: f64,
     pixels: usize,
+    /// Each triangle's photometric sums there (for [`Problem::confidence`]).
+    parts: Vec<TriAccum>,
 }
 
 /// How the mesh may move in one solve.

@@ -8,7 +8,7 @@ use crate::base::mesh::{grid, Mesh};
 use crate::tracker::patch::{PatchOptions, PatchSet};
 use crate::tracker::pyramid::Pyramid;
 use crate::tracker::regularise::{self, EdgeSet, FrameContext, Regularisation};
-use crate::tracker::solve::{Interpolation, Loss, Problem, SolverOptions};
+use crate::tracker::solve::{Interpolation, Loss, Motion, Problem, SolverOptions};
 use crate::tracker::{TrackOptions, Tracker};
 use nalgebra::{Matrix3, Point3, Vector3};
 use std::sync::Arc;
@@ -351,6 +351,16 @@ fn assembled_gradient_matches_finite_differences_of_the_cost() {
         }
     }
     assert_eq!(checked, 24);
+
+    // The confidence the tracker reads from a solve's last linearisation is the one a fresh
+    // linearisation at the solve's result gives, exactly.
+    let opts = SolverOptions::default();
+    let mut start = mesh.positions.clone();
+    start[5].x += 0.01;
+    let (x, _, lin) = problem.solve_motion(&start, None, &opts, Motion::Free);
+    let fresh = problem.vertex_confidence(&x, &problem.solve_options(&start, &opts));
+    assert_eq!(problem.confidence(&lin), fresh);
+    assert!(fresh.iter().any(|c| c.information > 0.0));
 }
 
 #[test]
