@@ -1,7 +1,7 @@
 //! The report's `index.html`: one self-contained page (inline style, no scripts, no fonts or
 //! anything else fetched from the network; images by relative links into the report folder).
 
-use super::page::{fmt_sig, ReportOptions, RunSummary};
+use super::page::{fmt_sig, ReportOptions, ResidualRow, RunSummary};
 use crate::base::units::Length;
 use crate::input::scene::Scene;
 use crate::report::plot::xml_escape as esc;
@@ -14,8 +14,8 @@ pub(super) struct Figures {
     pub obliques: Vec<(String, String)>,
     pub error_maps: Vec<(String, String)>,
     pub confidence_maps: Vec<(String, String)>,
-    /// The residual image: (frame, file, (run, reference frame, RMS) per row).
-    pub residual: Option<(u32, String, Vec<(String, u32, f64)>)>,
+    /// The residual image: its frame, file and rows.
+    pub residual: Option<(u32, String, Vec<ResidualRow>)>,
     /// Frames of the flipbook (`flipbook/fNNNN.jpg`); empty: none.
     pub flipbook: Vec<u32>,
 }
@@ -327,12 +327,13 @@ pub(super) fn page(
             o,
             "<table><tr><th>run</th><th>against frame</th><th>RMS residual (0–1)</th></tr>"
         );
-        for (run, r, rms) in rows {
+        for row in rows {
             let _ = writeln!(
                 o,
-                "<tr><td>{}</td><td>{r}</td><td>{}</td></tr>",
-                esc(run),
-                num(Some(*rms))
+                "<tr><td>{}</td><td>{}</td><td>{}</td></tr>",
+                esc(&row.run),
+                row.reference,
+                num(Some(row.rms))
             );
         }
         let _ = writeln!(o, "</table>");

@@ -419,15 +419,7 @@ pub fn write_report(
         imageio::write_png(&path, &sheet)?;
         files.push(path);
         figures.residual = Some((t, name, rms.clone()));
-        residual_rows = rms
-            .into_iter()
-            .map(|(run, reference, rms)| ResidualRow {
-                run,
-                frame: t,
-                reference,
-                rms,
-            })
-            .collect();
+        residual_rows = rms;
     }
     if opts.flipbook {
         let fb_frames = flipbook::frames(scene);
@@ -918,13 +910,13 @@ fn confidence_sheet(
 /// Each run's photometric residual image at frame `t` in every camera (see `report::residual`):
 /// one row against the previous frame and, when that is not the first, one against the first;
 /// one colour scale per reference frame, shared by the runs, shown by the bar ending each row. Also returns each row's
-/// RMS residual over the cameras' covered pixels, `(run, reference frame, rms)`.
+/// RMS residual over the cameras' covered pixels.
 fn residual_sheet(
     scene: &Scene,
     runs: &[Run],
     t: u32,
     opts: &ReportOptions,
-) -> Result<(RgbImage, Vec<(String, u32, f64)>)> {
+) -> Result<(RgbImage, Vec<ResidualRow>)> {
     let now = scene.load_images(t)?;
     let mut refs = vec![(t - 1, scene.load_images(t - 1)?)];
     if t - 1 != scene.first {
@@ -1006,15 +998,16 @@ fn residual_sheet(
                     p
                 })
                 .collect();
-            rms_rows.push((
-                run.name.clone(),
-                r,
-                if n > 0 {
+            rms_rows.push(ResidualRow {
+                run: run.name.clone(),
+                frame: t,
+                reference: r,
+                rms: if n > 0 {
                     (sum / n as f64).sqrt()
                 } else {
                     f64::NAN
                 },
-            ));
+            });
             let h = panels[0].height();
             panels.push(overlay::colour_bar(
                 colormap::viridis,

@@ -40,7 +40,7 @@ impl ResidualMap {
             .fold((0.0f64, 0usize), |(s, n), &v| {
                 (s + (v as f64).powi(2), n + 1)
             });
-        ((n > 0).then(|| (s / n as f64).sqrt()).unwrap_or(0.0), n)
+        (if n > 0 { (s / n as f64).sqrt() } else { 0.0 }, n)
     }
 }
 
@@ -57,7 +57,8 @@ fn screen(mesh: &Mesh, proj: &Projection, tri: usize) -> Option<Screen> {
     let mut inv_z = [0.0; 3];
     for k in 0..3 {
         let h = proj.project_h(&mesh.positions[t[k] as usize]);
-        if !(h.z > 1e-9) {
+        // Also refuses NaN.
+        if h.z.is_nan() || h.z <= 1e-9 {
             return None;
         }
         p[k] = [h.x / h.z, h.y / h.z];
@@ -109,7 +110,7 @@ pub(crate) fn residual_map(
                     a + mesh_r.positions[corners[k] as usize].coords * b[k]
                 });
                 let hr_ = proj_r.project_h(&nalgebra::Point3::from(point));
-                if !(hr_.z > 1e-9) {
+                if hr_.z.is_nan() || hr_.z <= 1e-9 {
                     continue;
                 }
                 let (u, v) = (hr_.x / hr_.z, hr_.y / hr_.z);
