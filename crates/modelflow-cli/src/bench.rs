@@ -1,7 +1,8 @@
 //! `modelflow bench`: the tracker's speed on the default 640×480 two-camera cloth (or any scene):
 //! milliseconds per frame end to end (image loading included, and also shown apart), per solver
 //! iteration, and pixel residuals evaluated per second — medians over the sequence. With
-//! `--capture-range`, the largest per-frame motion tracked instead (see `capture`).
+//! `--capture-range`, the largest per-frame motion tracked instead (see `capture`); with
+//! `--scale`, the cost model over cameras, image sizes and vertices (see `scale`).
 
 use crate::capture;
 use crate::progress::Progress;
@@ -42,6 +43,20 @@ pub struct Args {
     /// Capture range: speeds tried, pixels per frame, comma-separated, ascending.
     #[arg(long, value_delimiter = ',', default_value = "5,10,20,30,40,50,60,80")]
     speeds: Vec<f64>,
+    /// Measure the cost model instead: ms per frame and peak memory over a grid of camera
+    /// counts, image sizes and vertex counts (synthetic cloth in memory, default 3 frames per
+    /// point), and the fitted growth with pixels and vertices.
+    #[arg(long)]
+    scale: bool,
+    /// Cost model: camera counts, comma-separated.
+    #[arg(long, value_delimiter = ',', default_value = "2,4,8")]
+    scale_cameras: Vec<usize>,
+    /// Cost model: image sizes, comma-separated WIDTHxHEIGHT.
+    #[arg(long, value_delimiter = ',', default_value = "640x480,1920x1080,3840x2160", value_parser = crate::scale::parse_size)]
+    scale_sizes: Vec<(u32, u32)>,
+    /// Cost model: mesh vertex counts, comma-separated (rounded to a square grid).
+    #[arg(long, value_delimiter = ',', default_value = "1681,10000,40000")]
+    scale_vertices: Vec<usize>,
 }
 
 /// The figures `bench` reports.
@@ -67,6 +82,30 @@ struct BenchReport {
 }
 
 pub fn run(args: Args) -> anyhow::Result<()> {
+    if args.scale {
+        if let Some(c) = args.scale_cameras.iter().find(|c| !(2..=16).contains(*c)) {
+            anyhow::bail!("--scale-cameras {c}: expected 2 to 16 cameras");
+        }
+        if let Some(v) = args
+            .scale_vertices
+            .iter()
+            .find(|v| !(9..=1_000_000).contains(*v))
+        {
+            anyhow::bail!("--scale-vertices {v}: expected 9 to 1000000 vertices");
+        }
+        let report = crate::scale::measure(&crate::scale::ScaleOptions {
+            cameras: args.scale_cameras,
+            sizes: args.scale_sizes,
+            vertices: args.scale_vertices,
+            frames: args.frames.unwrap_or(3),
+        })?;
+        if args.json {
+            println!("{}", serde_json::to_string(&report)?);
+        } else {
+            crate::scale::print(&report);
+        }
+        return Ok(());
+    }
     if args.capture_range {
         if args.speeds.is_empty()
             || args

@@ -14,6 +14,7 @@ mod import;
 mod progress;
 mod report;
 mod runfolder;
+mod scale;
 mod select;
 mod synth;
 mod track;

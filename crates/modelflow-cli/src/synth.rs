@@ -49,6 +49,9 @@ pub struct Args {
     /// records it (docs/scene-format.md).
     #[arg(long, allow_hyphen_values = true)]
     distortion: Option<String>,
+    /// Cloth only: vertices along each side of its grid (3 to 1000; 41 gives 1 681 vertices).
+    #[arg(long, default_value_t = 41)]
+    cloth_grid: usize,
 }
 
 pub fn run(args: Args) -> anyhow::Result<()> {
@@ -70,6 +73,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                     .map_err(|m| anyhow::anyhow!("--distortion: {m}"))
             })
             .transpose()?,
+        cloth_grid: args.cloth_grid,
         ..SynthOptions::preset(&args.preset)?
     };
     let start = std::time::Instant::now();

@@ -123,6 +123,9 @@ pub struct SynthOptions {
     /// Lens distortion of every camera: the images are rendered through it and the scene file
     /// gives it (`None`: pinhole footage).
     pub distortion: Option<Distortion>,
+    /// Vertices along each side of the cloth's grid (`cloth` only; 41 by default: 1 681
+    /// vertices). The benchmark's cost model raises it to time larger meshes.
+    pub cloth_grid: usize,
 }
 
 impl Default for SynthOptions {
@@ -139,6 +142,7 @@ impl Default for SynthOptions {
             supersample: 3,
             shake: 0.0,
             distortion: None,
+            cloth_grid: CLOTH_N,
         }
     }
 }
@@ -187,6 +191,13 @@ impl SynthOptions {
         }
         if !(1..=8).contains(&self.supersample) {
             return Err(Error::option("--supersample", self.supersample, "1 to 8"));
+        }
+        if !(3..=1000).contains(&self.cloth_grid) {
+            return Err(Error::option(
+                "--cloth-grid",
+                self.cloth_grid,
+                "3 to 1000 vertices per side",
+            ));
         }
         Ok(())
     }
@@ -269,11 +280,11 @@ const CLOTH_N: usize = 41;
 const CLOTH_SIZE: f64 = 1.0;
 const CLOTH_TOP: f64 = 0.5;
 
-/// Vertex positions of the cloth at time `t` seconds. Vertex `j·N + i` has material coordinate
-/// `X = (i/(N-1) - 0.5)·size` across and arc length `s = j/(N-1)·size` down from the top edge.
-fn cloth_positions(t: f64) -> Vec<Point3<f64>> {
+/// Vertex positions of the `n × n` cloth at time `t` seconds. Vertex `j·n + i` has material
+/// coordinate `X = (i/(n-1) - 0.5)·size` across and arc length `s = j/(n-1)·size` down from the
+/// top edge.
+fn cloth_positions(n: usize, t: f64) -> Vec<Point3<f64>> {
     use std::f64::consts::PI;
-    let n = CLOTH_N;
     let ds = CLOTH_SIZE / (n - 1) as f64;
     let h = CLOTH_SIZE;
     // The fold: a pleat bulging towards the cameras, forming between 0.6 s and 3 s, a little
@@ -310,7 +321,7 @@ fn cloth_positions(t: f64) -> Vec<Point3<f64>> {
 }
 
 fn cloth(opts: &SynthOptions) -> Synthetic {
-    let n = CLOTH_N;
+    let n = opts.cloth_grid;
     let mut mesh = grid(n, n, |_, _| Point3::origin());
     let material: Vec<[f64; 3]> = (0..n * n)
         .map(|k| {
@@ -322,7 +333,7 @@ fn cloth(opts: &SynthOptions) -> Synthetic {
         .collect();
     let truth: Vec<Vec<Point3<f64>>> = (0..opts.frames)
         .into_par_iter()
-        .map(|f| cloth_positions(f as f64 / FPS))
+        .map(|f| cloth_positions(n, f as f64 / FPS))
         .collect();
     mesh.positions = truth[0].clone();
     let tex = Texture::new(opts.seed, 0.006);
