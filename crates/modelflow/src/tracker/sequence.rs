@@ -70,7 +70,7 @@ pub struct StepTiming {
     pub patches: f64,
     /// The Gauss–Newton solves.
     pub solve: f64,
-    /// The per-vertex confidence at the solution (one more linearisation).
+    /// Reading the per-vertex confidence from the last linearisation.
     #[serde(default)]
     pub confidence: f64,
 }
