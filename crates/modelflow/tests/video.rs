@@ -1,5 +1,5 @@
-//! Video files as input: frames are read frame-accurately from H.264 MP4 (with B-frames and
-//! several keyframe intervals) in any order, and footage tracked from video matches footage
+//! Video files as input: frames are read frame-accurately from H.264 MP4 and H.265 MOV (with
+//! B-frames and several keyframe intervals) in any order, and footage tracked from video matches footage
 //! tracked from the same frames as PNG. Needs FFmpeg's `ffmpeg`/`ffprobe` on the PATH (`.ci/run`
 //! installs them); without them these tests say so and pass without checking.
 
@@ -31,12 +31,25 @@ fn have_ffmpeg() -> bool {
 
 /// Encodes `dir/{frame:04}.png` into an H.264 MP4 (keyframe every 7 frames, B-frames).
 fn encode(dir: &Path, out: &Path, crf: u32) {
+    encode_with(dir, out, "libx264", crf);
+}
+
+/// Encodes `dir/{frame:04}.png` with `codec` (`libx264`, `libx265`) into `out` (container from
+/// its extension), a keyframe every 7 frames and two B-frames between references.
+fn encode_with(dir: &Path, out: &Path, codec: &str, crf: u32) {
     let st = Command::new("ffmpeg")
         .args(["-v", "error", "-y", "-framerate", "25", "-i"])
         .arg(dir.join("%04d.png"))
-        .args([
-            "-c:v", "libx264", "-g", "7", "-bf", "2", "-pix_fmt", "yuv444p", "-crf",
-        ])
+        .args(["-c:v", codec, "-g", "7", "-bf", "2", "-pix_fmt", "yuv444p"])
+        .args(if codec == "libx265" {
+            &[
+                "-x265-params",
+                "log-level=error:keyint=7:min-keyint=7:bframes=2",
+            ][..]
+        } else {
+            &[][..]
+        })
+        .arg("-crf")
         .arg(crf.to_string())
         .arg(out)
         .status()
@@ -44,11 +57,40 @@ fn encode(dir: &Path, out: &Path, crf: u32) {
     assert!(st.success(), "ffmpeg could not encode {}", dir.display());
 }
 
+/// Whether this FFmpeg has `encoder` (to make test footage; reading needs only the decoder).
+fn have_encoder(encoder: &str) -> bool {
+    let out = Command::new("ffmpeg")
+        .args(["-hide_banner", "-encoders"])
+        .output()
+        .unwrap();
+    let have = String::from_utf8_lossy(&out.stdout)
+        .lines()
+        .any(|l| l.split_whitespace().nth(1) == Some(encoder));
+    if !have {
+        eprintln!("SKIPPED: this FFmpeg has no {encoder} encoder to make the test footage");
+    }
+    have
+}
+
 #[test]
 fn frames_are_read_frame_accurately_in_any_order() {
     if !have_ffmpeg() {
         return;
     }
+    frame_accuracy("libx264", "clip.mp4");
+}
+
+#[test]
+fn h265_mov_frames_are_read_frame_accurately_in_any_order() {
+    if !have_ffmpeg() || !have_encoder("libx265") {
+        return;
+    }
+    frame_accuracy("libx265", "clip.mov");
+}
+
+/// 40 frames whose red level encodes the frame number, encoded with `codec` into `name`, read
+/// in order, backwards, in jumps and repeats: every read gives exactly the frame asked for.
+fn frame_accuracy(codec: &str, name: &str) {
     let dir = tempfile::tempdir().unwrap();
     let level = |n: u64| (6 * n) as f32 / 255.0;
     for n in 0..40u64 {
@@ -57,8 +99,8 @@ fn frames_are_read_frame_accurately_in_any_order() {
         });
         write_png(&dir.path().join(format!("{n:04}.png")), &img).unwrap();
     }
-    let video = dir.path().join("clip.mp4");
-    encode(dir.path(), &video, 10);
+    let video = dir.path().join(name);
+    encode_with(dir.path(), &video, codec, 10);
     let info = probe(&video).unwrap();
     assert_eq!((info.width, info.height, info.frames), (64, 48, 40));
     let mut r = VideoReader::open(&video).unwrap();
@@ -73,7 +115,7 @@ fn frames_are_read_frame_accurately_in_any_order() {
         );
     }
     let e = r.frame(40).unwrap_err().to_string();
-    assert!(e.contains("clip.mp4") && e.contains("has 40 frames"), "{e}");
+    assert!(e.contains(name) && e.contains("has 40 frames"), "{e}");
     // Not a video.
     std::fs::write(dir.path().join("fake.mp4"), b"not a video").unwrap();
     let e = probe(&dir.path().join("fake.mp4")).unwrap_err().to_string();
