@@ -7,8 +7,10 @@
 //! pixel `x` whose centre the mesh covers at `t` (front-most triangle, z-buffered by
 //! `base::raster`) lies on one surface point, barycentric `b` in its triangle (perspective
 //! correct). The same `b` on the same triangle of `M_r`, projected by the camera at `r`, is where
-//! that surface point was; the residual is `I_t(x) − I_r(x_r)` (bilinear at `x_r`), shown as its
-//! RMS over the three channels (images in 0..1). A pixel whose surface point was hidden at `r`
+//! that surface point was; the residual is `I_t(x) − g·I_r(x_r)` (bilinear at `x_r`), shown as its
+//! RMS over the three channels (images in 0..1), with `g` the triangle's brightness gain fitted
+//! by least squares as the tracker fits it, so that shading which changes as the surface turns is
+//! not mistaken for misregistration. A pixel whose surface point was hidden at `r`
 //! (behind the mesh by more than 1 % of its depth) or outside the reference image has no
 //! residual. This is the inverse of the tracker's warp (it maps `r` into `t`); both compare the
 //! same pairs of colours up to which image is sampled between pixel centres.
@@ -88,8 +90,9 @@ pub(crate) fn residual_map(
         .into_par_iter()
         .map(|t| screen(mesh_t, proj_t, t))
         .collect();
-    let mut values = vec![None; w * h];
-    values
+    // Pass 1: per pixel, its triangle and the two colours compared.
+    let mut pairs: Vec<Option<(u32, [f32; 3], [f32; 3])>> = vec![None; w * h];
+    pairs
         .par_chunks_mut(w.max(1))
         .enumerate()
         .for_each(|(y, row)| {
@@ -122,12 +125,39 @@ pub(crate) fn residual_map(
                 if d.is_finite() && hr_.z as f32 > d * (1.0 + DEPTH_TOLERANCE) {
                     continue;
                 }
-                let a = img_t.get(x, y);
-                let r = img_r.sample_unchecked(u, v);
-                let ms: f32 = (0..3).map(|k| (a[k] - r[k]).powi(2)).sum::<f32>() / 3.0;
-                *out = Some(ms.sqrt());
+                *out = Some((tri, img_t.get(x, y), img_r.sample_unchecked(u, v)));
             }
         });
+    // Pass 2: the brightness gain of each triangle, as the tracker fits it (shading changes as
+    // the surface turns: `I_t ≈ g·I_r`, least squares, clamped to [0.5, 2]), summed in pixel
+    // order so the result does not depend on the thread count; then the residuals.
+    let mut sums = vec![[0.0f64; 2]; mesh_t.triangles.len()];
+    for (t, a, r) in pairs.iter().flatten() {
+        let s = &mut sums[*t as usize];
+        for k in 0..3 {
+            s[0] += (a[k] * r[k]) as f64;
+            s[1] += (r[k] * r[k]) as f64;
+        }
+    }
+    let gains: Vec<f32> = sums
+        .iter()
+        .map(|[ar, rr]| {
+            if *rr > 0.0 {
+                (ar / rr).clamp(0.5, 2.0) as f32
+            } else {
+                1.0
+            }
+        })
+        .collect();
+    let values = pairs
+        .iter()
+        .map(|p| {
+            p.map(|(t, a, r)| {
+                let g = gains[t as usize];
+                ((0..3).map(|k| (a[k] - g * r[k]).powi(2)).sum::<f32>() / 3.0).sqrt()
+            })
+        })
+        .collect();
     let _ = hr;
     ResidualMap {
         width: w,
@@ -274,6 +304,23 @@ mod tests {
         );
         // Pixels outside the mesh have none.
         assert!(good.values[0].is_none());
+        // Shading that changes as the surface turns is a brightness gain, not misregistration:
+        // the same frame 20 % brighter leaves the tracked mesh's residual where it was.
+        let mut brighter = img_t.clone();
+        brighter
+            .pixels_mut()
+            .iter_mut()
+            .for_each(|p| *p = p.map(|v| v * 1.2));
+        let lit = residual_map(
+            &square(shift),
+            &proj,
+            &brighter,
+            &square(Vector3::zeros()),
+            &proj,
+            &img_r,
+        );
+        let lit_median = median(&lit);
+        assert!(lit_median < 0.004, "a brighter frame leaves {lit_median}");
     }
 
     #[test]
