@@ -46,6 +46,9 @@ impl ResidualMap {
     }
 }
 
+/// A compared pixel: its triangle, its colour at the frame drawn and the reference's colour.
+type Pair = (u32, [f32; 3], [f32; 3]);
+
 /// Per-triangle screen-space data at one frame: projected corners, `1/z`, signed area.
 struct Screen {
     p: [[f64; 2]; 3],
@@ -91,7 +94,7 @@ pub(crate) fn residual_map(
         .map(|t| screen(mesh_t, proj_t, t))
         .collect();
     // Pass 1: per pixel, its triangle and the two colours compared.
-    let mut pairs: Vec<Option<(u32, [f32; 3], [f32; 3])>> = vec![None; w * h];
+    let mut pairs: Vec<Option<Pair>> = vec![None; w * h];
     pairs
         .par_chunks_mut(w.max(1))
         .enumerate()
