@@ -31,14 +31,27 @@ impl IndexBuffer {
     }
 }
 
-/// Screen-space data of one projected triangle.
-struct Projected {
+/// Screen-space data of one projected triangle: corners in pixels, `1/z` at each, signed area.
+pub(crate) struct Projected {
     p: [[f64; 2]; 3],
     inv_z: [f64; 3],
     area: f64,
 }
 
-fn project_triangle(
+impl Projected {
+    /// The perspective-correct barycentric coordinates of pixel centre `(x, y)` on the 3-D
+    /// triangle (weights of its corners for the surface point seen there).
+    pub(crate) fn surface_barycentric(&self, x: f64, y: f64) -> [f64; 3] {
+        let l = screen_barycentric(&self.p, self.area, x, y);
+        let w: [f64; 3] = std::array::from_fn(|k| l[k] * self.inv_z[k]);
+        let sum = w[0] + w[1] + w[2];
+        w.map(|v| v / sum)
+    }
+}
+
+/// Projects triangle `tri` by `proj`; `None` when a corner is not in front of the camera or the
+/// projection is degenerate (such a triangle covers no pixel).
+pub(crate) fn project_triangle(
     positions: &[Point3<f64>],
     tri: &[u32; 3],
     proj: &Projection,
@@ -137,7 +150,7 @@ pub fn rasterize(
 }
 
 #[inline]
-pub(crate) fn screen_barycentric(p: &[[f64; 2]; 3], area: f64, x: f64, y: f64) -> [f64; 3] {
+fn screen_barycentric(p: &[[f64; 2]; 3], area: f64, x: f64, y: f64) -> [f64; 3] {
     let e = |a: [f64; 2], b: [f64; 2]| (b[0] - a[0]) * (y - a[1]) - (b[1] - a[1]) * (x - a[0]);
     [
         e(p[1], p[2]) / area,

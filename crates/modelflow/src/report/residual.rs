@@ -49,31 +49,6 @@ impl ResidualMap {
 /// A compared pixel: its triangle, its colour at the frame drawn and the reference's colour.
 type Pair = (u32, [f32; 3], [f32; 3]);
 
-/// Per-triangle screen-space data at one frame: projected corners, `1/z`, signed area.
-struct Screen {
-    p: [[f64; 2]; 3],
-    inv_z: [f64; 3],
-    area: f64,
-}
-
-fn screen(mesh: &Mesh, proj: &Projection, tri: usize) -> Option<Screen> {
-    let t = mesh.triangles[tri];
-    let mut p = [[0.0; 2]; 3];
-    let mut inv_z = [0.0; 3];
-    for k in 0..3 {
-        let h = proj.project_h(&mesh.positions[t[k] as usize]);
-        // Also refuses NaN.
-        if h.z.is_nan() || h.z <= 1e-9 {
-            return None;
-        }
-        p[k] = [h.x / h.z, h.y / h.z];
-        inv_z[k] = 1.0 / h.z;
-    }
-    let area =
-        (p[1][0] - p[0][0]) * (p[2][1] - p[0][1]) - (p[1][1] - p[0][1]) * (p[2][0] - p[0][0]);
-    (area.abs() > 1e-12 && area.is_finite()).then_some(Screen { p, inv_z, area })
-}
-
 /// The residual image of `mesh_t` over `img_t` (camera `proj_t`) against the reference frame
 /// (`mesh_r`, `proj_r`, `img_r`); see the module documentation. Rows in parallel; the result does
 /// not depend on the thread count.
@@ -89,9 +64,10 @@ pub(crate) fn residual_map(
     let ib_t = raster::rasterize(&mesh_t.positions, &mesh_t.triangles, proj_t, w, h);
     let (wr, hr) = (img_r.width(), img_r.height());
     let ib_r = raster::rasterize(&mesh_r.positions, &mesh_r.triangles, proj_r, wr, hr);
-    let screens: Vec<Option<Screen>> = (0..mesh_t.triangles.len())
-        .into_par_iter()
-        .map(|t| screen(mesh_t, proj_t, t))
+    let screens: Vec<Option<raster::Projected>> = mesh_t
+        .triangles
+        .par_iter()
+        .map(|t| raster::project_triangle(&mesh_t.positions, t, proj_t))
         .collect();
     // Pass 1: per pixel, its triangle and the two colours compared.
     let mut pairs: Vec<Option<Pair>> = vec![None; w * h];
@@ -107,10 +83,7 @@ pub(crate) fn residual_map(
                 let Some(s) = &screens[tri as usize] else {
                     continue;
                 };
-                // Perspective-correct barycentrics of the pixel centre on the triangle.
-                let l = raster::screen_barycentric(&s.p, s.area, x as f64, y as f64);
-                let wsum: f64 = (0..3).map(|k| l[k] * s.inv_z[k]).sum();
-                let b: [f64; 3] = std::array::from_fn(|k| l[k] * s.inv_z[k] / wsum);
+                let b = s.surface_barycentric(x as f64, y as f64);
                 let corners = mesh_r.triangles[tri as usize];
                 let point = (0..3).fold(nalgebra::Vector3::zeros(), |a, k| {
                     a + mesh_r.positions[corners[k] as usize].coords * b[k]
@@ -161,7 +134,6 @@ pub(crate) fn residual_map(
             })
         })
         .collect();
-    let _ = hr;
     ResidualMap {
         width: w,
         height: h,
