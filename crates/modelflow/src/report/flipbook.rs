@@ -10,7 +10,6 @@ use crate::input::scene::Scene;
 use crate::report::colormap;
 use crate::report::draw;
 use crate::report::overlay::{self, WireStyle};
-use crate::synth::render;
 use rayon::prelude::*;
 use std::path::{Path, PathBuf};
 
@@ -75,14 +74,13 @@ pub(crate) fn write(
                     let proj = overlay::magnified(cam.at(f), s);
                     for (i, (_, meshes)) in runs.iter().enumerate() {
                         let mesh = meshes[k];
-                        let depth = render::depth_map(mesh, &proj, thumb.width(), thumb.height())?;
                         let style = WireStyle {
                             colour: colormap::overlay_colour(i),
                             width: 1.0,
                             alpha: 0.7,
                             hidden_alpha: 0.12,
                         };
-                        overlay::wireframe(&mut thumb, mesh, &proj, Some(&depth), &style);
+                        overlay::wireframe_self_hidden(&mut thumb, mesh, &proj, &style)?;
                     }
                     draw::label(
                         &mut thumb,

@@ -43,6 +43,20 @@ pub struct WireStyle {
     pub hidden_alpha: f32,
 }
 
+/// Draws `mesh`'s wireframe over `img`, its edges hidden by its own surface (a depth map of
+/// `mesh` through `proj` at the image's size) drawn with `style.hidden_alpha`: what every
+/// report picture of a mesh over an image draws.
+pub fn wireframe_self_hidden(
+    img: &mut RgbImage,
+    mesh: &Mesh,
+    proj: &Projection,
+    style: &WireStyle,
+) -> crate::error::Result<()> {
+    let depth = crate::synth::render::depth_map(mesh, proj, img.width(), img.height())?;
+    wireframe(img, mesh, proj, Some(&depth), style);
+    Ok(())
+}
+
 /// Draws every edge of `mesh` seen through `proj` onto `img`. With a `depth` map (of the image's
 /// size, e.g. `render::depth_map` of the same mesh and camera) the parts of edges behind the
 /// surface are drawn with `hidden_alpha`; without one all edges are visible. Edges with an end

@@ -573,7 +573,6 @@ fn overlay_sheet(
         .enumerate()
         .map(|(i, run)| {
             let mesh = run.at(scene, frame);
-            let depth = render::depth_map(mesh, &proj, base.width(), base.height())?;
             let mut p = base.clone();
             let style = WireStyle {
                 colour: colormap::overlay_colour(i),
@@ -581,7 +580,7 @@ fn overlay_sheet(
                 alpha: 0.75,
                 hidden_alpha: 0.2,
             };
-            overlay::wireframe(&mut p, mesh, &proj, Some(&depth), &style);
+            overlay::wireframe_self_hidden(&mut p, mesh, &proj, &style)?;
             draw::label(
                 &mut p,
                 &format!("{} — {} — frame {frame}", run.name, cam.name),
@@ -651,7 +650,6 @@ fn oblique_sheet(
     let proj = oblique_camera(scene, runs, truth, frame, opts, size);
     let truth_layer = match truth {
         Some(t) => {
-            let depth = render::depth_map(t, &proj, size.0, size.1)?;
             let mut img = draw::filled(size.0, size.1, [0.08; 3]);
             let style = WireStyle {
                 colour: colormap::TRUTH,
@@ -659,7 +657,7 @@ fn oblique_sheet(
                 alpha: 0.7,
                 hidden_alpha: 0.15,
             };
-            overlay::wireframe(&mut img, t, &proj, Some(&depth), &style);
+            overlay::wireframe_self_hidden(&mut img, t, &proj, &style)?;
             img
         }
         None => draw::filled(size.0, size.1, [0.08; 3]),
@@ -669,7 +667,6 @@ fn oblique_sheet(
         .enumerate()
         .map(|(i, run)| {
             let mesh = run.at(scene, frame);
-            let depth = render::depth_map(mesh, &proj, size.0, size.1)?;
             let mut p = truth_layer.clone();
             let style = WireStyle {
                 colour: colormap::overlay_colour(i),
@@ -677,7 +674,7 @@ fn oblique_sheet(
                 alpha: 0.95,
                 hidden_alpha: 0.25,
             };
-            overlay::wireframe(&mut p, mesh, &proj, Some(&depth), &style);
+            overlay::wireframe_self_hidden(&mut p, mesh, &proj, &style)?;
             let what = if truth.is_some() {
                 " (grey: ground truth)"
             } else {
