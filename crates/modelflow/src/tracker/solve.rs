@@ -754,58 +754,52 @@ impl Problem<'_> {
         let nv = start.len();
         let mut x = start.to_vec();
         let t_solve = Instant::now();
-        let (mut a, mut b, mut cost, mut pixels, mut parts, mut pixel_evaluations) = match at_start
-        {
-            Some(l) => (l.a, l.b, l.cost, l.pixels, l.parts, 0u64),
+        // The normal equations, cost and per-triangle sums at `x`, kept current as steps are
+        // accepted; the solve returns them.
+        let (mut cur, mut pixel_evaluations) = match at_start {
+            Some(l) => (l, 0u64),
             None => {
                 let mut a = BlockSparse::new(nv, self.pattern);
                 let mut b = vec![Vector3::zeros(); nv];
                 let (cost, pixels, parts) = self.evaluate(&x, opts, Some((&mut a, &mut b)));
-                (a, b, cost, pixels, parts, pixels as u64)
+                (
+                    Linearised {
+                        a,
+                        b,
+                        cost,
+                        pixels,
+                        parts,
+                    },
+                    pixels as u64,
+                )
             }
         };
-        let initial_cost = cost;
+        let initial_cost = cur.cost;
         let mut iterations = Vec::new();
-        let summary = |x, a, b, cost, pixels, parts, pixel_evaluations, stop, iterations| {
+        let summary = |x, cur: Linearised, pixel_evaluations, stop, iterations| {
             (
                 x,
                 SolveSummary {
                     interpolation: opts.interpolation,
                     motion,
                     initial_cost,
-                    final_cost: cost,
-                    pixels,
+                    final_cost: cur.cost,
+                    pixels: cur.pixels,
                     pixel_evaluations,
                     seconds: t_solve.elapsed().as_secs_f64(),
                     stop,
                     iterations,
                 },
-                Linearised {
-                    a,
-                    b,
-                    cost,
-                    pixels,
-                    parts,
-                },
+                cur,
             )
         };
-        if (pixels == 0 && self.regularisers.is_empty()) || !cost.is_finite() {
-            let stop = if cost.is_finite() {
+        if (cur.pixels == 0 && self.regularisers.is_empty()) || !cur.cost.is_finite() {
+            let stop = if cur.cost.is_finite() {
                 StopReason::NoData
             } else {
                 StopReason::NonFinite
             };
-            return summary(
-                x,
-                a,
-                b,
-                cost,
-                pixels,
-                parts,
-                pixel_evaluations,
-                stop,
-                iterations,
-            );
+            return summary(x, cur, pixel_evaluations, stop, iterations);
         }
         let mut lm = opts.damping;
         let mut shrink = 1.0f64;
@@ -816,11 +810,11 @@ impl Problem<'_> {
         // see (depth along a narrow baseline, sliding along an edge of the texture) and keeps
         // vertices without any data well posed.
         let mean_diag =
-            (0..nv).map(|i| a.diagonal(i).trace()).sum::<f64>() / (3 * nv.max(1)) as f64;
+            (0..nv).map(|i| cur.a.diagonal(i).trace()).sum::<f64>() / (3 * nv.max(1)) as f64;
         let mean_diag = mean_diag.max(1e-30);
         let mut ad = vec![Vector3::zeros(); nv];
         // The trial point's system is built here and swapped in when the step is accepted.
-        let mut a_new = a.clone();
+        let mut a_new = cur.a.clone();
         let mut b_new = vec![Vector3::zeros(); nv];
         let mut trial = x.clone();
         for it in 0..opts.max_iterations {
@@ -832,10 +826,10 @@ impl Problem<'_> {
             // The step (linearised, per vertex) and the trial positions.
             let (delta, cg_iterations) = match motion {
                 Motion::Free => {
-                    let mut damped = a.clone();
+                    let mut damped = cur.a.clone();
                     damped.damp(lm * mean_diag, lm);
                     let (mut delta, cg) =
-                        solve_pcg(&damped, &b, opts.cg_tolerance, opts.cg_max_iterations);
+                        solve_pcg(&damped, &cur.b, opts.cg_tolerance, opts.cg_max_iterations);
                     delta.iter_mut().for_each(|d| *d *= shrink);
                     for ((t, p), d) in trial.iter_mut().zip(&x).zip(&delta) {
                         *t = p + d;
@@ -843,7 +837,7 @@ impl Problem<'_> {
                     (delta, cg.iterations)
                 }
                 Motion::Rigid => {
-                    let rigid = RigidStep::solve(&a, &b, &x, lm);
+                    let rigid = RigidStep::solve(&cur.a, &cur.b, &x, lm);
                     let xi = rigid.xi * shrink;
                     let delta = rigid.linear(&x, &xi);
                     rigid.apply(&x, &xi, &mut trial);
@@ -852,21 +846,21 @@ impl Problem<'_> {
             };
             let step = delta.iter().map(|d| d.norm()).fold(0.0, f64::max);
             // Decrease predicted by the Gauss–Newton model: 2·δᵀ(−Jᵀr) − δᵀ·JᵀJ·δ.
-            a.mul(&delta, &mut ad);
+            cur.a.mul(&delta, &mut ad);
             let predicted: f64 = delta
                 .iter()
-                .zip(&b)
+                .zip(&cur.b)
                 .zip(&ad)
                 .map(|((d, b), ad)| 2.0 * d.dot(b) - d.dot(ad))
                 .sum();
             // A full step that promises almost nothing means convergence; a shortened one only
             // means it is time to stop shortening.
             // (NaN counts as "promises nothing".)
-            let promising = predicted > opts.min_relative_decrease * cost;
+            let promising = predicted > opts.min_relative_decrease * cur.cost;
             if !promising {
                 iterations.push(IterationSummary {
                     iteration: it + 1,
-                    cost,
+                    cost: cur.cost,
                     cost_change: 0.0,
                     step,
                     accepted: false,
@@ -884,16 +878,16 @@ impl Problem<'_> {
             let (new_cost, new_pixels, new_parts) =
                 self.evaluate(&trial, opts, Some((&mut a_new, &mut b_new)));
             pixel_evaluations += new_pixels as u64;
-            let change = new_cost - cost;
-            let accepted = new_cost < cost;
-            let prev_cost = cost;
+            let change = new_cost - cur.cost;
+            let accepted = new_cost < cur.cost;
+            let prev_cost = cur.cost;
             if accepted {
                 std::mem::swap(&mut x, &mut trial);
-                std::mem::swap(&mut a, &mut a_new);
-                std::mem::swap(&mut b, &mut b_new);
-                pixels = new_pixels;
-                parts = new_parts;
-                cost = new_cost;
+                std::mem::swap(&mut cur.a, &mut a_new);
+                std::mem::swap(&mut cur.b, &mut b_new);
+                cur.pixels = new_pixels;
+                cur.parts = new_parts;
+                cur.cost = new_cost;
                 rejections = 0;
                 lm = (lm / 3.0).max(1e-7);
                 shrink = (shrink * 4.0).min(1.0);
@@ -904,7 +898,7 @@ impl Problem<'_> {
             }
             iterations.push(IterationSummary {
                 iteration: it + 1,
-                cost,
+                cost: cur.cost,
                 cost_change: change,
                 step,
                 accepted,
@@ -921,17 +915,7 @@ impl Problem<'_> {
                 break;
             }
         }
-        summary(
-            x,
-            a,
-            b,
-            cost,
-            pixels,
-            parts,
-            pixel_evaluations,
-            stop,
-            iterations,
-        )
+        summary(x, cur, pixel_evaluations, stop, iterations)
     }
 }
 
