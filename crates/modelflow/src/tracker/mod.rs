@@ -2,10 +2,12 @@
 //! frames (`patch`, on `base::raster`'s index buffers), the per-triangle homography warp and its
 //! analytic Jacobian (`warp`), the regularisers (`regularise`), the block-sparse normal equations
 //! and their conjugate-gradient solver (`sparse`), and the Gauss–Newton/Levenberg–Marquardt
-//! solve (`solve`). Over a shot: [`Tracker`] in memory (`sequence`: images in, positions out)
+//! solve (`solve`). Before a shot, `align` lines a roughly placed mesh up with its first frame
+//! by the same warps between cameras. Over a shot: [`Tracker`] in memory (`sequence`: images in, positions out)
 //! and [`track_scene`] from a scene on disk into a run folder (`shot`). Only `shot` touches
 //! files, through `run`; everything else takes and returns memory.
 
+pub(crate) mod align;
 mod options;
 pub(crate) mod patch;
 pub(crate) mod pyramid;
@@ -19,6 +21,9 @@ pub(crate) mod warp;
 #[cfg(test)]
 mod tests;
 
+pub use align::{
+    align, perturb, AlignLevel, AlignOptions, Alignment, LooseMotion, MotionKind, LOOSE,
+};
 pub use options::{OptionsUsed, TrackOptions};
 pub use regularise::Regularisation;
 pub use sequence::{prepare, FrameReport, Prepared, StepTiming, Tracker};

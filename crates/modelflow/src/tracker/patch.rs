@@ -23,7 +23,11 @@ pub struct PixelSample {
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Patch {
     pub triangle: u32,
+    /// The camera whose image the pixels are warped into.
     pub camera: u16,
+    /// The camera the pixels were taken from (the same as `camera` for a template frame's
+    /// patch; another one in `align`, which compares cameras with each other).
+    pub source: u16,
     /// Weight of the template this patch comes from.
     pub weight: f32,
     pub start: u32,
@@ -116,6 +120,7 @@ impl PatchSet {
             self.patches.push(Patch {
                 triangle: t as u32,
                 camera,
+                source: camera,
                 weight,
                 start,
                 end: self.pixels.len() as u32,

@@ -378,6 +378,8 @@ impl Tracker {
                 pattern: &self.pattern,
                 regularisers: &self.regularisers,
                 cancel: self.cancel.as_deref(),
+                moving_source: None,
+                gauge_floor: 0.0,
             };
             if level == levels - 1 && self.opts.predict {
                 if let Some(pp) = &self.before_prev {

@@ -23,7 +23,7 @@ use crate::base::image::RgbImage;
 use crate::tracker::patch::{Patch, PixelSample};
 use crate::tracker::regularise::Regulariser;
 use crate::tracker::sparse::{solve_pcg, BlockSparse};
-use crate::tracker::warp::warp_h;
+use crate::tracker::warp::{source_matrix, warp_h};
 use nalgebra::{Matrix3, Point3, Vector3};
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
@@ -156,6 +156,50 @@ pub(crate) struct Problem<'a> {
     pub regularisers: &'a [Box<dyn Regulariser>],
     /// Checked before every iteration: when set, the solve stops (`StopReason::Cancelled`).
     pub cancel: Option<&'a AtomicBool>,
+    /// `None` when the patches come from template frames, whose mesh is known and fixed (the
+    /// tracker). `Some(x0)` when they come from the unknowns' own frame (`align`): a patch's
+    /// pixels were taken from camera `source` with the mesh at `x0`, and the surface point each
+    /// pixel sees moves along that camera's ray as the mesh moves. See [`SourceWarp`].
+    pub moving_source: Option<&'a [Point3<f64>]>,
+    /// With a rigid or similarity motion: whole-mesh motions whose curvature is below this
+    /// fraction of the best-fixed one's are left out of every step (0: none are).
+    pub gauge_floor: f64,
+}
+
+/// The warp of a patch whose source camera sees the same, moving, mesh (`align`): from pixel
+/// `s` of camera i into camera j, `W = P_j·V·(P_i·V)⁻¹` with one `V` — the thesis' Eq. 5.7 with
+/// both frames the same. Its pixels store barycentrics `λ₀` taken at `x0`, so per pixel
+/// `h = A·λ₀` with `A = S_j·S_i⁻¹·S_i(x0)`, the current (unnormalised) barycentrics are
+/// `λ̂ = S_i⁻¹·S_i(x0)·λ₀`, and, differentiating `S_j·S_i⁻¹` in `V`,
+/// `∂h/∂X_k = λ̂_k·(M_j − H·M_i)` with `H = S_j·S_i⁻¹`: the tracker's derivative (Eq. 5.11) with
+/// `M_j − H·M_i` in place of `M_j`. (Derived here; the thesis warps between frames only.) A
+/// test checks it against finite differences.
+struct SourceWarp {
+    /// Columns: where `λ₀ = e_k` lands (homogeneous), replacing `Y_k`.
+    y: [Vector3<f64>; 3],
+    /// `M_j − H·M_i`.
+    m: Matrix3<f64>,
+    /// `S_i⁻¹·S_i(x0)`: stored barycentrics to current ones.
+    t: Matrix3<f64>,
+}
+
+impl SourceWarp {
+    fn new(
+        xs: &[Point3<f64>; 3],
+        xs0: &[Point3<f64>; 3],
+        source: &Projection,
+        target: &Projection,
+    ) -> Option<SourceWarp> {
+        let si_inv = source_matrix(source, xs).try_inverse()?;
+        let h = source_matrix(target, xs) * si_inv;
+        let t = si_inv * source_matrix(source, xs0);
+        let a = h * source_matrix(source, xs0);
+        let mi: Matrix3<f64> = source.matrix().fixed_view::<3, 3>(0, 0).into_owned();
+        let mj: Matrix3<f64> = target.matrix().fixed_view::<3, 3>(0, 0).into_owned();
+        let m = mj - h * mi;
+        let y = [a.column(0).into(), a.column(1).into(), a.column(2).into()];
+        (m.iter().chain(t.iter()).all(|v| v.is_finite())).then_some(SourceWarp { y, m, t })
+    }
 }
 
 /// Why the solver stopped.
@@ -399,13 +443,30 @@ impl Problem<'_> {
             let cam = patch.camera as usize;
             let proj = &self.projections[cam];
             let img = self.targets[cam];
-            let y = xs.map(|p| proj.project_h(&p));
+            let mut y = xs.map(|p| proj.project_h(&p));
             let pm = proj.matrix();
-            let m = [
+            let mut m = [
                 [pm[(0, 0)], pm[(0, 1)], pm[(0, 2)]],
                 [pm[(1, 0)], pm[(1, 1)], pm[(1, 2)]],
                 [pm[(2, 0)], pm[(2, 1)], pm[(2, 2)]],
             ];
+            // A moving source (`align`) changes the warp's columns and derivative, and the
+            // barycentrics the derivative is weighted by.
+            let mut to_current = None;
+            if let Some(x0) = self.moving_source {
+                let xs0 = tri.map(|v| x0[v as usize]);
+                let src = &self.projections[patch.source as usize];
+                let Some(sw) = SourceWarp::new(&xs, &xs0, src, proj) else {
+                    continue;
+                };
+                y = sw.y;
+                for (r, row) in m.iter_mut().enumerate() {
+                    for (c, e) in row.iter_mut().enumerate() {
+                        *e = sw.m[(r, c)];
+                    }
+                }
+                to_current = Some(sw.t);
+            }
             let pw = patch.weight as f64;
             // Per-patch sums of the six distinct 3×3 vertex-pair blocks, each kept as its six
             // distinct entries (every block is symmetric), folded into the triangle once.
@@ -472,11 +533,15 @@ impl Problem<'_> {
             // Pass 2: residuals, loss, normal equations.
             for wp in scratch.iter() {
                 let px = &pixels[wp.index as usize];
-                let l = [
+                let mut l = [
                     px.lambda[0] as f64,
                     px.lambda[1] as f64,
                     px.lambda[2] as f64,
                 ];
+                if let Some(t) = &to_current {
+                    let c = t * Vector3::from(l);
+                    l = [c.x, c.y, c.z];
+                }
                 let (u, v, inv, s) = (wp.u, wp.v, wp.inv, wp.s);
                 let gain =
                     px.lambda[0] * gains[0] + px.lambda[1] * gains[1] + px.lambda[2] * gains[2];
@@ -836,8 +901,9 @@ impl Problem<'_> {
                     }
                     (delta, cg.iterations)
                 }
-                Motion::Rigid => {
-                    let rigid = RigidStep::solve(&cur.a, &cur.b, &x, lm);
+                Motion::Rigid | Motion::Similarity => {
+                    let scale = motion == Motion::Similarity;
+                    let rigid = RigidStep::solve(&cur.a, &cur.b, &x, lm, scale, self.gauge_floor);
                     let xi = rigid.xi * shrink;
                     let delta = rigid.linear(&x, &xi);
                     rigid.apply(&x, &xi, &mut trial);
@@ -939,75 +1005,184 @@ pub enum Motion {
     Rigid,
     /// Every vertex on its own (3 unknowns each), held together by the regularisers.
     Free,
+    /// A rigid motion and one uniform scale about the centroid (7 unknowns): `align` with
+    /// `--scale`.
+    Similarity,
 }
 
-/// A rigid step (rotation ω about the centroid `c`, translation v), from the vertex normal
-/// equations projected onto the six rigid motions: with `G` the 3N×6 map from (ω, v) to vertex
-/// displacements `ω×(X_i − c) + v`, it solves `(GᵀAG + λ·diag)·ξ = Gᵀb`. `GᵀAG` is formed from
-/// six products `A·g_k` (written by hand: 6×6, no crate needed beyond nalgebra's solve).
+/// A rigid step (rotation ω about the centroid `c`, translation v, and with
+/// [`Motion::Similarity`] a log-scale σ), from the vertex normal equations projected onto those
+/// motions: with `G` the 3N×k map from ξ = (ω, v, σ) to vertex displacements
+/// `ω×(X_i − c) + v + σ·(X_i − c)`, it solves `(GᵀAG + λ·diag)·ξ = Gᵀb`. `GᵀAG` is formed from
+/// k products `A·g_k` (written by hand: at most 7×7, no crate needed beyond nalgebra's solve).
 struct RigidStep {
     c: Vector3<f64>,
-    xi: nalgebra::Vector6<f64>,
+    xi: Vector7,
+}
+
+type Vector7 = nalgebra::SVector<f64, 7>;
+type Matrix7 = nalgebra::SMatrix<f64, 7, 7>;
+
+/// `GᵀAG` and `Gᵀb` of the whole-mesh motions at `x` (see [`RigidStep`]); with `scale` false
+/// the seventh row and column are zero.
+fn pose_system(
+    a: &BlockSparse,
+    b: &[Vector3<f64>],
+    x: &[Point3<f64>],
+    scale: bool,
+) -> (Vector3<f64>, Matrix7, Vector7) {
+    let n = x.len().max(1) as f64;
+    let c = x.iter().map(|p| p.coords).sum::<Vector3<f64>>() / n;
+    let k = if scale { 7 } else { 6 };
+    let g = RigidStep::generators(x, &c);
+    let mut ag = vec![Vector3::zeros(); x.len()];
+    let mut m = Matrix7::zeros();
+    let mut r = Vector7::zeros();
+    for l in 0..k {
+        a.mul(&g[l], &mut ag);
+        for i in 0..k {
+            m[(i, l)] = g[i].iter().zip(&ag).map(|(u, v)| u.dot(v)).sum();
+        }
+        r[l] = g[l].iter().zip(b).map(|(u, v)| u.dot(v)).sum();
+    }
+    (c, (m + m.transpose()) * 0.5, r)
+}
+
+/// The diagonal scaling that turns the pose coordinates (ω, v, σ) into length units: a unit
+/// rotation or log-scale moves the mesh's points by its RMS radius.
+fn length_units(x: &[Point3<f64>], c: &Vector3<f64>) -> Matrix7 {
+    let n = x.len().max(1) as f64;
+    let r = (x.iter().map(|p| (p.coords - c).norm_squared()).sum::<f64>() / n).sqrt();
+    let inv = if r > 0.0 { 1.0 / r } else { 1.0 };
+    Matrix7::from_diagonal(&Vector7::from([inv, inv, inv, 1.0, 1.0, 1.0, inv]))
 }
 
 impl RigidStep {
-    fn generators(x: &[Point3<f64>], c: &Vector3<f64>) -> [Vec<Vector3<f64>>; 6] {
+    fn generators(x: &[Point3<f64>], c: &Vector3<f64>) -> [Vec<Vector3<f64>>; 7] {
         std::array::from_fn(|k| {
             x.iter()
-                .map(|p| {
-                    if k < 3 {
-                        Vector3::ith(k, 1.0).cross(&(p.coords - c))
-                    } else {
-                        Vector3::ith(k - 3, 1.0)
-                    }
+                .map(|p| match k {
+                    0..=2 => Vector3::ith(k, 1.0).cross(&(p.coords - c)),
+                    3..=5 => Vector3::ith(k - 3, 1.0),
+                    _ => p.coords - c,
                 })
                 .collect()
         })
     }
 
-    fn solve(a: &BlockSparse, b: &[Vector3<f64>], x: &[Point3<f64>], lm: f64) -> Self {
-        let n = x.len().max(1) as f64;
-        let c = x.iter().map(|p| p.coords).sum::<Vector3<f64>>() / n;
-        let g = Self::generators(x, &c);
-        let mut ag = vec![Vector3::zeros(); x.len()];
-        let mut m = nalgebra::Matrix6::<f64>::zeros();
-        let mut r = nalgebra::Vector6::<f64>::zeros();
-        for l in 0..6 {
-            a.mul(&g[l], &mut ag);
-            for k in 0..6 {
-                m[(k, l)] = g[k].iter().zip(&ag).map(|(u, v)| u.dot(v)).sum();
-            }
-            r[l] = g[l].iter().zip(b).map(|(u, v)| u.dot(v)).sum();
-        }
-        let m = (m + m.transpose()) * 0.5;
+    /// With `floor` > 0, the step has no component along the motions whose curvature is below
+    /// `floor` times the largest (eigenvectors of the damped `GᵀAG`): motions the images do not
+    /// fix stay where they started instead of wandering with noise (`align`). The tracker uses
+    /// 0 (a plain Cholesky solve).
+    fn solve(
+        a: &BlockSparse,
+        b: &[Vector3<f64>],
+        x: &[Point3<f64>],
+        lm: f64,
+        scale: bool,
+        floor: f64,
+    ) -> Self {
+        let (c, m, r) = pose_system(a, b, x, scale);
         let tr = m.trace().max(1e-300);
         let mut damped = m;
-        for k in 0..6 {
+        for k in 0..7 {
             damped[(k, k)] += lm * m[(k, k)] + 1e-12 * tr;
         }
-        let xi = damped
-            .cholesky()
-            .map(|ch| ch.solve(&r))
+        if !scale {
+            damped[(6, 6)] = 0.0;
+        }
+        let xi = if floor > 0.0 {
+            // In length units (rotations and scale per the mesh's RMS radius), so that the
+            // curvatures compare whatever the mesh's size.
+            let d = length_units(x, &c);
+            let eig = (d * damped * d).symmetric_eigen();
+            let rd = d * r;
+            let top = eig.eigenvalues.max();
+            let mut xi = Vector7::zeros();
+            for k in 0..7 {
+                let e = eig.eigenvalues[k];
+                if e > floor * top {
+                    let v = eig.eigenvectors.column(k);
+                    xi += v * (v.dot(&rd) / e);
+                }
+            }
+            Some(d * xi)
+        } else {
+            if !scale {
+                damped[(6, 6)] = 1.0;
+            }
+            damped.cholesky().map(|ch| ch.solve(&r))
+        };
+        let xi = xi
             .filter(|v| v.iter().all(|e| e.is_finite()))
-            .unwrap_or_else(nalgebra::Vector6::zeros);
+            .unwrap_or_else(Vector7::zeros);
         RigidStep { c, xi }
     }
 
     /// The step's first-order vertex displacements (for the model's predicted decrease).
-    fn linear(&self, x: &[Point3<f64>], xi: &nalgebra::Vector6<f64>) -> Vec<Vector3<f64>> {
+    fn linear(&self, x: &[Point3<f64>], xi: &Vector7) -> Vec<Vector3<f64>> {
         let w = Vector3::new(xi[0], xi[1], xi[2]);
         let v = Vector3::new(xi[3], xi[4], xi[5]);
         x.iter()
-            .map(|p| w.cross(&(p.coords - self.c)) + v)
+            .map(|p| {
+                let d = p.coords - self.c;
+                w.cross(&d) + v + d * xi[6]
+            })
             .collect()
     }
 
-    /// The exact rigid motion: `c + R(ω)(X − c) + v` (edge lengths unchanged).
-    fn apply(&self, x: &[Point3<f64>], xi: &nalgebra::Vector6<f64>, out: &mut [Point3<f64>]) {
+    /// The exact motion: `c + e^σ·R(ω)(X − c) + v` (edge lengths unchanged when σ = 0).
+    fn apply(&self, x: &[Point3<f64>], xi: &Vector7, out: &mut [Point3<f64>]) {
         let r = nalgebra::Rotation3::new(Vector3::new(xi[0], xi[1], xi[2]));
         let v = Vector3::new(xi[3], xi[4], xi[5]);
+        let s = xi[6].exp();
         for (o, p) in out.iter_mut().zip(x) {
-            *o = Point3::from(self.c + r * (p.coords - self.c) + v);
+            *o = Point3::from(self.c + r * (p.coords - self.c) * s + v);
         }
     }
+}
+
+/// How firmly the images hold each whole-mesh motion at a linearisation: the eigenvalues of
+/// `GᵀJᵀJG` (see [`RigidStep`]; rotations about the centroid, translations and, with `scale`,
+/// the log-scale, in length units — see [`length_units`] — so that they compare), smallest
+/// first, each relative to the largest, with its eigenvector `(ω·r, v, σ·r)`.
+pub(crate) fn pose_stiffness(
+    lin: &Linearised,
+    x: &[Point3<f64>],
+    scale: bool,
+) -> Vec<(f64, [f64; 7])> {
+    let (c, m, _) = pose_system(&lin.a, &lin.b, x, scale);
+    let d = length_units(x, &c);
+    let m = d * m * d;
+    let k = if scale { 7 } else { 6 };
+    let e = m.fixed_view::<6, 6>(0, 0).into_owned();
+    let mut out: Vec<(f64, [f64; 7])> = if scale {
+        let eig = m.symmetric_eigen();
+        (0..k)
+            .map(|i| {
+                let v = eig.eigenvectors.column(i);
+                (eig.eigenvalues[i], std::array::from_fn(|j| v[j]))
+            })
+            .collect()
+    } else {
+        let eig = e.symmetric_eigen();
+        (0..k)
+            .map(|i| {
+                let v = eig.eigenvectors.column(i);
+                (
+                    eig.eigenvalues[i],
+                    std::array::from_fn(|j| if j < 6 { v[j] } else { 0.0 }),
+                )
+            })
+            .collect()
+    };
+    let top = out.iter().map(|o| o.0).fold(0.0, f64::max);
+    if top.is_nan() || top <= 0.0 {
+        return Vec::new();
+    }
+    for o in &mut out {
+        o.0 = (o.0 / top).max(0.0);
+    }
+    out.sort_by(|a, b| a.0.total_cmp(&b.0));
+    out
 }

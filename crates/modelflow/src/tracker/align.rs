@@ -1,0 +1,620 @@
+//! Lining up a roughly placed mesh with one frame (`modelflow align`): the rigid pose, and
+//! optionally one uniform scale, that makes all cameras agree about the surface.
+//!
+//! Multi-view photo-consistency through the tracker's own machinery. Each camera in turn is a
+//! *source*: the pixels each triangle owns in it (`patch`, after z-buffering and erosion) are
+//! attached to the surface by their barycentric coordinates, exactly as a template frame's are,
+//! and warped by the triangle's homography into every *other* camera that sees the triangle,
+//! where their colours must match (up to the solver's per-(triangle, camera) brightness gain,
+//! since cameras differ in exposure and a glossy surface differs between viewpoints). They are
+//! also warped back into their own camera ("pins"): that residual is zero where the pixels were
+//! taken, so it lets the surface points move along their own camera's rays (depth, what two
+//! views measure) and resists motion across them. The whole mesh moves by one rigid motion
+//! ([`Motion::Rigid`], or [`Motion::Similarity`] with a scale), solved by the same
+//! Gauss–Newton/Levenberg–Marquardt loop as a tracker frame. Because the attachment is made at
+//! the current pose, the problem is re-linearised in *rounds*: the pixels are taken again from
+//! the moved mesh until the pose stops changing, coarse to fine over a pyramid deep enough that
+//! the mesh's misplacement is a pixel or two at the coarsest level.
+//!
+//! What the footage cannot tell: photo-consistency fixes where the surface *is*, not which point
+//! of the mesh is which (the texture is in the images, not on the mesh). A motion that keeps the
+//! surface in place — sliding a flat sheet within its plane, spinning a surface of revolution
+//! about its axis — is seen only at the surface's outline and creases, or not at all. Such
+//! motions are found from the solve's own normal equations (eigenvectors of the 6×6 pose block
+//! whose curvature is below `gauge_floor` times the largest): steps leave them out, so the
+//! mesh keeps the user's placement along them instead of wandering with noise, and
+//! [`Alignment::loose`] names every loosely held one, so the user knows which part of the
+//! placement only they can set.
+//!
+//! Invariant: no I/O; images in, positions out.
+
+use crate::base::camera::{Camera, Projection};
+use crate::base::image::RgbImage;
+use crate::base::mesh::Mesh;
+use crate::error::{Error, Result};
+use crate::tracker::patch::{Patch, PatchOptions, PatchSet};
+use crate::tracker::pyramid::Pyramid;
+use crate::tracker::solve::{pose_stiffness, Loss, Motion, Problem, SolverOptions, StopReason};
+use nalgebra::{Matrix3, Point3, Vector3};
+use rayon::prelude::*;
+use serde::{Deserialize, Serialize};
+
+/// Settings of [`align`].
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct AlignOptions {
+    /// Also solve for one uniform scale about the mesh's centroid.
+    pub scale: bool,
+    /// Pyramid levels; 0 chooses them from the mesh's size in the images (the coarsest level
+    /// shows it about 24 pixels across).
+    pub levels: usize,
+    /// Re-linearisations per level at most (the pixels are attached again at the moved mesh).
+    pub rounds: usize,
+    /// Gaussian smoothing of every level, pixels.
+    pub blur: f64,
+    /// Pixels this close to a silhouette or occluding edge are left out (as in tracking).
+    pub margin: usize,
+    /// Triangles seen more obliquely than this cosine are left out.
+    pub min_cos: f64,
+    /// Whole-mesh motions that the images fix less than this fraction as firmly as the
+    /// best-fixed one (sliding a flat sheet in its plane, spinning a surface of revolution) are
+    /// not moved along: they keep the user's placement.
+    pub gauge_floor: f64,
+    /// The solver of each round (its loss is Huber but at the finest level's last round).
+    pub solver: SolverOptions,
+}
+
+impl Default for AlignOptions {
+    fn default() -> Self {
+        AlignOptions {
+            scale: false,
+            levels: 0,
+            rounds: 12,
+            gauge_floor: 1e-6,
+            blur: 1.0,
+            margin: 1,
+            min_cos: 0.1,
+            solver: SolverOptions {
+                max_iterations: 10,
+                ..SolverOptions::default()
+            },
+        }
+    }
+}
+
+impl AlignOptions {
+    pub fn validate(&self) -> Result<()> {
+        if self.levels > 8 {
+            return Err(Error::option("levels", self.levels, "0 (auto) to 8"));
+        }
+        if self.rounds == 0 {
+            return Err(Error::option("rounds", self.rounds, "at least 1"));
+        }
+        if !(self.blur.is_finite() && self.blur >= 0.0) {
+            return Err(Error::option("blur", self.blur, "a non-negative number"));
+        }
+        Ok(())
+    }
+}
+
+/// One pyramid level of an alignment.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct AlignLevel {
+    pub level: usize,
+    /// Re-linearisations run.
+    pub rounds: usize,
+    /// Gauss–Newton iterations over all rounds.
+    pub iterations: usize,
+    /// Cost (mean robust RGB residual) at the level's start and end, with the pixels attached
+    /// at the start and at the end respectively.
+    pub cost_before: f64,
+    pub cost_after: f64,
+    /// Pixels compared in the last round (each source pixel once per camera it is warped into).
+    pub pixels: usize,
+    /// The largest vertex motion of the last round, in this level's pixels.
+    pub last_move_px: f64,
+    pub stop: StopReason,
+}
+
+/// The result of [`align`]: the moved positions and the similarity that moved them,
+/// `X' = scale·R·X + t` (world coordinates).
+#[derive(Clone, Debug, PartialEq)]
+pub struct Alignment {
+    pub positions: Vec<Point3<f64>>,
+    pub rotation: Matrix3<f64>,
+    pub translation: Vector3<f64>,
+    pub scale: f64,
+    pub levels: Vec<AlignLevel>,
+    /// The whole-mesh motions the images hold loosely at the solution (relative stiffness
+    /// below [`LOOSE`]), loosest first; those below the options' `gauge_floor` were not moved
+    /// along at all and keep the input's placement.
+    pub loose: Vec<LooseMotion>,
+}
+
+/// Motions held less than this fraction as firmly as the best-held one are reported as loose.
+pub const LOOSE: f64 = 1e-2;
+
+/// What a loosely held motion mostly is.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum MotionKind {
+    /// A rotation about `axis` through the mesh's centroid.
+    Rotation,
+    /// A translation along `axis`.
+    Translation,
+    /// A change of scale about the centroid.
+    Scale,
+}
+
+/// A whole-mesh motion and how firmly the images hold it (see [`Alignment::loose`]).
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct LooseMotion {
+    /// Its curvature relative to the best-held motion's (0: the cost does not change at all).
+    pub stiffness: f64,
+    pub kind: MotionKind,
+    /// Unit axis (world coordinates) of the rotation or translation.
+    pub axis: [f64; 3],
+}
+
+impl LooseMotion {
+    fn from_eigen(stiffness: f64, v: &[f64; 7]) -> LooseMotion {
+        let w = Vector3::new(v[0], v[1], v[2]);
+        let t = Vector3::new(v[3], v[4], v[5]);
+        let (kind, axis) = if v[6].abs() > w.norm().max(t.norm()) {
+            (MotionKind::Scale, Vector3::zeros())
+        } else if w.norm() >= t.norm() {
+            (MotionKind::Rotation, w.normalize())
+        } else {
+            (MotionKind::Translation, t.normalize())
+        };
+        // Axes have no sign: show them with their largest component positive.
+        let big = (0..3)
+            .max_by(|&a, &b| axis[a].abs().total_cmp(&axis[b].abs()))
+            .unwrap_or(0);
+        let axis = if axis[big] < 0.0 { -axis } else { axis };
+        LooseMotion {
+            stiffness,
+            kind,
+            axis: [axis.x, axis.y, axis.z],
+        }
+    }
+}
+
+impl Alignment {
+    /// The rotation's angle, degrees.
+    pub fn angle_deg(&self) -> f64 {
+        let c = ((self.rotation.trace() - 1.0) / 2.0).clamp(-1.0, 1.0);
+        c.acos().to_degrees()
+    }
+
+    /// How far the mesh's centroid moved (scene units).
+    pub fn centroid_shift(&self, before: &[Point3<f64>]) -> f64 {
+        let n = before.len().max(1) as f64;
+        let a: Vector3<f64> = before.iter().map(|p| p.coords).sum::<Vector3<f64>>() / n;
+        let b: Vector3<f64> = self
+            .positions
+            .iter()
+            .map(|p| p.coords)
+            .sum::<Vector3<f64>>()
+            / n;
+        (b - a).norm()
+    }
+}
+
+fn level_projection(p: &Projection, level: usize) -> Projection {
+    if level == 0 {
+        p.clone()
+    } else {
+        p.downscaled(1 << level)
+    }
+}
+
+/// Levels that show the mesh about 24 pixels across at the coarsest (median over the cameras
+/// of its projected extent), at most 6 and none smaller than 16 pixels on its short side.
+fn auto_levels(cameras: &[Camera], frame: u32, x: &[Point3<f64>]) -> usize {
+    let mut extents: Vec<f64> = cameras
+        .iter()
+        .filter_map(|c| {
+            let p = c.at(frame);
+            let mut lo = [f64::INFINITY; 2];
+            let mut hi = [f64::NEG_INFINITY; 2];
+            for q in x.iter().filter_map(|v| p.project(v)) {
+                lo = [lo[0].min(q.x), lo[1].min(q.y)];
+                hi = [hi[0].max(q.x), hi[1].max(q.y)];
+            }
+            (hi[0] > lo[0]).then(|| (hi[0] - lo[0]).max(hi[1] - lo[1]))
+        })
+        .collect();
+    if extents.is_empty() {
+        return 1;
+    }
+    extents.sort_by(f64::total_cmp);
+    let extent = extents[extents.len() / 2];
+    let short = cameras
+        .iter()
+        .map(|c| c.width.min(c.height))
+        .min()
+        .unwrap_or(1);
+    let mut levels = 1;
+    while levels < 6 && extent / f64::from(1u32 << levels) >= 24.0 && short >> levels >= 16 {
+        levels += 1;
+    }
+    levels
+}
+
+/// The patches of one round: every camera's pixels, warped into every other camera that sees
+/// the triangle.
+pub(crate) fn cross_patches(
+    x: &[Point3<f64>],
+    triangles: &[[u32; 3]],
+    projections: &[Projection],
+    images: &[&RgbImage],
+    popts: &PatchOptions,
+) -> PatchSet {
+    let ncam = projections.len();
+    let per_cam: Vec<PatchSet> = (0..ncam)
+        .into_par_iter()
+        .map(|c| {
+            let mut set = PatchSet::default();
+            set.add_camera(
+                x,
+                triangles,
+                &projections[c],
+                images[c],
+                c as u16,
+                1.0,
+                popts,
+                None,
+            );
+            set
+        })
+        .collect();
+    let seen: Vec<Vec<bool>> = per_cam
+        .iter()
+        .map(|s| {
+            let mut v = vec![false; triangles.len()];
+            for p in &s.patches {
+                v[p.triangle as usize] = true;
+            }
+            v
+        })
+        .collect();
+    let mut out = PatchSet::default();
+    for (i, set) in per_cam.into_iter().enumerate() {
+        let off = out.pixels.len() as u32;
+        out.pixels.extend(set.pixels);
+        for p in set.patches {
+            let (start, end) = (p.start + off, p.end + off);
+            for (j, seen_j) in seen.iter().enumerate() {
+                if j != i && seen_j[p.triangle as usize] {
+                    out.patches.push(Patch {
+                        triangle: p.triangle,
+                        camera: j as u16,
+                        source: i as u16,
+                        weight: 1.0,
+                        start,
+                        end,
+                    });
+                }
+            }
+        }
+    }
+    out
+}
+
+/// The largest image motion (pixels of `projections`' level) of any vertex between `a` and `b`.
+fn max_move_px(a: &[Point3<f64>], b: &[Point3<f64>], projections: &[Projection]) -> f64 {
+    projections
+        .iter()
+        .flat_map(|p| {
+            a.iter().zip(b).filter_map(move |(u, v)| {
+                let (pu, pv) = (p.project(u)?, p.project(v)?);
+                Some((pu - pv).norm())
+            })
+        })
+        .fold(0.0, f64::max)
+}
+
+/// The similarity `X' = s·R·X + t` that maps `a` onto `b` in the least-squares sense
+/// (Umeyama 1991; exact here, since `b` is a similarity of `a`).
+fn similarity(a: &[Point3<f64>], b: &[Point3<f64>]) -> (Matrix3<f64>, Vector3<f64>, f64) {
+    let n = a.len().max(1) as f64;
+    let ca: Vector3<f64> = a.iter().map(|p| p.coords).sum::<Vector3<f64>>() / n;
+    let cb: Vector3<f64> = b.iter().map(|p| p.coords).sum::<Vector3<f64>>() / n;
+    let mut cov = Matrix3::zeros();
+    let mut var_a = 0.0;
+    for (p, q) in a.iter().zip(b) {
+        let (da, db) = (p.coords - ca, q.coords - cb);
+        cov += db * da.transpose();
+        var_a += da.norm_squared();
+    }
+    let svd = cov.svd(true, true);
+    let (Some(u), Some(vt)) = (svd.u, svd.v_t) else {
+        return (Matrix3::identity(), cb - ca, 1.0);
+    };
+    let mut d = Matrix3::identity();
+    if (u * vt).determinant() < 0.0 {
+        d[(2, 2)] = -1.0;
+    }
+    let r = u * d * vt;
+    let s = if var_a > 0.0 {
+        (svd.singular_values.component_mul(&d.diagonal())).sum() / var_a
+    } else {
+        1.0
+    };
+    (r, cb - r * ca * s, s)
+}
+
+/// The motion within the span of `free` (pose eigenvectors `(ω·r, v, σ·r)`, see
+/// `solve::pose_stiffness`) that brings `x` closest to `placed` (least squares over the
+/// vertices; three Gauss–Newton steps for the rotation's curvature).
+fn back_to_placement(
+    x: &[Point3<f64>],
+    placed: &[Point3<f64>],
+    free: &[[f64; 7]],
+) -> Vec<Point3<f64>> {
+    let mut x = x.to_vec();
+    let n = x.len().max(1) as f64;
+    for _ in 0..3 {
+        let c: Vector3<f64> = x.iter().map(|p| p.coords).sum::<Vector3<f64>>() / n;
+        let r = (x.iter().map(|p| (p.coords - c).norm_squared()).sum::<f64>() / n).sqrt();
+        let r = if r > 0.0 { r } else { 1.0 };
+        let disp = |v: &[f64; 7], p: &Point3<f64>| {
+            let d = p.coords - c;
+            Vector3::new(v[0], v[1], v[2]).cross(&d) / r
+                + Vector3::new(v[3], v[4], v[5])
+                + d * (v[6] / r)
+        };
+        let k = free.len();
+        let mut m = nalgebra::DMatrix::<f64>::zeros(k, k);
+        let mut rhs = nalgebra::DVector::<f64>::zeros(k);
+        for (p, q) in x.iter().zip(placed) {
+            let g: Vec<Vector3<f64>> = free.iter().map(|v| disp(v, p)).collect();
+            for a in 0..k {
+                rhs[a] += g[a].dot(&(q - p));
+                for b in 0..k {
+                    m[(a, b)] += g[a].dot(&g[b]);
+                }
+            }
+        }
+        let Some(alpha) = m.cholesky().map(|ch| ch.solve(&rhs)) else {
+            break;
+        };
+        let mut xi = [0.0; 7];
+        for (a, v) in free.iter().enumerate() {
+            for (e, vi) in xi.iter_mut().zip(v) {
+                *e += alpha[a] * vi;
+            }
+        }
+        let rot = nalgebra::Rotation3::new(Vector3::new(xi[0], xi[1], xi[2]) / r);
+        let t = Vector3::new(xi[3], xi[4], xi[5]);
+        let sc = (xi[6] / r).exp();
+        for p in &mut x {
+            *p = Point3::from(c + rot * (p.coords - c) * sc + t);
+        }
+    }
+    x
+}
+
+/// Lines up `mesh` with frame `frame` of `cameras`, whose images (one per camera, pinhole, as
+/// `Scene::load_images` gives them) are `images`. See the module's documentation.
+pub fn align(
+    mesh: &Mesh,
+    cameras: &[Camera],
+    frame: u32,
+    images: &[RgbImage],
+    opts: &AlignOptions,
+) -> Result<Alignment> {
+    opts.validate()?;
+    if images.len() != cameras.len() {
+        return Err(Error::mismatch(
+            "images",
+            format!("{} (one per camera)", cameras.len()),
+            images.len(),
+        ));
+    }
+    if cameras.len() < 2 {
+        return Err(Error::mismatch(
+            "cameras",
+            "at least 2 (alignment compares cameras with each other)",
+            cameras.len(),
+        ));
+    }
+    let start = mesh.positions.clone();
+    let levels = if opts.levels == 0 {
+        auto_levels(cameras, frame, &start)
+    } else {
+        opts.levels
+    };
+    let pyramids: Vec<Pyramid> = images
+        .par_iter()
+        .map(|img| Pyramid::new(img, levels, opts.blur))
+        .collect();
+    let popts = PatchOptions {
+        margin: opts.margin,
+        min_cos: opts.min_cos,
+        two_sided: !mesh.is_closed(),
+        checkerboard: false,
+    };
+    let motion = if opts.scale {
+        Motion::Similarity
+    } else {
+        Motion::Rigid
+    };
+    let pattern = mesh.edges();
+    let mut x = start.clone();
+    let mut out_levels = Vec::with_capacity(levels);
+    let mut last = None;
+    for level in (0..levels).rev() {
+        let projections: Vec<Projection> = cameras
+            .iter()
+            .map(|c| level_projection(c.at(frame), level))
+            .collect();
+        let targets: Vec<&RgbImage> = pyramids.iter().map(|p| &p.levels[level]).collect();
+        // At coarse levels a triangle may be smaller than a pixel, and the margin test (a
+        // pixel's neighbours must belong to its triangle or one sharing a vertex) would then
+        // drop every pixel: there the pixels are kept up to the outline, and the finest level
+        // drops what mixes two surfaces.
+        let popts = PatchOptions {
+            margin: if level == 0 { popts.margin } else { 0 },
+            ..popts
+        };
+        let mut summary = AlignLevel {
+            level,
+            rounds: 0,
+            iterations: 0,
+            cost_before: f64::NAN,
+            cost_after: f64::NAN,
+            pixels: 0,
+            last_move_px: 0.0,
+            stop: StopReason::NoData,
+        };
+        for round in 0..opts.rounds {
+            let x0 = x.clone();
+            let mut set = cross_patches(&x0, &mesh.triangles, &projections, &targets, &popts);
+            let by_triangle = set.by_triangle();
+            let problem = Problem {
+                triangles: &mesh.triangles,
+                patches: &set.patches,
+                pixels: &set.pixels,
+                by_triangle: &by_triangle,
+                targets: targets.clone(),
+                projections: projections.clone(),
+                pattern: &pattern,
+                regularisers: &[],
+                cancel: None,
+                moving_source: Some(&x0),
+                gauge_floor: opts.gauge_floor,
+            };
+            // Huber while the pose is still coming in; the chosen robust loss for the last
+            // rounds at full resolution, where a residual that stays large is an occluder or a
+            // highlight rather than misplacement.
+            let robust = level == 0 && round + 1 >= opts.rounds.min(3);
+            let sopts = SolverOptions {
+                loss: if robust {
+                    opts.solver.loss
+                } else {
+                    Loss::Huber
+                },
+                ..opts.solver
+            };
+            let (sol, s, lin) = problem.solve_motion(&x, None, &sopts, motion);
+            summary.rounds += 1;
+            summary.iterations += s.iterations.len();
+            if round == 0 {
+                summary.cost_before = s.initial_cost;
+            }
+            summary.cost_after = s.final_cost;
+            summary.pixels = s.pixels;
+            summary.stop = s.stop;
+            let moved = max_move_px(&x, &sol, &projections);
+            summary.last_move_px = moved;
+            x = sol;
+            if level == 0 {
+                last = Some((lin, x.clone()));
+            }
+            if s.stop == StopReason::NoData || s.stop == StopReason::NonFinite {
+                break;
+            }
+            // Converged when a round moves nothing by more than a twentieth of a pixel (and,
+            // at the finest level, once the robust loss has had its say).
+            if moved < 0.05 && (level > 0 || robust) {
+                break;
+            }
+        }
+        if summary.stop == StopReason::NoData && level == 0 {
+            return Err(Error::mismatch(
+                "cameras seeing the mesh",
+                format!("at least 2 that see a common triangle at frame {frame}"),
+                "none: the mesh is outside the images or seen by one camera only",
+            ));
+        }
+        out_levels.push(summary);
+    }
+    let stiffness = last
+        .map(|(lin, xs)| pose_stiffness(&lin, &xs, opts.scale))
+        .unwrap_or_default();
+    // Steps leave out the motions the images do not fix, but those are the current pose's: a
+    // sheet tilted on the way in slides in its own plane while the tilt is taken out. The
+    // motions free at the solution are undone here, as far as they bring the mesh back to
+    // where the user put it (they cost nothing: the images cannot tell).
+    let free: Vec<[f64; 7]> = stiffness
+        .iter()
+        .filter(|(s, _)| *s < opts.gauge_floor)
+        .map(|(_, v)| *v)
+        .collect();
+    if !free.is_empty() {
+        x = back_to_placement(&x, &start, &free);
+    }
+    let (rotation, translation, scale) = similarity(&start, &x);
+    let loose = stiffness
+        .into_iter()
+        .filter(|(s, _)| *s < LOOSE)
+        .map(|(s, v)| LooseMotion::from_eigen(s, &v))
+        .collect();
+    Ok(Alignment {
+        positions: x,
+        rotation,
+        translation,
+        scale,
+        levels: out_levels,
+        loose,
+    })
+}
+
+/// `mesh` moved by a rotation of `degrees` about a random axis through its centroid and a
+/// translation of `fraction` of its bounding-box diagonal in a random direction (seeded): the
+/// misplacement [`align`] is tested and measured against (`modelflow align --perturb`).
+pub fn perturb(mesh: &Mesh, fraction: f64, degrees: f64, seed: u64) -> Vec<Point3<f64>> {
+    let unit = |k: u64| {
+        // Uniform on the sphere from two hashed uniforms.
+        let h = |i: u64| {
+            (crate::synth::texture::mix64(seed.wrapping_mul(0x9E37_79B9).wrapping_add(i + 16 * k))
+                >> 11) as f64
+                / (1u64 << 53) as f64
+        };
+        let z = 2.0 * h(0) - 1.0;
+        let phi = std::f64::consts::TAU * h(1);
+        let r = (1.0 - z * z).max(0.0).sqrt();
+        Vector3::new(r * phi.cos(), r * phi.sin(), z)
+    };
+    let axis = nalgebra::Unit::new_normalize(unit(0));
+    let dir = unit(1);
+    let r = nalgebra::Rotation3::from_axis_angle(&axis, degrees.to_radians());
+    let n = mesh.positions.len().max(1) as f64;
+    let c: Vector3<f64> = mesh
+        .positions
+        .iter()
+        .map(|p| p.coords)
+        .sum::<Vector3<f64>>()
+        / n;
+    let t = dir * fraction * mesh.bbox_diagonal();
+    mesh.positions
+        .iter()
+        .map(|p| Point3::from(c + r * (p.coords - c) + t))
+        .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn similarity_recovers_a_known_motion() {
+        let a: Vec<Point3<f64>> = (0..20)
+            .map(|i| {
+                let f = i as f64;
+                Point3::new(f.sin(), (1.3 * f).cos(), 0.1 * f)
+            })
+            .collect();
+        let r = nalgebra::Rotation3::from_euler_angles(0.1, -0.2, 0.3);
+        let t = Vector3::new(0.5, -1.0, 2.0);
+        let b: Vec<Point3<f64>> = a
+            .iter()
+            .map(|p| Point3::from(r * p.coords * 1.1 + t))
+            .collect();
+        let (rr, tt, s) = similarity(&a, &b);
+        assert!((rr - r.matrix()).norm() < 1e-12);
+        assert!((tt - t).norm() < 1e-12);
+        assert!((s - 1.1).abs() < 1e-12);
+    }
+}
