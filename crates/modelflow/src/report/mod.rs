@@ -16,7 +16,7 @@ pub(crate) mod photometric;
 pub(crate) mod plot;
 mod residual;
 
-pub use eval::{evaluate, EvalReport, FrameError};
+pub use eval::{evaluate, surface_rms, EvalReport, FrameError};
 pub use page::{
     seconds_per_frame, write_report, ReportOptions, ReportSummary, ResidualRow, RunSummary,
 };
