@@ -4,6 +4,7 @@
 
 use clap::{CommandFactory, FromArgMatches, Subcommand};
 
+mod align;
 mod baseline;
 mod bench;
 mod capture;
@@ -35,6 +36,8 @@ struct Cli {
 
 #[derive(Subcommand)]
 enum Command {
+    /// Line up a roughly placed mesh with the first frame: its pose (and --scale) from all cameras.
+    Align(align::Args),
     /// Run the whole pipeline on embedded synthetic footage: synth, track, baseline, report.
     Demo(demo::Args),
     /// Time the tracker on the default 640x480 two-camera cloth (or a given scene).
@@ -83,6 +86,7 @@ fn main() -> std::process::ExitCode {
         }
     }
     let result: anyhow::Result<()> = match cli.command {
+        Command::Align(a) => align::run(a),
         Command::Baseline(args) => baseline::run(args, &sub),
         Command::Bench(a) => bench::run(a),
         Command::Demo(a) => demo::run(a),

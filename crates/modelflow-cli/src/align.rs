@@ -1,0 +1,174 @@
+//! `modelflow align`: refines the pose (and optionally the scale) of a roughly placed mesh at the
+//! scene's first frame so that all cameras agree, and writes the lined-up mesh; the work is the
+//! library's (`tracker::align`).
+
+use modelflow::base::Length;
+use modelflow::input::Scene;
+use modelflow::report::surface_rms;
+use modelflow::tracker::{align, perturb, AlignOptions, MotionKind};
+use std::path::PathBuf;
+
+#[derive(clap::Args)]
+pub struct Args {
+    /// The scene file (modelflow-scene/1); its mesh (or --mesh) is the rough placement.
+    #[arg(long)]
+    scene: PathBuf,
+    /// Where to write the lined-up mesh (OBJ, with the input's UVs and normals; written under a
+    /// temporary name, then renamed). Track from it with `track --mesh FILE`.
+    #[arg(long)]
+    out: PathBuf,
+    #[command(flatten)]
+    select: crate::select::SelectArgs,
+    /// Also solve for one uniform scale about the mesh's centroid.
+    #[arg(long)]
+    scale: bool,
+    /// Pyramid levels (0 = from the mesh's size in the images: about 24 px across at the
+    /// coarsest; 0 to 8).
+    #[arg(long, default_value_t = AlignOptions::default().levels)]
+    levels: usize,
+    /// Before aligning, misplace the mesh on purpose by PCT percent of its size and DEG degrees
+    /// about a random axis (seeded by --seed): a check of how far off a placement may be. With
+    /// ground truth, the error before and after is printed.
+    #[arg(long, value_name = "PCT,DEG", value_parser = parse_perturb)]
+    perturb: Option<(f64, f64)>,
+    /// Seed of --perturb's direction and axis.
+    #[arg(long, default_value_t = 1)]
+    seed: u64,
+    /// Print the result as JSON on stdout.
+    #[arg(long)]
+    json: bool,
+}
+
+fn parse_perturb(s: &str) -> Result<(f64, f64), String> {
+    let bad = || {
+        format!("expected PCT,DEG with 0 <= PCT <= 100 and 0 <= DEG <= 90 (e.g. 5,10), got {s:?}")
+    };
+    let (a, b) = s.split_once(',').ok_or_else(bad)?;
+    let (a, b) = (
+        a.trim().parse::<f64>().map_err(|_| bad())?,
+        b.trim().parse::<f64>().map_err(|_| bad())?,
+    );
+    if !((0.0..=100.0).contains(&a) && (0.0..=90.0).contains(&b)) {
+        return Err(bad());
+    }
+    Ok((a, b))
+}
+
+/// RMS distance between corresponding vertices, as a percentage of `size`.
+fn rms_pct(a: &[nalgebra::Point3<f64>], b: &[nalgebra::Point3<f64>], size: f64) -> f64 {
+    let n = a.len().max(1) as f64;
+    let ss: f64 = a.iter().zip(b).map(|(p, q)| (p - q).norm_squared()).sum();
+    100.0 * (ss / n).sqrt() / size
+}
+
+pub fn run(args: Args) -> anyhow::Result<()> {
+    let scene = args.select.apply(Scene::load(&args.scene)?)?;
+    let frame = scene.first;
+    let mut mesh = scene.mesh.clone();
+    if let Some((pct, deg)) = args.perturb {
+        mesh = mesh.with_positions(perturb(&mesh, pct / 100.0, deg, args.seed));
+    }
+    let opts = AlignOptions {
+        scale: args.scale,
+        levels: args.levels,
+        ..AlignOptions::default()
+    };
+    opts.validate()?;
+    let images = scene.load_images(frame)?;
+    let t = std::time::Instant::now();
+    let a = align(&mesh, &scene.cameras, frame, &images, &opts)?;
+    let seconds = t.elapsed().as_secs_f64();
+    let out = mesh.with_positions(a.positions.clone());
+    modelflow::input::write_obj(&args.out, &out)?;
+
+    let size = scene.mesh.bbox_diagonal();
+    let truth = match scene.ground_truth(frame) {
+        Some(t) => Some(t?),
+        None => None,
+    };
+    // Vertex error (which point is which) and surface error (where the surface is).
+    let errors = truth.as_ref().map(|t| {
+        (
+            rms_pct(&mesh.positions, &t.positions, size),
+            rms_pct(&a.positions, &t.positions, size),
+            100.0 * surface_rms(&mesh.positions, t).0 / size,
+            100.0 * surface_rms(&a.positions, t).0 / size,
+        )
+    });
+    let len = Length::of(scene.units);
+    if args.json {
+        let v = serde_json::json!({
+            "frame": frame,
+            "seconds": seconds,
+            "rotation_deg": a.angle_deg(),
+            "centroid_shift": a.centroid_shift(&mesh.positions),
+            "scale": a.scale,
+            "levels": a.levels,
+            "loose": a.loose,
+            "error_before_pct": errors.map(|e| e.0),
+            "error_after_pct": errors.map(|e| e.1),
+            "surface_error_before_pct": errors.map(|e| e.2),
+            "surface_error_after_pct": errors.map(|e| e.3),
+            "units": scene.units.map(|u| u.name()),
+            "out": args.out,
+        });
+        println!("{}", serde_json::to_string_pretty(&v)?);
+    } else {
+        eprintln!("level  rounds  iterations  cost before → after    pixels  last move (px)");
+        for l in &a.levels {
+            eprintln!(
+                "{:>5}  {:>6}  {:>10}  {:>10.3e} → {:<10.3e} {:>8}  {:>8.3}  ({:?})",
+                l.level,
+                l.rounds,
+                l.iterations,
+                l.cost_before,
+                l.cost_after,
+                l.pixels,
+                l.last_move_px,
+                l.stop
+            );
+        }
+        eprintln!(
+            "moved by {:.2}° and {:.3} {} (centroid){} in {:.1} s",
+            a.angle_deg(),
+            len.value(a.centroid_shift(&mesh.positions)),
+            len.unit(),
+            if args.scale {
+                format!(", scaled by {:.4}", a.scale)
+            } else {
+                String::new()
+            },
+            seconds
+        );
+        for m in &a.loose {
+            let what = match m.kind {
+                MotionKind::Rotation => "rotation about",
+                MotionKind::Translation => "translation along",
+                MotionKind::Scale => "scale",
+            };
+            let axis = if m.kind == MotionKind::Scale {
+                String::new()
+            } else {
+                format!(" ({:.2}, {:.2}, {:.2})", m.axis[0], m.axis[1], m.axis[2])
+            };
+            if m.stiffness < opts.gauge_floor {
+                eprintln!(
+                    "not fixed by the images: {what}{axis}: kept as placed (set it by hand if it matters)"
+                );
+            } else {
+                eprintln!(
+                    "loosely held by the images: {what}{axis} ({:.1e} of the firmest motion's stiffness)",
+                    m.stiffness
+                );
+            }
+        }
+        if let Some((b, after, sb, sa)) = errors {
+            eprintln!(
+                "error against the ground truth of frame {frame}, % of size: vertices {b:.3} before, \
+                 {after:.3} after; surface (where the mesh is over it) {sb:.3} before, {sa:.3} after"
+            );
+        }
+        println!("{}", args.out.display());
+    }
+    Ok(())
+}

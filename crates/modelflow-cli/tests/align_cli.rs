@@ -1,0 +1,112 @@
+//! `modelflow align` as a user runs it: the lined-up mesh written where asked, the report of
+//! what moved and what the images leave to the user, `--json`, and errors for bad requests.
+
+use modelflow::input::read_mesh;
+use std::path::PathBuf;
+use std::process::{Command, Output};
+
+fn scene() -> PathBuf {
+    PathBuf::from(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../../fixtures/blender-cloth-sample/scene.json"
+    ))
+}
+
+fn modelflow(args: &[&std::ffi::OsStr]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_modelflow"))
+        .args(args)
+        .output()
+        .unwrap()
+}
+
+fn text(b: &[u8]) -> String {
+    String::from_utf8_lossy(b).into_owned()
+}
+
+#[test]
+fn align_writes_the_lined_up_mesh_and_says_what_the_images_cannot_fix() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("aligned.obj");
+    let s = scene();
+    let o = modelflow(&[
+        "align".as_ref(),
+        "--scene".as_ref(),
+        s.as_os_str(),
+        "--out".as_ref(),
+        out.as_os_str(),
+        "--perturb".as_ref(),
+        "5,10".as_ref(),
+    ]);
+    let err = text(&o.stderr);
+    assert!(o.status.success(), "{err}");
+    assert_eq!(text(&o.stdout).trim(), out.display().to_string());
+    let mesh = read_mesh(&out).unwrap();
+    assert_eq!(mesh.positions.len(), 41 * 41);
+    // The sheet is flat at frame 0: its place within its plane is the user's.
+    assert_eq!(err.matches("not fixed by the images").count(), 3, "{err}");
+    let line = err
+        .lines()
+        .find(|l| l.starts_with("error against the ground truth"))
+        .unwrap_or_else(|| panic!("{err}"));
+    // "... surface (where the mesh is over it) B before, A after"
+    let after: f64 = line
+        .rsplit("before, ")
+        .next()
+        .and_then(|t| t.trim_end_matches(" after").parse().ok())
+        .unwrap_or_else(|| panic!("{line}"));
+    assert!(after < 0.1, "{line}");
+
+    // --json: the same as data.
+    let o = modelflow(&[
+        "align".as_ref(),
+        "--scene".as_ref(),
+        s.as_os_str(),
+        "--out".as_ref(),
+        out.as_os_str(),
+        "--json".as_ref(),
+    ]);
+    assert!(o.status.success(), "{}", text(&o.stderr));
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert_eq!(v["frame"], 0);
+    assert_eq!(v["loose"].as_array().map(|a| a.len()), Some(3));
+    assert!(v["surface_error_after_pct"].as_f64().unwrap() < 0.1);
+    assert_eq!(
+        v["levels"][v["levels"].as_array().unwrap().len() - 1]["level"],
+        0
+    );
+}
+
+#[test]
+fn bad_requests_are_refused_by_name() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("aligned.obj");
+    let s = scene();
+    let run = |extra: &[&str]| {
+        let mut a: Vec<&std::ffi::OsStr> = vec![
+            "align".as_ref(),
+            "--scene".as_ref(),
+            s.as_os_str(),
+            "--out".as_ref(),
+            out.as_os_str(),
+        ];
+        a.extend(extra.iter().map(|e| std::ffi::OsStr::new(*e)));
+        modelflow(&a)
+    };
+    let o = run(&["--perturb", "5"]);
+    assert!(!o.status.success());
+    assert!(text(&o.stderr).contains("PCT,DEG"), "{}", text(&o.stderr));
+    let o = run(&["--cameras", "cam0"]);
+    assert!(!o.status.success());
+    assert!(
+        text(&o.stderr).contains("at least 2"),
+        "{}",
+        text(&o.stderr)
+    );
+    let o = run(&["--levels", "9"]);
+    assert!(!o.status.success());
+    assert!(text(&o.stderr).contains("levels"), "{}", text(&o.stderr));
+    assert!(
+        !out.exists(),
+        "nothing is written when the request is refused"
+    );
+}
