@@ -6,7 +6,7 @@
 use ::modelflow as mf;
 use mf::base::RgbImage;
 use numpy::ndarray::{Array1, Array2, Array3};
-use numpy::{IntoPyArray, PyArray1, PyArray2, PyArray3, PyReadonlyArray3};
+use numpy::{IntoPyArray, PyArray1, PyArray2, PyArray3, PyReadonlyArray2, PyReadonlyArray3};
 use pyo3::create_exception;
 use pyo3::exceptions::PyException;
 use pyo3::prelude::*;
@@ -370,6 +370,66 @@ fn export(run: PathBuf, out: PathBuf, fps: f64) -> PyResult<Vec<PathBuf>> {
         .files)
 }
 
+/// Lines up a mesh with the scene's first frame, as `modelflow align` does: the rigid pose (and
+/// with `scale` one uniform scale) that makes every camera agree about the surface. `positions`:
+/// the rough placement, (V, 3) (default: the scene's mesh). Returns a dict: "positions" (V, 3),
+/// "rotation" (3×3), "translation", "scale" (`X' = scale·R·X + t`), "angle_deg", "levels" (per
+/// pyramid level: rounds, iterations, costs) and "loose" (the motions the images hold loosely,
+/// with their relative stiffness; below 1e-6 they were kept as placed).
+#[pyfunction]
+#[pyo3(signature = (scene, positions=None, scale=false))]
+fn align<'py>(
+    py: Python<'py>,
+    scene: &Scene,
+    positions: Option<PyReadonlyArray2<'py, f64>>,
+    scale: bool,
+) -> PyResult<Bound<'py, PyDict>> {
+    let s = &scene.inner;
+    let mesh = match positions {
+        None => s.mesh.clone(),
+        Some(a) => {
+            let a = a.as_array();
+            let n = s.mesh.positions.len();
+            if a.shape() != [n, 3] {
+                return Err(ModelflowError::new_err(format!(
+                    "positions: expected shape ({n}, 3) (one row per mesh vertex), got {:?}",
+                    a.shape()
+                )));
+            }
+            let p = a
+                .rows()
+                .into_iter()
+                .map(|r| nalgebra::Point3::new(r[0], r[1], r[2]))
+                .collect();
+            s.mesh.with_positions(p)
+        }
+    };
+    let images = s.load_images(s.first).map_err(err)?;
+    let opts = mf::tracker::AlignOptions {
+        scale,
+        ..Default::default()
+    };
+    let a = mf::tracker::align(&mesh, &s.cameras, s.first, &images, &opts).map_err(err)?;
+    let d = PyDict::new(py);
+    d.set_item(
+        "positions",
+        points(py, a.positions.iter().map(|p| [p.x, p.y, p.z])),
+    )?;
+    let r: Vec<Vec<f64>> = (0..3)
+        .map(|i| (0..3).map(|j| a.rotation[(i, j)]).collect())
+        .collect();
+    d.set_item("rotation", r)?;
+    d.set_item(
+        "translation",
+        vec![a.translation.x, a.translation.y, a.translation.z],
+    )?;
+    d.set_item("scale", a.scale)?;
+    d.set_item("angle_deg", a.angle_deg())?;
+    d.set_item("levels", to_py(py, &a.levels)?)?;
+    d.set_item("loose", to_py(py, &a.loose)?)?;
+    Ok(d)
+}
+
 /// Reads a run folder's frame meshes: {frame: (V, 3) float64 positions}.
 #[pyfunction]
 fn read_run<'py>(py: Python<'py>, run: PathBuf) -> PyResult<Bound<'py, PyDict>> {
@@ -391,5 +451,6 @@ fn modelflow_py(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(evaluate, m)?)?;
     m.add_function(wrap_pyfunction!(export, m)?)?;
     m.add_function(wrap_pyfunction!(read_run, m)?)?;
+    m.add_function(wrap_pyfunction!(align, m)?)?;
     Ok(())
 }

@@ -105,3 +105,28 @@ def test_bad_input_raises_modelflow_error():
         t.step(1, [np.zeros((240, 320, 3), np.float32), np.zeros((240, 320, 4), np.float32)])
     with pytest.raises(modelflow.ModelflowError, match=r"images\[0\]: expected a numpy array"):
         t.step(1, [np.zeros((240, 320, 3), np.float64)] * 2)
+
+
+def test_align_brings_a_tilted_sheet_back_into_its_plane():
+    s = modelflow.Scene.load(SCENE)
+    p = s.positions
+    c = p.mean(axis=0)
+    # Tilt the flat sheet by 6 degrees about x through its centroid and push it 3 cm.
+    a = np.radians(6.0)
+    r = np.array([[1, 0, 0], [0, np.cos(a), -np.sin(a)], [0, np.sin(a), np.cos(a)]])
+    rough = (p - c) @ r.T + c + np.array([0.0, 0.03, 0.0])
+    out = modelflow.align(s, rough)
+    x = out["positions"]
+    assert x.shape == p.shape and x.dtype == np.float64
+    normal = np.cross(p[40] - p[0], p[-1] - p[0])
+    normal /= np.linalg.norm(normal)
+    size = np.linalg.norm(p.max(axis=0) - p.min(axis=0))
+    off_plane = lambda q: np.sqrt((((q - p[0]) @ normal) ** 2).mean()) / size
+    assert off_plane(rough) > 0.01
+    assert off_plane(x) < 1e-3
+    # The sheet is flat: its place within its plane is left to the user, and said so.
+    free = [m for m in out["loose"] if m["stiffness"] < 1e-6]
+    assert len(free) == 3
+    assert abs(out["angle_deg"] - 6.0) < 1.0
+    with pytest.raises(modelflow.ModelflowError, match="positions: expected shape"):
+        modelflow.align(s, p[:10])
