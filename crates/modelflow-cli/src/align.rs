@@ -4,7 +4,7 @@
 
 use modelflow::base::Length;
 use modelflow::input::Scene;
-use modelflow::report::surface_rms;
+use modelflow::report::{alignment_picture, surface_rms};
 use modelflow::tracker::{align, perturb, AlignOptions, MotionKind};
 use std::path::PathBuf;
 
@@ -34,6 +34,9 @@ pub struct Args {
     /// Seed of --perturb's direction and axis.
     #[arg(long, default_value_t = 1)]
     seed: u64,
+    /// Also draw the mesh as placed and as aligned over every camera's frame into this PNG.
+    #[arg(long, value_name = "FILE.png")]
+    picture: Option<PathBuf>,
     /// Print the result as JSON on stdout.
     #[arg(long)]
     json: bool,
@@ -80,6 +83,10 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let seconds = t.elapsed().as_secs_f64();
     let out = mesh.with_positions(a.positions.clone());
     modelflow::input::write_obj(&args.out, &out)?;
+    if let Some(p) = &args.picture {
+        let pic = alignment_picture(&scene.cameras, frame, &images, &mesh, &out)?;
+        modelflow::input::write_png(p, &pic)?;
+    }
 
     let size = scene.mesh.bbox_diagonal();
     let truth = match scene.ground_truth(frame) {

@@ -56,6 +56,30 @@ fn align_writes_the_lined_up_mesh_and_says_what_the_images_cannot_fix() {
         .unwrap_or_else(|| panic!("{line}"));
     assert!(after < 0.1, "{line}");
 
+    // --picture: both meshes over each camera's frame (320×240 panels magnified to 640×480,
+    // the two cameras side by side), the aligned one in cyan.
+    let pic = dir.path().join("align.png");
+    let o = modelflow(&[
+        "align".as_ref(),
+        "--scene".as_ref(),
+        s.as_os_str(),
+        "--out".as_ref(),
+        out.as_os_str(),
+        "--perturb".as_ref(),
+        "5,10".as_ref(),
+        "--picture".as_ref(),
+        pic.as_os_str(),
+    ]);
+    assert!(o.status.success(), "{}", text(&o.stderr));
+    let img = modelflow::input::read_rgb(&pic).unwrap();
+    assert_eq!((img.width(), img.height()), (2 * 640 + 3 * 6, 480 + 2 * 6));
+    let cyan = img
+        .pixels()
+        .iter()
+        .filter(|p| p[0] < 0.35 && p[1] > 0.6 && p[2] > 0.7)
+        .count();
+    assert!(cyan > 2000, "{cyan} cyan pixels");
+
     // --json: the same as data.
     let o = modelflow(&[
         "align".as_ref(),
