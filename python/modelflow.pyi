@@ -79,9 +79,14 @@ def read_run(run: _Path) -> Dict[int, npt.NDArray[np.float64]]:
     """A run folder's frame meshes: {frame: (V, 3) positions}."""
 
 def align(
-    scene: Scene, positions: Optional[npt.NDArray[np.float64]] = None, scale: bool = False
+    scene: Scene,
+    positions: Optional[npt.NDArray[np.float64]] = None,
+    scale: bool = False,
+    outline: bool = False,
 ) -> Dict[str, Any]:
     """Lines up a roughly placed mesh (`positions`, (V, 3); default: the scene's) with the
     scene's first frame, as `modelflow align` does. Returns "positions", "rotation", "translation",
-    "scale", "angle_deg", "levels" and "loose" (motions the images hold loosely; those with
-    stiffness below 1e-6 were kept as placed)."""
+    "scale", "angle_deg", "levels", "loose" (motions the images hold loosely; those with
+    stiffness below 1e-6 were kept as placed) and "outline" (with `outline=True`: those motions
+    set from the contrast across the mesh's border, for a sheet whose border is its visible
+    edge)."""

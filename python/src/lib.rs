@@ -375,14 +375,16 @@ fn export(run: PathBuf, out: PathBuf, fps: f64) -> PyResult<Vec<PathBuf>> {
 /// the rough placement, (V, 3) (default: the scene's mesh). Returns a dict: "positions" (V, 3),
 /// "rotation" (3×3), "translation", "scale" (`X' = scale·R·X + t`), "angle_deg", "levels" (per
 /// pyramid level: rounds, iterations, costs) and "loose" (the motions the images hold loosely,
-/// with their relative stiffness; below 1e-6 they were kept as placed).
+/// with their relative stiffness; below 1e-6 they were kept as placed, or with `outline` set
+/// from the contrast across the mesh's border, summarised in "outline").
 #[pyfunction]
-#[pyo3(signature = (scene, positions=None, scale=false))]
+#[pyo3(signature = (scene, positions=None, scale=false, outline=false))]
 fn align<'py>(
     py: Python<'py>,
     scene: &Scene,
     positions: Option<PyReadonlyArray2<'py, f64>>,
     scale: bool,
+    outline: bool,
 ) -> PyResult<Bound<'py, PyDict>> {
     let s = &scene.inner;
     let mesh = match positions {
@@ -407,6 +409,7 @@ fn align<'py>(
     let images = s.load_images(s.first).map_err(err)?;
     let opts = mf::tracker::AlignOptions {
         scale,
+        outline,
         ..Default::default()
     };
     let a = mf::tracker::align(&mesh, &s.cameras, s.first, &images, &opts).map_err(err)?;
@@ -427,6 +430,7 @@ fn align<'py>(
     d.set_item("angle_deg", a.angle_deg())?;
     d.set_item("levels", to_py(py, &a.levels)?)?;
     d.set_item("loose", to_py(py, &a.loose)?)?;
+    d.set_item("outline", to_py(py, &a.outline)?)?;
     Ok(d)
 }
 

@@ -128,5 +128,13 @@ def test_align_brings_a_tilted_sheet_back_into_its_plane():
     free = [m for m in out["loose"] if m["stiffness"] < 1e-6]
     assert len(free) == 3
     assert abs(out["angle_deg"] - 6.0) < 1.0
+    assert out["outline"] is None
+    # The sheet's border is its outline against the background: with outline=True the in-plane
+    # placement comes back too.
+    slid = rough + np.array([0.04, 0.0, 0.02])  # and slid within its plane (x, z)
+    fit = modelflow.align(s, slid, outline=True)
+    rms = np.sqrt(((fit["positions"] - p) ** 2).sum(axis=1).mean()) / size
+    assert rms < 1e-3
+    assert fit["outline"]["contrast_after"] > fit["outline"]["contrast_before"]
     with pytest.raises(modelflow.ModelflowError, match="positions: expected shape"):
         modelflow.align(s, p[:10])

@@ -22,6 +22,11 @@ pub struct Args {
     /// Also solve for one uniform scale about the mesh's centroid.
     #[arg(long)]
     scale: bool,
+    /// Fit the mesh's border to the outline the cameras see, for what photo-consistency leaves
+    /// free (a flat sheet's place in its plane). Only when the border is the object's visible
+    /// edge against a background (a cloth, a sheet of paper), not a cut inside a surface.
+    #[arg(long)]
+    outline: bool,
     /// Pyramid levels (0 = from the mesh's size in the images: about 24 px across at the
     /// coarsest; 0 to 8).
     #[arg(long, default_value_t = AlignOptions::default().levels)]
@@ -74,6 +79,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let opts = AlignOptions {
         scale: args.scale,
         levels: args.levels,
+        outline: args.outline,
         ..AlignOptions::default()
     };
     opts.validate()?;
@@ -112,6 +118,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             "scale": a.scale,
             "levels": a.levels,
             "loose": a.loose,
+            "outline": a.outline,
             "error_before_pct": errors.map(|e| e.0),
             "error_after_pct": errors.map(|e| e.1),
             "surface_error_before_pct": errors.map(|e| e.2),
@@ -147,6 +154,12 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             },
             seconds
         );
+        if let Some(o) = &a.outline {
+            eprintln!(
+                "outline: the border moved by up to {:.2} px along the free motions; contrast across it {:.3e} → {:.3e}",
+                o.moved_px, o.contrast_before, o.contrast_after
+            );
+        }
         for m in &a.loose {
             let what = match m.kind {
                 MotionKind::Rotation => "rotation about",
@@ -158,7 +171,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             } else {
                 format!(" ({:.2}, {:.2}, {:.2})", m.axis[0], m.axis[1], m.axis[2])
             };
-            if m.stiffness < opts.gauge_floor {
+            if m.stiffness < opts.gauge_floor && a.outline.is_some() {
+                eprintln!("not fixed by the images: {what}{axis}: set from the outline");
+            } else if m.stiffness < opts.gauge_floor {
                 eprintln!(
                     "not fixed by the images: {what}{axis}: kept as placed (set it by hand if it matters)"
                 );

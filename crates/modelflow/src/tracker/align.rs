@@ -32,6 +32,7 @@ use crate::base::camera::{Camera, Projection};
 use crate::base::image::RgbImage;
 use crate::base::mesh::Mesh;
 use crate::error::{Error, Result};
+use crate::tracker::outline;
 use crate::tracker::patch::{Patch, PatchOptions, PatchSet};
 use crate::tracker::pyramid::Pyramid;
 use crate::tracker::solve::{pose_stiffness, Motion, Problem, SolverOptions, StopReason};
@@ -59,6 +60,10 @@ pub struct AlignOptions {
     /// best-fixed one (sliding a flat sheet in its plane, spinning a surface of revolution) are
     /// not moved along: they keep the user's placement.
     pub gauge_floor: f64,
+    /// Fit the mesh's border to the outline the cameras see, along the motions the images
+    /// leave free (`outline`): for a sheet whose border is its visible edge against a
+    /// background. Off by default (a mesh whose border lies inside a surface has no edge there).
+    pub outline: bool,
     /// The solver of each round (with the tracker's robust loss by default).
     pub solver: SolverOptions,
 }
@@ -70,6 +75,7 @@ impl Default for AlignOptions {
             levels: 0,
             rounds: 12,
             gauge_floor: 1e-6,
+            outline: false,
             blur: 1.0,
             margin: 1,
             min_cos: 0.1,
@@ -128,6 +134,19 @@ pub struct Alignment {
     /// below [`LOOSE`]), loosest first; those below the options' `gauge_floor` were not moved
     /// along at all and keep the input's placement.
     pub loose: Vec<LooseMotion>,
+    /// With `AlignOptions::outline` (and a mesh with a border and free motions): how the border
+    /// was fitted to the outline.
+    pub outline: Option<OutlineSummary>,
+}
+
+/// What the outline fit did (see [`AlignOptions::outline`]).
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct OutlineSummary {
+    /// Mean squared contrast across the border (RGB, per pixel²) before and after the fit.
+    pub contrast_before: f64,
+    pub contrast_after: f64,
+    /// The largest image motion of a vertex it made, full-resolution pixels.
+    pub moved_px: f64,
 }
 
 /// Motions held less than this fraction as firmly as the best-held one are reported as loose.
@@ -540,6 +559,39 @@ pub fn align(
     if !free.is_empty() {
         x = back_to_placement(&x, &start, &free);
     }
+    let mut outline_fit = None;
+    if opts.outline && !free.is_empty() {
+        if let Some(border) = outline::Border::of(&mesh.triangles) {
+            let views: Vec<Vec<outline::EdgeView>> = (0..levels)
+                .map(|l| {
+                    cameras
+                        .iter()
+                        .zip(&pyramids)
+                        .map(|(c, p)| {
+                            outline::EdgeView::new(level_projection(c.at(frame), l), &p.levels[l])
+                        })
+                        .collect()
+                })
+                .collect();
+            let px = outline::pixels_per_unit(cameras, frame, &x);
+            let size = crate::base::mesh::bbox_diagonal(&x);
+            let fit = outline::fit(&border, &x, &free, &views, px, size);
+            let moved = max_move_px(
+                &x,
+                &fit.positions,
+                &cameras
+                    .iter()
+                    .map(|c| c.at(frame).clone())
+                    .collect::<Vec<_>>(),
+            );
+            outline_fit = Some(OutlineSummary {
+                contrast_before: fit.before,
+                contrast_after: fit.after,
+                moved_px: moved,
+            });
+            x = fit.positions;
+        }
+    }
     let (rotation, translation, scale) = similarity(&start, &x);
     let loose = stiffness
         .into_iter()
@@ -553,6 +605,7 @@ pub fn align(
         scale,
         levels: out_levels,
         loose,
+        outline: outline_fit,
     })
 }
 

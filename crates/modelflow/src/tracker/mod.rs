@@ -9,6 +9,7 @@
 
 pub(crate) mod align;
 mod options;
+pub(crate) mod outline;
 pub(crate) mod patch;
 pub(crate) mod pyramid;
 pub(crate) mod regularise;
@@ -22,7 +23,8 @@ pub(crate) mod warp;
 mod tests;
 
 pub use align::{
-    align, perturb, AlignLevel, AlignOptions, Alignment, LooseMotion, MotionKind, LOOSE,
+    align, perturb, AlignLevel, AlignOptions, Alignment, LooseMotion, MotionKind, OutlineSummary,
+    LOOSE,
 };
 pub use options::{OptionsUsed, TrackOptions};
 pub use regularise::Regularisation;
