@@ -104,8 +104,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         (
             rms_pct(&mesh.positions, &t.positions, size),
             rms_pct(&a.positions, &t.positions, size),
-            100.0 * surface_rms(&mesh.positions, t).0 / size,
-            100.0 * surface_rms(&a.positions, t).0 / size,
+            surface_rms(&mesh.positions, t).map(|r| 100.0 * r.0 / size),
+            surface_rms(&a.positions, t).map(|r| 100.0 * r.0 / size),
         )
     });
     let len = Length::of(scene.units);
@@ -121,8 +121,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             "outline": a.outline,
             "error_before_pct": errors.map(|e| e.0),
             "error_after_pct": errors.map(|e| e.1),
-            "surface_error_before_pct": errors.map(|e| e.2),
-            "surface_error_after_pct": errors.map(|e| e.3),
+            "surface_error_before_pct": errors.and_then(|e| e.2),
+            "surface_error_after_pct": errors.and_then(|e| e.3),
             "units": scene.units.map(|u| u.name()),
             "out": args.out,
         });
@@ -185,9 +185,11 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             }
         }
         if let Some((b, after, sb, sa)) = errors {
+            let pct = |v: Option<f64>| v.map_or("n/a".to_string(), |v| format!("{v:.3}"));
+            let (sb, sa) = (pct(sb), pct(sa));
             eprintln!(
                 "error against the ground truth of frame {frame}, % of size: vertices {b:.3} before, \
-                 {after:.3} after; surface (where the mesh is over it) {sb:.3} before, {sa:.3} after"
+                 {after:.3} after; surface (where the mesh is over it) {sb} before, {sa} after"
             );
         }
         println!("{}", args.out.display());

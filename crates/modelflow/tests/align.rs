@@ -184,4 +184,23 @@ fn align_refuses_what_it_cannot_do() {
         .unwrap_err()
         .to_string();
     assert!(err.contains("outside the images"), "{err}");
+    // A vertex that is not a number is named, not carried into a NaN pose.
+    let mut bad = syn.mesh.positions.clone();
+    bad[7].y = f64::NAN;
+    let err = align(
+        &syn.mesh.with_positions(bad),
+        &syn.cameras,
+        0,
+        &images,
+        &AlignOptions::default(),
+    )
+    .unwrap_err()
+    .to_string();
+    assert!(err.contains("vertex 7"), "{err}");
+    // Images that are not the cameras' size.
+    let small: Vec<modelflow::RgbImage> = images.iter().map(|i| i.downsample2()).collect();
+    let err = align(&syn.mesh, &syn.cameras, 0, &small, &AlignOptions::default())
+        .unwrap_err()
+        .to_string();
+    assert!(err.contains("the camera's size"), "{err}");
 }

@@ -199,9 +199,11 @@ fn pct(v: f64, scale: f64) -> f64 {
 /// truth's border (an open mesh's outline) hangs past its edge, and is counted apart. How far a
 /// mesh is from the true surface, whichever point of it is which: `align` is scored with it
 /// beside the vertex error, since the images fix where a surface is but not how it slides along
-/// itself. Returns `(rms, points over the surface)`. Brute force over the triangles, in
-/// parallel over the points (written by hand: a check, run on one frame).
-pub fn surface_rms(points: &[nalgebra::Point3<f64>], truth: &Mesh) -> (f64, usize) {
+/// itself. A point counts as over the surface unless its closest point is on the border *and*
+/// it is further from it sideways (in that triangle's plane) than along its normal. Returns
+/// `(rms, points over the surface)`, `None` when no point is over it. Brute force over the
+/// triangles, in parallel over the points (written by hand: a check, run on one frame).
+pub fn surface_rms(points: &[nalgebra::Point3<f64>], truth: &Mesh) -> Option<(f64, usize)> {
     let tris: Vec<[nalgebra::Point3<f64>; 3]> = truth
         .triangles
         .iter()
@@ -231,13 +233,25 @@ pub fn surface_rms(points: &[nalgebra::Point3<f64>], truth: &Mesh) -> (f64, usiz
                 let (q, feature) = closest_on_triangle(p, tri);
                 let d = (q - p).norm_squared();
                 if d < best.0 {
-                    // On a border edge or vertex: past the surface's outline.
-                    let past = match feature {
+                    // On a border edge or vertex, and more beside the surface than above it:
+                    // past the surface's outline.
+                    let on_border = match feature {
                         Feature::Inside => false,
                         Feature::Vertex(i) => border[t[i] as usize],
                         Feature::Edge(i, j) => {
                             let (a, b) = (t[i], t[j]);
                             count.get(&(a.min(b), a.max(b))) == Some(&1)
+                        }
+                    };
+                    let past = on_border && {
+                        let n = (tri[1] - tri[0]).cross(&(tri[2] - tri[0]));
+                        let off = p - q;
+                        match n.try_normalize(1e-300) {
+                            Some(n) => {
+                                let along = off.dot(&n).abs();
+                                (off - n * off.dot(&n)).norm() > along
+                            }
+                            None => true,
                         }
                     };
                     best = (d, past);
@@ -248,7 +262,7 @@ pub fn surface_rms(points: &[nalgebra::Point3<f64>], truth: &Mesh) -> (f64, usiz
         .collect();
     let over: Vec<f64> = per_point.into_iter().flatten().collect();
     let (sum, n) = (over.iter().sum::<f64>(), over.len());
-    ((sum / n.max(1) as f64).sqrt(), n)
+    (n > 0).then(|| ((sum / n as f64).sqrt(), n))
 }
 
 /// Where on a triangle its closest point to a query lies.
@@ -318,13 +332,19 @@ mod tests {
             Point3::new(1.5, 0.5, 0.0),    // past its edge: not counted
             Point3::new(-0.2, -0.3, 0.01), // past its corner: not counted
         ];
-        let (rms, n) = surface_rms(&points, &sheet);
+        let (rms, n) = surface_rms(&points, &sheet).unwrap();
         assert_eq!(n, 3);
         let want = ((0.03f64.powi(2) + 0.04f64.powi(2)) / 3.0).sqrt();
         assert!((rms - want).abs() < 1e-12, "{rms} vs {want}");
         // A closed surface has no border: every point counts.
-        let (_, n) = surface_rms(&points, &crate::synth::icosphere(2));
+        let (_, n) = surface_rms(&points, &crate::synth::icosphere(2)).unwrap();
         assert_eq!(n, 5);
+        // Right above a border vertex counts; nothing over the sheet gives no figure.
+        assert_eq!(
+            surface_rms(&[Point3::new(1.0, 1.0, 0.02)], &sheet).map(|r| r.1),
+            Some(1)
+        );
+        assert_eq!(surface_rms(&[Point3::new(3.0, 3.0, 0.0)], &sheet), None);
     }
 
     #[test]

@@ -6,10 +6,10 @@
 //! attached to the surface by their barycentric coordinates, exactly as a template frame's are,
 //! and warped by the triangle's homography into every *other* camera that sees the triangle,
 //! where their colours must match (up to the solver's per-(triangle, camera) brightness gain,
-//! since cameras differ in exposure and a glossy surface differs between viewpoints). They are
-//! also warped back into their own camera ("pins"): that residual is zero where the pixels were
-//! taken, so it lets the surface points move along their own camera's rays (depth, what two
-//! views measure) and resists motion across them. The whole mesh moves by one rigid motion
+//! since cameras differ in exposure and a glossy surface differs between viewpoints). Unlike a
+//! template frame's, these pixels are not glued to the surface: as the mesh moves, the point a
+//! pixel sees slides along its own camera's ray, and the solver's derivative says so
+//! (`solve::SourceWarp`). The whole mesh moves by one rigid motion
 //! ([`Motion::Rigid`], or [`Motion::Similarity`] with a scale), solved by the same
 //! Gauss–Newton/Levenberg–Marquardt loop as a tracker frame. Because the attachment is made at
 //! the current pose, the problem is re-linearised in *rounds*: the pixels are taken again from
@@ -20,8 +20,9 @@
 //! of the mesh is which (the texture is in the images, not on the mesh). A motion that keeps the
 //! surface in place — sliding a flat sheet within its plane, spinning a surface of revolution
 //! about its axis — is seen only at the surface's outline and creases, or not at all. Such
-//! motions are found from the solve's own normal equations (eigenvectors of the 6×6 pose block
-//! whose curvature is below `gauge_floor` times the largest): steps leave them out, so the
+//! motions are found from the solve's own normal equations (eigenvectors of the 6×6 pose block,
+//! 7×7 with the scale, whose curvature is below `gauge_floor` times the largest): steps leave
+//! them out, so the
 //! mesh keeps the user's placement along them instead of wandering with noise, and
 //! [`Alignment::loose`] names every loosely held one, so the user knows which part of the
 //! placement only they can set.
@@ -35,6 +36,7 @@ use crate::error::{Error, Result};
 use crate::tracker::outline;
 use crate::tracker::patch::{Patch, PatchOptions, PatchSet};
 use crate::tracker::pyramid::Pyramid;
+use crate::tracker::sequence::level_projection;
 use crate::tracker::solve::{pose_stiffness, Motion, Problem, SolverOptions, StopReason};
 use nalgebra::{Matrix3, Point3, Vector3};
 use rayon::prelude::*;
@@ -90,13 +92,23 @@ impl Default for AlignOptions {
 impl AlignOptions {
     pub fn validate(&self) -> Result<()> {
         if self.levels > 8 {
-            return Err(Error::option("levels", self.levels, "0 (auto) to 8"));
+            return Err(Error::option("--levels", self.levels, "0 (auto) to 8"));
         }
         if self.rounds == 0 {
             return Err(Error::option("rounds", self.rounds, "at least 1"));
         }
-        if !(self.blur.is_finite() && self.blur >= 0.0) {
-            return Err(Error::option("blur", self.blur, "a non-negative number"));
+        if !(0.0..=20.0).contains(&self.blur) {
+            return Err(Error::option("blur", self.blur, "0 to 20 pixels"));
+        }
+        if !(0.0..=1.0).contains(&self.min_cos) {
+            return Err(Error::option("min_cos", self.min_cos, "0 to 1"));
+        }
+        if !(0.0..1e-2).contains(&self.gauge_floor) {
+            return Err(Error::option(
+                "gauge_floor",
+                self.gauge_floor,
+                "0 (every motion moves) to below 1e-2",
+            ));
         }
         Ok(())
     }
@@ -216,14 +228,6 @@ impl Alignment {
             .sum::<Vector3<f64>>()
             / n;
         (b - a).norm()
-    }
-}
-
-fn level_projection(p: &Projection, level: usize) -> Projection {
-    if level == 0 {
-        p.clone()
-    } else {
-        p.downscaled(1 << level)
     }
 }
 
@@ -365,7 +369,8 @@ fn similarity(a: &[Point3<f64>], b: &[Point3<f64>]) -> (Matrix3<f64>, Vector3<f6
 
 /// The motion within the span of `free` (pose eigenvectors `(ω·r, v, σ·r)`, see
 /// `solve::pose_stiffness`) that brings `x` closest to `placed` (least squares over the
-/// vertices; three Gauss–Newton steps for the rotation's curvature).
+/// vertices; three Gauss–Newton steps for the rotation's curvature), applied as exact screw
+/// motions (`outline::along`), which keep a free motion free at any size.
 fn back_to_placement(
     x: &[Point3<f64>],
     placed: &[Point3<f64>],
@@ -398,18 +403,7 @@ fn back_to_placement(
         let Some(alpha) = m.cholesky().map(|ch| ch.solve(&rhs)) else {
             break;
         };
-        let mut xi = [0.0; 7];
-        for (a, v) in free.iter().enumerate() {
-            for (e, vi) in xi.iter_mut().zip(v) {
-                *e += alpha[a] * vi;
-            }
-        }
-        let rot = nalgebra::Rotation3::new(Vector3::new(xi[0], xi[1], xi[2]) / r);
-        let t = Vector3::new(xi[3], xi[4], xi[5]);
-        let sc = (xi[6] / r).exp();
-        for p in &mut x {
-            *p = Point3::from(c + rot * (p.coords - c) * sc + t);
-        }
+        x = outline::along(&x, free, alpha.as_slice());
     }
     x
 }
@@ -430,6 +424,26 @@ pub fn align(
             format!("{} (one per camera)", cameras.len()),
             images.len(),
         ));
+    }
+    if let Some(i) = mesh
+        .positions
+        .iter()
+        .position(|p| !p.coords.iter().all(|v| v.is_finite()))
+    {
+        return Err(Error::mismatch(
+            "mesh positions",
+            "finite coordinates",
+            format!("vertex {i} at {:?}", mesh.positions[i].coords.as_slice()),
+        ));
+    }
+    for (c, (cam, img)) in cameras.iter().zip(images).enumerate() {
+        if (img.width(), img.height()) != (cam.width as usize, cam.height as usize) {
+            return Err(Error::mismatch(
+                format!("image of camera {c} ({})", cam.name),
+                format!("{}×{} (the camera's size)", cam.width, cam.height),
+                format!("{}×{}", img.width(), img.height()),
+            ));
+        }
     }
     if cameras.len() < 2 {
         return Err(Error::mismatch(
@@ -539,7 +553,8 @@ pub fn align(
             return Err(Error::mismatch(
                 "cameras seeing the mesh",
                 format!("at least 2 that see a common triangle at frame {frame}"),
-                "none: the mesh is outside the images or seen by one camera only",
+                "none: the mesh is outside the images, seen by one camera only, or only edge-on \
+                 (triangles more oblique than min_cos) or in slivers thinner than the margin",
             ));
         }
         out_levels.push(summary);

@@ -13,7 +13,7 @@ pub(crate) mod outline;
 pub(crate) mod patch;
 pub(crate) mod pyramid;
 pub(crate) mod regularise;
-mod sequence;
+pub(crate) mod sequence;
 mod shot;
 pub(crate) mod solve;
 pub(crate) mod sparse;

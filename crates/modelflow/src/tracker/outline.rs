@@ -129,7 +129,7 @@ fn score(border: &Border, x: &[Point3<f64>], views: &[EdgeView], step: f64) -> f
 }
 
 /// `x` moved by `alpha` along the whole-mesh motions `free` (pose eigenvectors `(ω·r, v, σ·r)`,
-/// see `solve::pose_stiffness`), about `x`'s centroid: exact rotation, translation and scale.
+/// see `solve::pose_stiffness`), about `x`'s centroid.
 pub(crate) fn along(x: &[Point3<f64>], free: &[[f64; 7]], alpha: &[f64]) -> Vec<Point3<f64>> {
     let n = x.len().max(1) as f64;
     let c: Vector3<f64> = x.iter().map(|p| p.coords).sum::<Vector3<f64>>() / n;
@@ -141,8 +141,24 @@ pub(crate) fn along(x: &[Point3<f64>], free: &[[f64; 7]], alpha: &[f64]) -> Vec<
             *e += a * vi;
         }
     }
-    let rot = nalgebra::Rotation3::new(Vector3::new(xi[0], xi[1], xi[2]) / r);
-    let t = Vector3::new(xi[3], xi[4], xi[5]);
+    // The screw motion that the constant twist (ω, v) generates, applied for unit time:
+    // X' = c + R(ω)(X − c) + J(ω)·v with J the left Jacobian of SO(3). It keeps a motion the
+    // images leave free free at any size (a rotation about an axis away from the centroid plus
+    // the matching translation stays on that axis), which "rotate about c, then add v" does only
+    // to first order. The scale, when free, is applied about c.
+    let w = Vector3::new(xi[0], xi[1], xi[2]) / r;
+    let v = Vector3::new(xi[3], xi[4], xi[5]);
+    let theta = w.norm();
+    let wx = w.cross_matrix();
+    let j = if theta < 1e-8 {
+        nalgebra::Matrix3::identity() + wx * 0.5
+    } else {
+        nalgebra::Matrix3::identity()
+            + wx * ((1.0 - theta.cos()) / (theta * theta))
+            + wx * wx * ((theta - theta.sin()) / (theta * theta * theta))
+    };
+    let rot = nalgebra::Rotation3::new(w);
+    let t = j * v;
     let s = (xi[6] / r).exp();
     x.iter()
         .map(|p| Point3::from(c + rot * (p.coords - c) * s + t))

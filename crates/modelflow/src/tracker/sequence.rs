@@ -98,7 +98,8 @@ pub struct Tracker {
     before_prev: Option<Vec<Point3<f64>>>,
 }
 
-fn level_projection(p: &Projection, level: usize) -> Projection {
+/// A camera's projection at pyramid level `level` (`Projection::downscaled` by `2^level`).
+pub(crate) fn level_projection(p: &Projection, level: usize) -> Projection {
     if level == 0 {
         p.clone()
     } else {

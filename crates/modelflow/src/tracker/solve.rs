@@ -1093,20 +1093,34 @@ impl RigidStep {
         }
         let xi = if floor > 0.0 {
             // In length units (rotations and scale per the mesh's RMS radius), so that the
-            // curvatures compare whatever the mesh's size.
+            // curvatures compare whatever the mesh's size. The motions to leave out are those
+            // of the *undamped* curvature (damping would lift a free motion that mixes axes
+            // above the floor while it is large); the damped system is then solved within the
+            // motions kept.
             let d = length_units(x, &c);
-            let eig = (d * damped * d).symmetric_eigen();
-            let rd = d * r;
-            let top = eig.eigenvalues.max();
-            let mut xi = Vector7::zeros();
-            for k in 0..7 {
-                let e = eig.eigenvalues[k];
-                if e > floor * top {
-                    let v = eig.eigenvectors.column(k);
-                    xi += v * (v.dot(&rd) / e);
+            let mut mu = d * m * d;
+            if !scale {
+                for k in 0..7 {
+                    mu[(6, k)] = 0.0;
+                    mu[(k, 6)] = 0.0;
                 }
             }
-            Some(d * xi)
+            let eig = mu.symmetric_eigen();
+            let top = eig.eigenvalues.max();
+            let kept: Vec<usize> = (0..7)
+                .filter(|&k| eig.eigenvalues[k] > floor * top)
+                .collect();
+            let v =
+                nalgebra::DMatrix::from_fn(7, kept.len(), |i, j| eig.eigenvectors[(i, kept[j])]);
+            let ddd = d * damped * d;
+            let dd = nalgebra::DMatrix::from_fn(7, 7, |i, j| ddd[(i, j)]);
+            let rd = nalgebra::DVector::from_iterator(7, (d * r).iter().copied());
+            let sub = v.transpose() * dd * &v;
+            let rhs = v.transpose() * rd;
+            sub.cholesky().map(|ch| {
+                let eta = &v * ch.solve(&rhs);
+                d * Vector7::from_iterator(eta.iter().copied())
+            })
         } else {
             if !scale {
                 damped[(6, 6)] = 1.0;
