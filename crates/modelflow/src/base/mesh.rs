@@ -160,6 +160,28 @@ impl Mesh {
         !count.is_empty() && count.values().all(|&c| c == 2)
     }
 
+    /// The border: edges with exactly one triangle, as `([a, b], c)` with `a < b` and `c` that
+    /// triangle's third vertex, sorted. Empty for a closed mesh.
+    pub fn border_edges(&self) -> Vec<([u32; 2], u32)> {
+        let mut count: HashMap<[u32; 2], (u32, u32)> = HashMap::new();
+        for t in &self.triangles {
+            for k in 0..3 {
+                let (a, b, c) = (t[k], t[(k + 1) % 3], t[(k + 2) % 3]);
+                count
+                    .entry(if a < b { [a, b] } else { [b, a] })
+                    .and_modify(|e| e.0 += 1)
+                    .or_insert((1, c));
+            }
+        }
+        let mut out: Vec<([u32; 2], u32)> = count
+            .into_iter()
+            .filter(|(_, (n, _))| *n == 1)
+            .map(|(e, (_, c))| (e, c))
+            .collect();
+        out.sort_unstable();
+        out
+    }
+
     /// Triangles thinner than `ratio` of their longest edge (height over the longest edge over
     /// the longest edge), as (triangle index, that ratio). Such a sliver owns almost no pixels:
     /// the tracker handles it (its edges weigh by area), but it usually means a modelling slip.
@@ -279,7 +301,15 @@ mod tests {
             Point3::new(0.0, 1.0, 0.0),
             Point3::new(0.0, 0.0, 1.0),
         ];
-        let m = Mesh::new(p, vec![[0, 2, 1], [0, 1, 3], [1, 2, 3], [0, 3, 2]]);
+        let m = Mesh::new(p.clone(), vec![[0, 2, 1], [0, 1, 3], [1, 2, 3], [0, 3, 2]]);
         assert!(m.is_closed());
+        assert!(m.border_edges().is_empty());
+        // Without its base the border is the base's three edges, each with its apex opposite.
+        let open = Mesh::new(p, vec![[0, 1, 3], [1, 2, 3], [0, 3, 2]]);
+        assert!(!open.is_closed());
+        assert_eq!(
+            open.border_edges(),
+            vec![([0, 1], 3), ([0, 2], 3), ([1, 2], 3)]
+        );
     }
 }

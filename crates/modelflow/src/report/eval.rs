@@ -209,20 +209,13 @@ pub fn surface_rms(points: &[nalgebra::Point3<f64>], truth: &Mesh) -> Option<(f6
         .iter()
         .map(|t| t.map(|v| truth.positions[v as usize]))
         .collect();
-    // Border vertices: those of an edge with one triangle.
-    let mut count = std::collections::HashMap::new();
-    for t in &truth.triangles {
-        for k in 0..3 {
-            let (a, b) = (t[k], t[(k + 1) % 3]);
-            *count.entry((a.min(b), a.max(b))).or_insert(0u32) += 1;
-        }
-    }
+    // Border edges (one triangle) and their vertices.
+    let border_edges: std::collections::HashSet<[u32; 2]> =
+        truth.border_edges().into_iter().map(|(e, _)| e).collect();
     let mut border = vec![false; truth.positions.len()];
-    for (&(a, b), &n) in &count {
-        if n == 1 {
-            border[a as usize] = true;
-            border[b as usize] = true;
-        }
+    for [a, b] in &border_edges {
+        border[*a as usize] = true;
+        border[*b as usize] = true;
     }
     // Per point in parallel, summed in order (the same result whatever the thread count).
     let per_point: Vec<Option<f64>> = points
@@ -240,7 +233,7 @@ pub fn surface_rms(points: &[nalgebra::Point3<f64>], truth: &Mesh) -> Option<(f6
                         Feature::Vertex(i) => border[t[i] as usize],
                         Feature::Edge(i, j) => {
                             let (a, b) = (t[i], t[j]);
-                            count.get(&(a.min(b), a.max(b))) == Some(&1)
+                            border_edges.contains(&[a.min(b), a.max(b)])
                         }
                     };
                     let past = on_border && {

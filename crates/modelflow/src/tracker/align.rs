@@ -576,7 +576,7 @@ pub fn align(
     }
     let mut outline_fit = None;
     if opts.outline && !free.is_empty() {
-        if let Some(border) = outline::Border::of(&mesh.triangles) {
+        if let Some(border) = outline::Border::of(mesh) {
             let views: Vec<Vec<outline::EdgeView>> = (0..levels)
                 .map(|l| {
                     cameras

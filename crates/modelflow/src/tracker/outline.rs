@@ -20,8 +20,8 @@
 
 use crate::base::camera::{Camera, Projection};
 use crate::base::image::RgbImage;
+use crate::base::mesh::Mesh;
 use nalgebra::{Point3, Vector3};
-use std::collections::HashMap;
 
 /// Points sampled on every border edge.
 const PER_EDGE: usize = 4;
@@ -42,27 +42,11 @@ pub(crate) struct Border {
 
 impl Border {
     /// `None` for a closed mesh.
-    pub(crate) fn of(triangles: &[[u32; 3]]) -> Option<Border> {
-        let mut count: HashMap<(u32, u32), (u32, u32)> = HashMap::new();
-        for t in triangles {
-            for k in 0..3 {
-                let (a, b, c) = (t[k], t[(k + 1) % 3], t[(k + 2) % 3]);
-                count
-                    .entry((a.min(b), a.max(b)))
-                    .and_modify(|e| e.0 += 1)
-                    .or_insert((1, c));
-            }
-        }
-        let mut edges: Vec<((u32, u32), u32)> = count
-            .into_iter()
-            .filter(|(_, (n, _))| *n == 1)
-            .map(|(e, (_, c))| (e, c))
-            .collect();
-        // Sorted, so that the score is summed in the same order every run.
-        edges.sort_unstable();
+    pub(crate) fn of(mesh: &Mesh) -> Option<Border> {
+        let edges = mesh.border_edges();
         let points: Vec<BorderPoint> = edges
             .iter()
-            .flat_map(|&((a, b), opp)| {
+            .flat_map(|&([a, b], opp)| {
                 (0..PER_EDGE).map(move |i| BorderPoint {
                     a,
                     b,
