@@ -2,7 +2,8 @@
 //! what moved and what the images leave to the user, `--json`, and errors for bad requests.
 
 use modelflow::input::read_mesh;
-use std::path::PathBuf;
+use std::ffi::OsStr;
+use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
 fn scene() -> PathBuf {
@@ -12,9 +13,15 @@ fn scene() -> PathBuf {
     ))
 }
 
-fn modelflow(args: &[&std::ffi::OsStr]) -> Output {
+/// `modelflow align --scene <the Blender cloth> --out OUT EXTRA...`.
+fn align(out: &Path, extra: &[&OsStr]) -> Output {
     Command::new(env!("CARGO_BIN_EXE_modelflow"))
-        .args(args)
+        .arg("align")
+        .arg("--scene")
+        .arg(scene())
+        .arg("--out")
+        .arg(out)
+        .args(extra)
         .output()
         .unwrap()
 }
@@ -27,16 +34,7 @@ fn text(b: &[u8]) -> String {
 fn align_writes_the_lined_up_mesh_and_says_what_the_images_cannot_fix() {
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("aligned.obj");
-    let s = scene();
-    let o = modelflow(&[
-        "align".as_ref(),
-        "--scene".as_ref(),
-        s.as_os_str(),
-        "--out".as_ref(),
-        out.as_os_str(),
-        "--perturb".as_ref(),
-        "5,10".as_ref(),
-    ]);
+    let o = align(&out, &["--perturb".as_ref(), "5,10".as_ref()]);
     let err = text(&o.stderr);
     assert!(o.status.success(), "{err}");
     assert_eq!(text(&o.stdout).trim(), out.display().to_string());
@@ -59,17 +57,15 @@ fn align_writes_the_lined_up_mesh_and_says_what_the_images_cannot_fix() {
     // --picture: both meshes over each camera's frame (320×240 panels magnified to 640×480,
     // the two cameras side by side), the aligned one in cyan.
     let pic = dir.path().join("align.png");
-    let o = modelflow(&[
-        "align".as_ref(),
-        "--scene".as_ref(),
-        s.as_os_str(),
-        "--out".as_ref(),
-        out.as_os_str(),
-        "--perturb".as_ref(),
-        "5,10".as_ref(),
-        "--picture".as_ref(),
-        pic.as_os_str(),
-    ]);
+    let o = align(
+        &out,
+        &[
+            "--perturb".as_ref(),
+            "5,10".as_ref(),
+            "--picture".as_ref(),
+            pic.as_os_str(),
+        ],
+    );
     assert!(o.status.success(), "{}", text(&o.stderr));
     let img = modelflow::input::read_rgb(&pic).unwrap();
     assert_eq!((img.width(), img.height()), (2 * 640 + 3 * 6, 480 + 2 * 6));
@@ -81,14 +77,7 @@ fn align_writes_the_lined_up_mesh_and_says_what_the_images_cannot_fix() {
     assert!(cyan > 2000, "{cyan} cyan pixels");
 
     // --json: the same as data.
-    let o = modelflow(&[
-        "align".as_ref(),
-        "--scene".as_ref(),
-        s.as_os_str(),
-        "--out".as_ref(),
-        out.as_os_str(),
-        "--json".as_ref(),
-    ]);
+    let o = align(&out, &["--json".as_ref()]);
     assert!(o.status.success(), "{}", text(&o.stderr));
     let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
     assert_eq!(v["frame"], 0);
@@ -104,17 +93,9 @@ fn align_writes_the_lined_up_mesh_and_says_what_the_images_cannot_fix() {
 fn bad_requests_are_refused_by_name() {
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("aligned.obj");
-    let s = scene();
     let run = |extra: &[&str]| {
-        let mut a: Vec<&std::ffi::OsStr> = vec![
-            "align".as_ref(),
-            "--scene".as_ref(),
-            s.as_os_str(),
-            "--out".as_ref(),
-            out.as_os_str(),
-        ];
-        a.extend(extra.iter().map(|e| std::ffi::OsStr::new(*e)));
-        modelflow(&a)
+        let extra: Vec<&OsStr> = extra.iter().map(OsStr::new).collect();
+        align(&out, &extra)
     };
     let o = run(&["--perturb", "5"]);
     assert!(!o.status.success());

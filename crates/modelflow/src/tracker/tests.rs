@@ -257,6 +257,38 @@ fn a_frame_that_cannot_be_improved_is_reported_as_stalled() {
     assert!(!rep.stalled);
 }
 
+/// Checks the assembled gradient (`−2·b`, the cost's gradient with Huber off) against central
+/// differences of the cost at `x`, every axis of `vertices`, to 1 % relative; returns how many
+/// entries it compared.
+fn check_gradient(
+    problem: &Problem,
+    x: &[Point3<f64>],
+    opts: &SolverOptions,
+    vertices: &[usize],
+    what: &str,
+) -> usize {
+    let (_, _, b) = problem.linearize(x, opts);
+    // Image values are f32: a step of 0.1 mm keeps the difference well above their rounding.
+    let eps = 1e-4;
+    let mut checked = 0;
+    for &v in vertices {
+        for k in 0..3 {
+            let mut xp = x.to_vec();
+            xp[v][k] += eps;
+            let mut xm = x.to_vec();
+            xm[v][k] -= eps;
+            let fd = (problem.cost(&xp, opts) - problem.cost(&xm, opts)) / (2.0 * eps);
+            let analytic = -2.0 * b[v][k];
+            assert!(
+                (fd - analytic).abs() <= 1e-2 * fd.abs().max(analytic.abs()) + 1e-9,
+                "{what}: vertex {v} axis {k}: fd {fd} vs analytic {analytic}"
+            );
+            checked += 1;
+        }
+    }
+    checked
+}
+
 #[test]
 fn assembled_gradient_matches_finite_differences_of_the_cost() {
     let rig = rig();
@@ -333,24 +365,13 @@ fn assembled_gradient_matches_finite_differences_of_the_cost() {
         let mut x = mesh.positions.clone();
         x[5].x += 0.02;
         x[6].z -= 0.01;
-        let (_, _, b) = problem.linearize(&x, &opts);
-        // Image values are f32: a step of 0.1 mm keeps the difference well above their rounding.
-        let eps = 1e-4;
-        for v in [5usize, 6, 9, 10] {
-            for k in 0..3 {
-                let mut xp = x.clone();
-                xp[v][k] += eps;
-                let mut xm = x.clone();
-                xm[v][k] -= eps;
-                let fd = (problem.cost(&xp, &opts) - problem.cost(&xm, &opts)) / (2.0 * eps);
-                let analytic = -2.0 * b[v][k];
-                assert!(
-                    (fd - analytic).abs() <= 1e-2 * fd.abs().max(analytic.abs()) + 1e-9,
-                    "{interpolation:?}: vertex {v} axis {k}: fd {fd} vs analytic {analytic}"
-                );
-                checked += 1;
-            }
-        }
+        checked += check_gradient(
+            &problem,
+            &x,
+            &opts,
+            &[5, 6, 9, 10],
+            &format!("{interpolation:?}"),
+        );
     }
     assert_eq!(checked, 24);
 
@@ -686,25 +707,9 @@ fn moving_source_gradient_matches_finite_differences_of_the_cost() {
     x[5].x += 0.01;
     x[6].z -= 0.008;
     x[9].y += 0.005;
-    let (_, _, b) = problem.linearize(&x, &opts);
-    let eps = 1e-4;
-    let mut checked = 0;
-    for v in [5usize, 6, 9, 10] {
-        for k in 0..3 {
-            let mut xp = x.clone();
-            xp[v][k] += eps;
-            let mut xm = x.clone();
-            xm[v][k] -= eps;
-            let fd = (problem.cost(&xp, &opts) - problem.cost(&xm, &opts)) / (2.0 * eps);
-            let analytic = -2.0 * b[v][k];
-            assert!(
-                (fd - analytic).abs() <= 2e-2 * fd.abs().max(analytic.abs()) + 1e-9,
-                "vertex {v} axis {k}: fd {fd} vs analytic {analytic}"
-            );
-            checked += 1;
-        }
-    }
+    let checked = check_gradient(&problem, &x, &opts, &[5, 6, 9, 10], "moving source");
     assert_eq!(checked, 12);
+    let (_, _, b) = problem.linearize(&x, &opts);
     // Without the source's motion (the tracker's derivative, as if the pixels were glued to
     // the surface) the gradient is a different one: the test can tell them apart.
     let fixed = Problem {
