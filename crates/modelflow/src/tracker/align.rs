@@ -36,7 +36,7 @@ use crate::error::{Error, Result};
 use crate::tracker::outline;
 use crate::tracker::patch::{Patch, PatchOptions, PatchSet};
 use crate::tracker::pyramid::Pyramid;
-use crate::tracker::sequence::level_projection;
+use crate::tracker::sequence::{level_projection, one_per_camera};
 use crate::tracker::solve::{pose_stiffness, Motion, Problem, SolverOptions, StopReason};
 use nalgebra::{Matrix3, Point3, Vector3};
 use rayon::prelude::*;
@@ -418,13 +418,7 @@ pub fn align(
     opts: &AlignOptions,
 ) -> Result<Alignment> {
     opts.validate()?;
-    if images.len() != cameras.len() {
-        return Err(Error::mismatch(
-            "images",
-            format!("{} (one per camera)", cameras.len()),
-            images.len(),
-        ));
-    }
+    one_per_camera(cameras.len(), images.len())?;
     if let Some(i) = mesh
         .positions
         .iter()

@@ -98,6 +98,18 @@ pub struct Tracker {
     before_prev: Option<Vec<Point3<f64>>>,
 }
 
+/// Refuses `images` images for `cameras` cameras unless there is one per camera.
+pub(crate) fn one_per_camera(cameras: usize, images: usize) -> Result<()> {
+    if images != cameras {
+        return Err(Error::mismatch(
+            "images",
+            format!("{cameras} (one per camera)"),
+            images,
+        ));
+    }
+    Ok(())
+}
+
 /// A camera's projection at pyramid level `level` (`Projection::downscaled` by `2^level`).
 pub(crate) fn level_projection(p: &Projection, level: usize) -> Projection {
     if level == 0 {
@@ -117,13 +129,7 @@ impl Tracker {
         opts: TrackOptions,
     ) -> Result<Self> {
         opts.validate()?;
-        if images.len() != cameras.len() {
-            return Err(Error::mismatch(
-                "images",
-                format!("{} (one per camera)", cameras.len()),
-                images.len(),
-            ));
-        }
+        one_per_camera(cameras.len(), images.len())?;
         let opts = opts.resolved_for(cameras.iter().map(|c| (c.width, c.height)));
         let used = opts.used();
         let opts = used.options;
