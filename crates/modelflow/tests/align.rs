@@ -128,6 +128,68 @@ fn a_flat_sheet_gets_its_plane_back_and_keeps_its_place_in_it() {
 }
 
 #[test]
+fn a_flat_sheet_at_any_orientation_keeps_its_place_in_its_plane() {
+    // The same footage with the whole world turned and shifted (cameras and mesh together, so
+    // the images stay valid): the sheet's plane is no longer along a world axis, so each free
+    // motion mixes axes. Those must still be found and kept, whatever the damping.
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../fixtures/blender-cloth-sample");
+    let scene = Scene::load(&dir.join("scene.json")).unwrap();
+    let images = scene.load_images(0).unwrap();
+    let q = nalgebra::Rotation3::from_euler_angles(0.4, -0.7, 1.1);
+    let shift = Vector3::new(0.3, -1.2, 0.5);
+    let to_new = |p: &Point3<f64>| Point3::from(q * p.coords + shift);
+    // P' = P·[Qᵀ | −Qᵀs] so that P'·X' = P·X.
+    let mut back = nalgebra::Matrix4::<f64>::identity();
+    back.fixed_view_mut::<3, 3>(0, 0)
+        .copy_from(&q.inverse().into_inner());
+    back.fixed_view_mut::<3, 1>(0, 3)
+        .copy_from(&(q.inverse() * -shift));
+    let cameras: Vec<modelflow::Camera> = scene
+        .cameras
+        .iter()
+        .map(|c| {
+            let p = modelflow::Projection::from_matrix(&(c.at(0).matrix() * back)).unwrap();
+            modelflow::Camera::fixed(c.name.clone(), c.width, c.height, p)
+        })
+        .collect();
+    let truth: Vec<Point3<f64>> = scene
+        .ground_truth(0)
+        .unwrap()
+        .unwrap()
+        .positions
+        .iter()
+        .map(to_new)
+        .collect();
+    let placed_mesh = scene
+        .mesh
+        .with_positions(scene.mesh.positions.iter().map(to_new).collect());
+    let start = placed_mesh.with_positions(perturb(&placed_mesh, 0.05, 10.0, 2));
+    let a = align(&start, &cameras, 0, &images, &AlignOptions::default()).unwrap();
+    let normal = (truth[40] - truth[0])
+        .cross(&(truth[truth.len() - 1] - truth[0]))
+        .normalize();
+    let size = placed_mesh.bbox_diagonal();
+    let off_plane = |x: &[Point3<f64>]| {
+        let ss: f64 = x.iter().map(|p| (p - truth[0]).dot(&normal).powi(2)).sum();
+        100.0 * (ss / x.len() as f64).sqrt() / size
+    };
+    assert!(
+        off_plane(&a.positions) < 0.1,
+        "{} %",
+        off_plane(&a.positions)
+    );
+    assert_eq!(a.loose.iter().filter(|m| m.stiffness < 1e-6).count(), 3);
+    let n = truth.len() as f64;
+    let centroid = |x: &[Point3<f64>]| x.iter().map(|p| p.coords).sum::<Vector3<f64>>() / n;
+    let in_plane = |x: &[Point3<f64>]| {
+        let e = centroid(x) - centroid(&truth);
+        (e - normal * e.dot(&normal)).norm()
+    };
+    let (before, after) = (in_plane(&start.positions), in_plane(&a.positions));
+    assert!((after - before).abs() < 1e-3 * size, "{before} → {after}");
+}
+
+#[test]
 fn a_flat_sheet_whose_border_is_its_outline_is_placed_by_it() {
     // With `outline`, the motions photo-consistency leaves free are set by the contrast across
     // the sheet's border: the Blender cloth (textured, against a plain background) comes back

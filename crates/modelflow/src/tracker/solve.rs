@@ -457,6 +457,17 @@ impl Problem<'_> {
                 let xs0 = tri.map(|v| x0[v as usize]);
                 let src = &self.projections[patch.source as usize];
                 let Some(sw) = SourceWarp::new(&xs, &xs0, src, proj) else {
+                    // The source triangle is edge-on at `x`: its pixels see no surface. They
+                    // count at the loss's cap (Huber: its threshold; Tukey: its plateau), so a
+                    // trial cannot lower the cost by making triangles vanish.
+                    let n = (patch.end - patch.start) as f64;
+                    let cap = match opts.loss {
+                        Loss::Huber => hub2,
+                        Loss::Tukey => hub2 / 3.0,
+                    };
+                    acc.cost += (patch.weight as f64) * n * cap;
+                    acc.pixels += n as u32;
+                    acc.weight += (patch.weight as f64) * n;
                     continue;
                 };
                 y = sw.y;
