@@ -2,7 +2,7 @@
 //! scene's first frame so that all cameras agree, and writes the lined-up mesh; the work is the
 //! library's (`tracker::align`).
 
-use modelflow::base::Length;
+use modelflow::base::{rms_distance, Length};
 use modelflow::input::Scene;
 use modelflow::report::{alignment_picture, surface_rms};
 use modelflow::tracker::{align, perturb, AlignOptions, MotionKind};
@@ -62,13 +62,6 @@ fn parse_perturb(s: &str) -> Result<(f64, f64), String> {
     Ok((a, b))
 }
 
-/// RMS distance between corresponding vertices, as a percentage of `size`.
-fn rms_pct(a: &[nalgebra::Point3<f64>], b: &[nalgebra::Point3<f64>], size: f64) -> f64 {
-    let n = a.len().max(1) as f64;
-    let ss: f64 = a.iter().zip(b).map(|(p, q)| (p - q).norm_squared()).sum();
-    100.0 * (ss / n).sqrt() / size
-}
-
 pub fn run(args: Args) -> anyhow::Result<()> {
     let scene = args.select.apply(Scene::load(&args.scene)?)?;
     let frame = scene.first;
@@ -102,8 +95,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     // Vertex error (which point is which) and surface error (where the surface is).
     let errors = truth.as_ref().map(|t| {
         (
-            rms_pct(&mesh.positions, &t.positions, size),
-            rms_pct(&a.positions, &t.positions, size),
+            100.0 * rms_distance(&mesh.positions, &t.positions) / size,
+            100.0 * rms_distance(&a.positions, &t.positions) / size,
             surface_rms(&mesh.positions, t).map(|r| 100.0 * r.0 / size),
             surface_rms(&a.positions, t).map(|r| 100.0 * r.0 / size),
         )

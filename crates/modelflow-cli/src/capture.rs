@@ -6,9 +6,9 @@
 //! is the largest speed tracked with every slower one tracked too.
 
 use crate::progress::Progress;
+use modelflow::base::rms_distance;
 use modelflow::synth::{SynthOptions, Synthetic};
 use modelflow::tracker::{TrackOptions, Tracker};
-use nalgebra::Point3;
 use serde::Serialize;
 
 /// What is measured.
@@ -59,15 +59,6 @@ pub struct CaptureReport {
 
 const BOUND_PCT: f64 = 1.0;
 
-fn rms(a: &[Point3<f64>], b: &[Point3<f64>]) -> f64 {
-    (a.iter()
-        .zip(b)
-        .map(|(p, q)| (p - q).norm_squared())
-        .sum::<f64>()
-        / a.len().max(1) as f64)
-        .sqrt()
-}
-
 pub fn measure(o: &CaptureOptions) -> anyhow::Result<CaptureReport> {
     let total = o.speeds.len() as u64 * (o.frames as u64 - 1);
     let bar = Progress::new("capture", total);
@@ -94,7 +85,7 @@ pub fn measure(o: &CaptureOptions) -> anyhow::Result<CaptureReport> {
             let report = tracker.step(f, &imgs)?;
             secs += t0.elapsed().as_secs_f64();
             stalled += report.stalled as usize;
-            let err = 100.0 * rms(tracker.positions(), &syn.truth[f as usize]) / diag;
+            let err = 100.0 * rms_distance(tracker.positions(), &syn.truth[f as usize]) / diag;
             sum += err;
             worst = worst.max(err);
             bar.tick(&format!("{shake} px, frame {f}: {err:.2} %"));

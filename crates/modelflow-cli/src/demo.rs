@@ -5,7 +5,7 @@
 
 use crate::progress::Progress;
 use anyhow::Context;
-use modelflow::base::Length;
+use modelflow::base::{rms_distance, Length};
 use modelflow::baseline::{self, BaselineOptions};
 use modelflow::input::Scene;
 use modelflow::report::{alignment_picture, write_report, ReportOptions};
@@ -77,13 +77,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         )?,
     )?;
     let rms = |x: &[nalgebra::Point3<f64>]| {
-        let n = x.len().max(1) as f64;
-        let ss: f64 = x
-            .iter()
-            .zip(&scene.mesh.positions)
-            .map(|(p, q)| (p - q).norm_squared())
-            .sum();
-        100.0 * (ss / n).sqrt() / scene.mesh.bbox_diagonal()
+        100.0 * rms_distance(x, &scene.mesh.positions) / scene.mesh.bbox_diagonal()
     };
     let (align_before, align_after) = (rms(&misplaced.positions), rms(&aligned.positions));
 

@@ -2,6 +2,7 @@
 //! cameras see; what the images cannot fix (a flat sheet's position within its plane) is kept
 //! as placed and named.
 
+use modelflow::base::{centroid, rms_distance};
 use modelflow::input::Scene;
 use modelflow::synth::{Preset, SynthOptions, Synthetic};
 use modelflow::tracker::{align, perturb, AlignOptions, MotionKind};
@@ -9,8 +10,21 @@ use nalgebra::{Point3, Vector3};
 use std::path::Path;
 
 fn rms_pct(a: &[Point3<f64>], b: &[Point3<f64>], size: f64) -> f64 {
-    let ss: f64 = a.iter().zip(b).map(|(p, q)| (p - q).norm_squared()).sum();
-    100.0 * (ss / a.len() as f64).sqrt() / size
+    100.0 * rms_distance(a, b) / size
+}
+
+/// The Blender cloth sample's scene (from fixtures/), its frame-0 images and true positions.
+fn blender_cloth() -> (Scene, Vec<modelflow::RgbImage>, Vec<Point3<f64>>) {
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../fixtures/blender-cloth-sample");
+    let scene = Scene::load(&dir.join("scene.json")).unwrap();
+    let images = scene.load_images(0).unwrap();
+    let truth = scene.ground_truth(0).unwrap().unwrap().positions;
+    (scene, images, truth)
+}
+
+/// The unit normal of the (flat) sheet `p`: from its grid's first row and its last vertex.
+fn sheet_normal(p: &[Point3<f64>]) -> Vector3<f64> {
+    (p[40] - p[0]).cross(&(p[p.len() - 1] - p[0])).normalize()
 }
 
 fn footage(preset: Preset) -> (Synthetic, Vec<modelflow::RgbImage>) {
@@ -82,13 +96,10 @@ fn a_flat_sheet_gets_its_plane_back_and_keeps_its_place_in_it() {
     // The Blender cloth sample's first frame is exactly flat: photo-consistency fixes the plane
     // (depth and tilt) but not where the sheet lies in it. Those three motions are named, and
     // left as the user placed them.
-    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../fixtures/blender-cloth-sample");
-    let scene = Scene::load(&dir.join("scene.json")).unwrap();
-    let images = scene.load_images(0).unwrap();
-    let truth = scene.ground_truth(0).unwrap().unwrap();
-    let p = &truth.positions;
-    let normal = (p[40] - p[0]).cross(&(p[p.len() - 1] - p[0])).normalize();
-    let size = truth.bbox_diagonal();
+    let (scene, images, truth) = blender_cloth();
+    let p = &truth;
+    let normal = sheet_normal(p);
+    let size = scene.mesh.bbox_diagonal();
     let off_plane = |x: &[Point3<f64>]| {
         let ss: f64 = x.iter().map(|q| (q - p[0]).dot(&normal).powi(2)).sum();
         100.0 * (ss / x.len() as f64).sqrt() / size
@@ -115,8 +126,6 @@ fn a_flat_sheet_gets_its_plane_back_and_keeps_its_place_in_it() {
     }
     // The in-plane placement is the user's: the sheet is as far from the true one within the
     // plane as it was placed (the sliding a tilted sheet does on its way in is undone).
-    let n = p.len() as f64;
-    let centroid = |x: &[Point3<f64>]| x.iter().map(|q| q.coords).sum::<Vector3<f64>>() / n;
     let ct = centroid(p);
     let in_plane = |x: &[Point3<f64>]| {
         let e = centroid(x) - ct;
@@ -132,9 +141,7 @@ fn a_flat_sheet_at_any_orientation_keeps_its_place_in_its_plane() {
     // The same footage with the whole world turned and shifted (cameras and mesh together, so
     // the images stay valid): the sheet's plane is no longer along a world axis, so each free
     // motion mixes axes. Those must still be found and kept, whatever the damping.
-    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../fixtures/blender-cloth-sample");
-    let scene = Scene::load(&dir.join("scene.json")).unwrap();
-    let images = scene.load_images(0).unwrap();
+    let (scene, images, truth) = blender_cloth();
     let q = nalgebra::Rotation3::from_euler_angles(0.4, -0.7, 1.1);
     let shift = Vector3::new(0.3, -1.2, 0.5);
     let to_new = |p: &Point3<f64>| Point3::from(q * p.coords + shift);
@@ -152,22 +159,13 @@ fn a_flat_sheet_at_any_orientation_keeps_its_place_in_its_plane() {
             modelflow::Camera::fixed(c.name.clone(), c.width, c.height, p)
         })
         .collect();
-    let truth: Vec<Point3<f64>> = scene
-        .ground_truth(0)
-        .unwrap()
-        .unwrap()
-        .positions
-        .iter()
-        .map(to_new)
-        .collect();
+    let truth: Vec<Point3<f64>> = truth.iter().map(to_new).collect();
     let placed_mesh = scene
         .mesh
         .with_positions(scene.mesh.positions.iter().map(to_new).collect());
     let start = placed_mesh.with_positions(perturb(&placed_mesh, 0.05, 10.0, 2));
     let a = align(&start, &cameras, 0, &images, &AlignOptions::default()).unwrap();
-    let normal = (truth[40] - truth[0])
-        .cross(&(truth[truth.len() - 1] - truth[0]))
-        .normalize();
+    let normal = sheet_normal(&truth);
     let size = placed_mesh.bbox_diagonal();
     let off_plane = |x: &[Point3<f64>]| {
         let ss: f64 = x.iter().map(|p| (p - truth[0]).dot(&normal).powi(2)).sum();
@@ -179,8 +177,6 @@ fn a_flat_sheet_at_any_orientation_keeps_its_place_in_its_plane() {
         off_plane(&a.positions)
     );
     assert_eq!(a.loose.iter().filter(|m| m.stiffness < 1e-6).count(), 3);
-    let n = truth.len() as f64;
-    let centroid = |x: &[Point3<f64>]| x.iter().map(|p| p.coords).sum::<Vector3<f64>>() / n;
     let in_plane = |x: &[Point3<f64>]| {
         let e = centroid(x) - centroid(&truth);
         (e - normal * e.dot(&normal)).norm()
@@ -194,11 +190,8 @@ fn a_flat_sheet_whose_border_is_its_outline_is_placed_by_it() {
     // With `outline`, the motions photo-consistency leaves free are set by the contrast across
     // the sheet's border: the Blender cloth (textured, against a plain background) comes back
     // from 5 % and 10° off to within 0.1 % per vertex, in-plane placement included.
-    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../fixtures/blender-cloth-sample");
-    let scene = Scene::load(&dir.join("scene.json")).unwrap();
-    let images = scene.load_images(0).unwrap();
-    let truth = scene.ground_truth(0).unwrap().unwrap();
-    let size = truth.bbox_diagonal();
+    let (scene, images, truth) = blender_cloth();
+    let size = scene.mesh.bbox_diagonal();
     let opts = AlignOptions {
         outline: true,
         ..AlignOptions::default()
@@ -208,7 +201,7 @@ fn a_flat_sheet_whose_border_is_its_outline_is_placed_by_it() {
             .mesh
             .with_positions(perturb(&scene.mesh, 0.05, 10.0, seed));
         let a = align(&start, &scene.cameras, 0, &images, &opts).unwrap();
-        let after = rms_pct(&a.positions, &truth.positions, size);
+        let after = rms_pct(&a.positions, &truth, size);
         assert!(after < 0.1, "seed {seed}: {after:.3} %");
         let o = a.outline.expect("the sheet has a border and free motions");
         assert!(o.contrast_after > o.contrast_before, "{o:?}");

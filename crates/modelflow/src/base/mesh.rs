@@ -214,6 +214,30 @@ impl Mesh {
     }
 }
 
+/// The mean of `points` (the origin for none).
+pub fn centroid(points: &[Point3<f64>]) -> Point3<f64> {
+    let n = points.len().max(1) as f64;
+    Point3::from(points.iter().map(|p| p.coords).sum::<Vector3<f64>>() / n)
+}
+
+/// The RMS distance of `points` from `c` (their spread about it).
+pub fn rms_radius(points: &[Point3<f64>], c: &Point3<f64>) -> f64 {
+    let n = points.len().max(1) as f64;
+    (points.iter().map(|p| (p - c).norm_squared()).sum::<f64>() / n).sqrt()
+}
+
+/// The RMS distance between corresponding points of `a` and `b` (the vertex error of a mesh
+/// against another of the same topology).
+pub fn rms_distance(a: &[Point3<f64>], b: &[Point3<f64>]) -> f64 {
+    let n = a.len().min(b.len()).max(1) as f64;
+    (a.iter()
+        .zip(b)
+        .map(|(p, q)| (p - q).norm_squared())
+        .sum::<f64>()
+        / n)
+        .sqrt()
+}
+
 /// Length of the diagonal of the axis-aligned bounding box of some points (0 if empty).
 pub fn bbox_diagonal(points: &[Point3<f64>]) -> f64 {
     let Some(first) = points.first() else {

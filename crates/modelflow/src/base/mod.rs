@@ -15,5 +15,5 @@ pub(crate) mod units;
 pub use camera::{is_rotation, look_at, Camera, Projection, ProjectionError};
 pub use image::RgbImage;
 pub use lens::{DistortMap, Distortion, Lens, UndistortMap};
-pub use mesh::{grid, CornerNormals, CornerTable, Mesh};
+pub use mesh::{centroid, grid, rms_distance, rms_radius, CornerNormals, CornerTable, Mesh};
 pub use units::{Length, Units};

@@ -11,7 +11,7 @@ use super::{html, photometric, residual};
 
 use crate::base::camera::Projection;
 use crate::base::image::RgbImage;
-use crate::base::mesh::Mesh;
+use crate::base::mesh::{centroid, Mesh};
 use crate::base::units::Length;
 use crate::error::{Error, Result};
 use crate::fsutil;
@@ -592,16 +592,6 @@ fn overlay_sheet(
         })
         .collect::<Result<Vec<_>>>()?;
     Ok(overlay::side_by_side(&panels, 6, SHEET_BG))
-}
-
-fn centroid(points: &[Point3<f64>]) -> Point3<f64> {
-    let n = points.len().max(1) as f64;
-    Point3::from(
-        points
-            .iter()
-            .fold(nalgebra::Vector3::zeros(), |a, p| a + p.coords)
-            / n,
-    )
 }
 
 /// The camera of the oblique views at `frame`: the first camera turned about the centroid of the

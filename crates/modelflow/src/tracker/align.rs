@@ -31,7 +31,7 @@
 
 use crate::base::camera::{Camera, Projection};
 use crate::base::image::RgbImage;
-use crate::base::mesh::Mesh;
+use crate::base::mesh::{centroid, rms_radius, Mesh};
 use crate::error::{Error, Result};
 use crate::tracker::outline;
 use crate::tracker::patch::{Patch, PatchOptions, PatchSet};
@@ -219,15 +219,7 @@ impl Alignment {
 
     /// How far the mesh's centroid moved (scene units).
     pub fn centroid_shift(&self, before: &[Point3<f64>]) -> f64 {
-        let n = before.len().max(1) as f64;
-        let a: Vector3<f64> = before.iter().map(|p| p.coords).sum::<Vector3<f64>>() / n;
-        let b: Vector3<f64> = self
-            .positions
-            .iter()
-            .map(|p| p.coords)
-            .sum::<Vector3<f64>>()
-            / n;
-        (b - a).norm()
+        (centroid(&self.positions) - centroid(before)).norm()
     }
 }
 
@@ -340,9 +332,7 @@ fn max_move_px(a: &[Point3<f64>], b: &[Point3<f64>], projections: &[Projection])
 /// The similarity `X' = s·R·X + t` that maps `a` onto `b` in the least-squares sense
 /// (Umeyama 1991; exact here, since `b` is a similarity of `a`).
 fn similarity(a: &[Point3<f64>], b: &[Point3<f64>]) -> (Matrix3<f64>, Vector3<f64>, f64) {
-    let n = a.len().max(1) as f64;
-    let ca: Vector3<f64> = a.iter().map(|p| p.coords).sum::<Vector3<f64>>() / n;
-    let cb: Vector3<f64> = b.iter().map(|p| p.coords).sum::<Vector3<f64>>() / n;
+    let (ca, cb) = (centroid(a).coords, centroid(b).coords);
     let mut cov = Matrix3::zeros();
     let mut var_a = 0.0;
     for (p, q) in a.iter().zip(b) {
@@ -367,32 +357,74 @@ fn similarity(a: &[Point3<f64>], b: &[Point3<f64>]) -> (Matrix3<f64>, Vector3<f6
     (r, cb - r * ca * s, s)
 }
 
+/// The centroid of `x` and its RMS radius (1 for a single point), the frame in which pose
+/// eigenvectors `(ω·r, v, σ·r)` (see `solve::pose_stiffness`) are expressed.
+fn centre_and_radius(x: &[Point3<f64>]) -> (Vector3<f64>, f64) {
+    let c = centroid(x);
+    let r = rms_radius(x, &c);
+    (c.coords, if r > 0.0 { r } else { 1.0 })
+}
+
+/// First-order displacement of point `p` along pose eigenvector `v` about centre `c`, radius `r`.
+fn displacement(v: &[f64; 7], p: &Point3<f64>, c: &Vector3<f64>, r: f64) -> Vector3<f64> {
+    let d = p.coords - c;
+    Vector3::new(v[0], v[1], v[2]).cross(&d) / r + Vector3::new(v[3], v[4], v[5]) + d * (v[6] / r)
+}
+
+/// `x` moved by `alpha` along the whole-mesh motions `free` (pose eigenvectors `(ω·r, v, σ·r)`,
+/// see `solve::pose_stiffness`), about `x`'s centroid.
+pub(crate) fn move_along(x: &[Point3<f64>], free: &[[f64; 7]], alpha: &[f64]) -> Vec<Point3<f64>> {
+    let (c, r) = centre_and_radius(x);
+    let mut xi = [0.0; 7];
+    for (v, a) in free.iter().zip(alpha) {
+        for (e, vi) in xi.iter_mut().zip(v) {
+            *e += a * vi;
+        }
+    }
+    // The screw motion that the constant twist (ω, v) generates, applied for unit time:
+    // X' = c + R(ω)(X − c) + J(ω)·v with J the left Jacobian of SO(3). It keeps a motion the
+    // images leave free free at any size (a rotation about an axis away from the centroid plus
+    // the matching translation stays on that axis), which "rotate about c, then add v" does only
+    // to first order. The scale, when free, is applied about c.
+    let w = Vector3::new(xi[0], xi[1], xi[2]) / r;
+    let v = Vector3::new(xi[3], xi[4], xi[5]);
+    let theta = w.norm();
+    let wx = w.cross_matrix();
+    let j = if theta < 1e-8 {
+        nalgebra::Matrix3::identity() + wx * 0.5
+    } else {
+        nalgebra::Matrix3::identity()
+            + wx * ((1.0 - theta.cos()) / (theta * theta))
+            + wx * wx * ((theta - theta.sin()) / (theta * theta * theta))
+    };
+    let rot = nalgebra::Rotation3::new(w);
+    let t = j * v;
+    let s = (xi[6] / r).exp();
+    x.iter()
+        .map(|p| Point3::from(c + rot * (p.coords - c) * s + t))
+        .collect()
+}
+
 /// The motion within the span of `free` (pose eigenvectors `(ω·r, v, σ·r)`, see
 /// `solve::pose_stiffness`) that brings `x` closest to `placed` (least squares over the
 /// vertices; three Gauss–Newton steps for the rotation's curvature), applied as exact screw
-/// motions (`outline::along`), which keep a free motion free at any size.
+/// motions ([`move_along`]), which keep a free motion free at any size.
 fn back_to_placement(
     x: &[Point3<f64>],
     placed: &[Point3<f64>],
     free: &[[f64; 7]],
 ) -> Vec<Point3<f64>> {
     let mut x = x.to_vec();
-    let n = x.len().max(1) as f64;
+    let k = free.len().min(7);
     for _ in 0..3 {
-        let c: Vector3<f64> = x.iter().map(|p| p.coords).sum::<Vector3<f64>>() / n;
-        let r = (x.iter().map(|p| (p.coords - c).norm_squared()).sum::<f64>() / n).sqrt();
-        let r = if r > 0.0 { r } else { 1.0 };
-        let disp = |v: &[f64; 7], p: &Point3<f64>| {
-            let d = p.coords - c;
-            Vector3::new(v[0], v[1], v[2]).cross(&d) / r
-                + Vector3::new(v[3], v[4], v[5])
-                + d * (v[6] / r)
-        };
-        let k = free.len();
+        let (c, r) = centre_and_radius(&x);
         let mut m = nalgebra::DMatrix::<f64>::zeros(k, k);
         let mut rhs = nalgebra::DVector::<f64>::zeros(k);
         for (p, q) in x.iter().zip(placed) {
-            let g: Vec<Vector3<f64>> = free.iter().map(|v| disp(v, p)).collect();
+            let mut g = [Vector3::zeros(); 7];
+            for (gi, v) in g.iter_mut().zip(free) {
+                *gi = displacement(v, p, &c, r);
+            }
             for a in 0..k {
                 rhs[a] += g[a].dot(&(q - p));
                 for b in 0..k {
@@ -403,7 +435,7 @@ fn back_to_placement(
         let Some(alpha) = m.cholesky().map(|ch| ch.solve(&rhs)) else {
             break;
         };
-        x = outline::along(&x, free, alpha.as_slice());
+        x = move_along(&x, free, alpha.as_slice());
     }
     x
 }
@@ -637,13 +669,7 @@ pub fn perturb(mesh: &Mesh, fraction: f64, degrees: f64, seed: u64) -> Vec<Point
     let axis = nalgebra::Unit::new_normalize(unit(0));
     let dir = unit(1);
     let r = nalgebra::Rotation3::from_axis_angle(&axis, degrees.to_radians());
-    let n = mesh.positions.len().max(1) as f64;
-    let c: Vector3<f64> = mesh
-        .positions
-        .iter()
-        .map(|p| p.coords)
-        .sum::<Vector3<f64>>()
-        / n;
+    let c = centroid(&mesh.positions).coords;
     let t = dir * fraction * mesh.bbox_diagonal();
     mesh.positions
         .iter()

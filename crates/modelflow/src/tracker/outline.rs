@@ -20,7 +20,8 @@
 
 use crate::base::camera::{Camera, Projection};
 use crate::base::image::RgbImage;
-use crate::base::mesh::Mesh;
+use crate::base::mesh::{centroid, Mesh};
+use crate::tracker::align::move_along;
 use nalgebra::{Point3, Vector3};
 
 /// Points sampled on every border edge.
@@ -112,43 +113,6 @@ fn score(border: &Border, x: &[Point3<f64>], views: &[EdgeView], step: f64) -> f
     }
 }
 
-/// `x` moved by `alpha` along the whole-mesh motions `free` (pose eigenvectors `(ω·r, v, σ·r)`,
-/// see `solve::pose_stiffness`), about `x`'s centroid.
-pub(crate) fn along(x: &[Point3<f64>], free: &[[f64; 7]], alpha: &[f64]) -> Vec<Point3<f64>> {
-    let n = x.len().max(1) as f64;
-    let c: Vector3<f64> = x.iter().map(|p| p.coords).sum::<Vector3<f64>>() / n;
-    let r = (x.iter().map(|p| (p.coords - c).norm_squared()).sum::<f64>() / n).sqrt();
-    let r = if r > 0.0 { r } else { 1.0 };
-    let mut xi = [0.0; 7];
-    for (v, a) in free.iter().zip(alpha) {
-        for (e, vi) in xi.iter_mut().zip(v) {
-            *e += a * vi;
-        }
-    }
-    // The screw motion that the constant twist (ω, v) generates, applied for unit time:
-    // X' = c + R(ω)(X − c) + J(ω)·v with J the left Jacobian of SO(3). It keeps a motion the
-    // images leave free free at any size (a rotation about an axis away from the centroid plus
-    // the matching translation stays on that axis), which "rotate about c, then add v" does only
-    // to first order. The scale, when free, is applied about c.
-    let w = Vector3::new(xi[0], xi[1], xi[2]) / r;
-    let v = Vector3::new(xi[3], xi[4], xi[5]);
-    let theta = w.norm();
-    let wx = w.cross_matrix();
-    let j = if theta < 1e-8 {
-        nalgebra::Matrix3::identity() + wx * 0.5
-    } else {
-        nalgebra::Matrix3::identity()
-            + wx * ((1.0 - theta.cos()) / (theta * theta))
-            + wx * wx * ((theta - theta.sin()) / (theta * theta * theta))
-    };
-    let rot = nalgebra::Rotation3::new(w);
-    let t = j * v;
-    let s = (xi[6] / r).exp();
-    x.iter()
-        .map(|p| Point3::from(c + rot * (p.coords - c) * s + t))
-        .collect()
-}
-
 /// The result of [`fit`].
 #[derive(Clone, Debug, PartialEq)]
 pub(crate) struct OutlineFit {
@@ -175,7 +139,7 @@ pub(crate) fn fit(
     let mut after = 0.0;
     for (l, views) in levels.iter().enumerate().rev() {
         let level_px = px / f64::from(1u32 << l);
-        let eval = |a: &[f64]| score(border, &along(x, free, a), views, h);
+        let eval = |a: &[f64]| score(border, &move_along(x, free, a), views, h);
         let mut best = eval(&alpha);
         if l == 0 {
             before = score(border, x, views, h);
@@ -206,7 +170,7 @@ pub(crate) fn fit(
         }
     }
     OutlineFit {
-        positions: along(x, free, &alpha),
+        positions: move_along(x, free, &alpha),
         before,
         after,
     }
@@ -215,8 +179,7 @@ pub(crate) fn fit(
 /// Full-resolution pixels per scene unit of motion at `x`'s centroid: the median over cameras of
 /// the image motion of a small step along each world axis.
 pub(crate) fn pixels_per_unit(cameras: &[Camera], frame: u32, x: &[Point3<f64>]) -> f64 {
-    let n = x.len().max(1) as f64;
-    let c = Point3::from(x.iter().map(|p| p.coords).sum::<Vector3<f64>>() / n);
+    let c = centroid(x);
     let eps = 1e-4 * crate::base::mesh::bbox_diagonal(x).max(1e-300);
     let mut v: Vec<f64> = cameras
         .iter()

@@ -20,6 +20,7 @@
 
 use crate::base::camera::Projection;
 use crate::base::image::RgbImage;
+use crate::base::mesh::{centroid, rms_radius};
 use crate::tracker::patch::{Patch, PixelSample};
 use crate::tracker::regularise::Regulariser;
 use crate::tracker::sparse::{solve_pcg, BlockSparse};
@@ -1042,10 +1043,9 @@ fn pose_system(
     x: &[Point3<f64>],
     scale: bool,
 ) -> (Vector3<f64>, Matrix7, Vector7) {
-    let n = x.len().max(1) as f64;
-    let c = x.iter().map(|p| p.coords).sum::<Vector3<f64>>() / n;
+    let c = centroid(x).coords;
     let k = if scale { 7 } else { 6 };
-    let g = RigidStep::generators(x, &c);
+    let g = RigidStep::generators(x, &c, k);
     let mut ag = vec![Vector3::zeros(); x.len()];
     let mut m = Matrix7::zeros();
     let mut r = Vector7::zeros();
@@ -1062,23 +1062,25 @@ fn pose_system(
 /// The diagonal scaling that turns the pose coordinates (ω, v, σ) into length units: a unit
 /// rotation or log-scale moves the mesh's points by its RMS radius.
 fn length_units(x: &[Point3<f64>], c: &Vector3<f64>) -> Matrix7 {
-    let n = x.len().max(1) as f64;
-    let r = (x.iter().map(|p| (p.coords - c).norm_squared()).sum::<f64>() / n).sqrt();
+    let r = rms_radius(x, &Point3::from(*c));
     let inv = if r > 0.0 { 1.0 / r } else { 1.0 };
     Matrix7::from_diagonal(&Vector7::from([inv, inv, inv, 1.0, 1.0, 1.0, inv]))
 }
 
 impl RigidStep {
-    fn generators(x: &[Point3<f64>], c: &Vector3<f64>) -> [Vec<Vector3<f64>>; 7] {
-        std::array::from_fn(|k| {
-            x.iter()
-                .map(|p| match k {
-                    0..=2 => Vector3::ith(k, 1.0).cross(&(p.coords - c)),
-                    3..=5 => Vector3::ith(k - 3, 1.0),
-                    _ => p.coords - c,
-                })
-                .collect()
-        })
+    /// The first `k` generators: rotations about x, y, z through `c`, translations, scale.
+    fn generators(x: &[Point3<f64>], c: &Vector3<f64>, k: usize) -> Vec<Vec<Vector3<f64>>> {
+        (0..k)
+            .map(|k| {
+                x.iter()
+                    .map(|p| match k {
+                        0..=2 => Vector3::ith(k, 1.0).cross(&(p.coords - c)),
+                        3..=5 => Vector3::ith(k - 3, 1.0),
+                        _ => p.coords - c,
+                    })
+                    .collect()
+            })
+            .collect()
     }
 
     /// With `floor` > 0, the step has no component along the motions whose curvature is below

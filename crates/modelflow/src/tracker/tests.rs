@@ -4,7 +4,7 @@
 
 use crate::base::camera::{look_at, Camera, Projection};
 use crate::base::image::RgbImage;
-use crate::base::mesh::{grid, Mesh};
+use crate::base::mesh::{grid, rms_distance, Mesh};
 use crate::tracker::patch::{PatchOptions, PatchSet};
 use crate::tracker::pyramid::Pyramid;
 use crate::tracker::regularise::{self, EdgeSet, FrameContext, Regularisation};
@@ -121,15 +121,6 @@ fn mesh_of(plane: &Plane) -> Mesh {
     grid(9, 9, |s, t| plane.at(s, t))
 }
 
-fn rms(a: &[Point3<f64>], b: &[Point3<f64>]) -> f64 {
-    (a.iter()
-        .zip(b)
-        .map(|(p, q)| (p - q).norm_squared())
-        .sum::<f64>()
-        / a.len() as f64)
-        .sqrt()
-}
-
 fn rig() -> Rig {
     Rig::new(&[Point3::new(-0.15, -1.5, 0.2), Point3::new(0.15, -1.5, 0.25)])
 }
@@ -145,7 +136,7 @@ fn zero_motion_stays_put() {
         let rep = tr.step(f, &imgs).unwrap();
         assert!(rep.pixels > 5000, "{}", rep.pixels);
     }
-    let err = rms(tr.positions(), &mesh.positions);
+    let err = rms_distance(tr.positions(), &mesh.positions);
     assert!(err < 1e-4, "drifted {err} m with no motion");
 }
 
@@ -200,7 +191,7 @@ fn track_plane(
             let plane = plane_at(motion * f as f64);
             let rep = tr.step(f, &images(&plane)).unwrap();
             assert!(!rep.stalled, "frame {f} stalled");
-            rms(tr.positions(), &mesh(&plane).positions)
+            rms_distance(tr.positions(), &mesh(&plane).positions)
         })
         .collect()
 }
@@ -489,7 +480,7 @@ fn moving_camera_is_handled() {
         tr.step(f, &images(f)).unwrap();
     }
     let truth = mesh_of(&plane_at(motion * frames as f64)).positions;
-    let err = rms(tr.positions(), &truth);
+    let err = rms_distance(tr.positions(), &truth);
     assert!(
         err < 1.5e-3,
         "rms {err} m after {frames} frames with a moving camera"
