@@ -52,6 +52,14 @@ pub struct Args {
     /// Cloth only: vertices along each side of its grid (3 to 1000; 41 gives 1 681 vertices).
     #[arg(long, default_value_t = 41)]
     cloth_grid: usize,
+    /// Cameras out of sync: the last camera records each frame this many frames late, the others
+    /// in proportion (0 to 1; 0.1 is 3.3 ms at 30 fps). The ground truth stays at frame times.
+    #[arg(long, default_value_t = 0.0)]
+    sync_error: f64,
+    /// Motion blur: the shutter's opening as a fraction of a frame (0 to 1), centred on the
+    /// frame's time; each image is the mean of 8 renders over it.
+    #[arg(long, default_value_t = 0.0)]
+    motion_blur: f64,
 }
 
 pub fn run(args: Args) -> anyhow::Result<()> {
@@ -74,6 +82,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             })
             .transpose()?,
         cloth_grid: args.cloth_grid,
+        sync_error: args.sync_error,
+        motion_blur: args.motion_blur,
         ..SynthOptions::preset(&args.preset)?
     };
     let start = std::time::Instant::now();
