@@ -657,6 +657,31 @@ fn frame_offset_reads_a_later_file_for_each_frame() {
 }
 
 #[test]
+fn time_offset_is_read_written_and_checked() {
+    let dir = tempfile::tempdir().unwrap();
+    let (path, mut file) = write_scene(dir.path());
+    // cam1 records each frame a quarter of a frame late (a rig that is not genlocked).
+    file.cameras[1].time_offset = 0.25;
+    file.write(&path).unwrap();
+    assert!(std::fs::read_to_string(&path)
+        .unwrap()
+        .contains("\"time_offset\": 0.25"));
+    let scene = Scene::load(&path).unwrap();
+    assert_eq!(scene.cameras[0].time_offset, 0.0);
+    assert_eq!(scene.cameras[1].time_offset, 0.25);
+    // On time is the default and is not written.
+    file.cameras[1].time_offset = 0.0;
+    file.write(&path).unwrap();
+    assert!(!std::fs::read_to_string(&path)
+        .unwrap()
+        .contains("time_offset"));
+    for bad in [1.5, -2.0, f64::NAN] {
+        let msg = broken_in_memory(|f| f.cameras[1].time_offset = bad);
+        assert_names(&msg, &["cameras[1].time_offset", "-1 to 1 frame"]);
+    }
+}
+
+#[test]
 fn a_shorter_range_other_cameras_or_another_mesh_are_checked() {
     let dir = tempfile::tempdir().unwrap();
     let (path, _) = write_scene(dir.path());

@@ -131,6 +131,10 @@ pub struct Camera {
     poses: Vec<Projection>,
     /// The lens distortion of the raw frames (`None`: they are pinhole images already).
     pub lens: Option<Lens>,
+    /// When, in frames, this camera records each frame relative to the frame's time (0: on
+    /// time; 0.1: a tenth of a frame late). A rig that is not genlocked has a known sub-frame
+    /// lag per camera; the tracker sees the surface moved along its velocity by that much.
+    pub time_offset: f64,
 }
 
 impl Camera {
@@ -143,6 +147,7 @@ impl Camera {
             first_frame: 0,
             poses: vec![pose],
             lens: None,
+            time_offset: 0.0,
         }
     }
 
@@ -162,6 +167,7 @@ impl Camera {
             first_frame,
             poses,
             lens: None,
+            time_offset: 0.0,
         }
     }
 

@@ -68,11 +68,20 @@ pub struct CameraEntry {
     /// whose cameras were not started together).
     #[serde(default, skip_serializing_if = "is_zero")]
     pub frame_offset: i64,
+    /// When this camera records each frame, in frames after the frame's time (−1 to 1; for
+    /// rigs that are not genlocked: a camera 5 ms late at 30 fps has 0.15). The tracker
+    /// compensates it along the surface's velocity.
+    #[serde(default, skip_serializing_if = "is_zero_f64")]
+    pub time_offset: f64,
     pub images: String,
 }
 
 fn is_zero(v: &i64) -> bool {
     *v == 0
+}
+
+fn is_zero_f64(v: &f64) -> bool {
+    *v == 0.0
 }
 
 /// A camera's lens distortion as written in the scene file.
@@ -843,7 +852,19 @@ impl Scene {
                     ),
                 ));
             }
-            cameras.push(build_camera(path, i, c, first, last)?);
+            if !(c.time_offset.is_finite() && (-1.0..=1.0).contains(&c.time_offset)) {
+                return Err(Error::invalid(
+                    path,
+                    format!("cameras[{i}].time_offset"),
+                    format!(
+                        "{} frames: expected a lag from -1 to 1 frame (a whole frame is frame_offset)",
+                        c.time_offset
+                    ),
+                ));
+            }
+            let mut camera = build_camera(path, i, c, first, last)?;
+            camera.time_offset = c.time_offset;
+            cameras.push(camera);
             if first as i64 + c.frame_offset < 0 {
                 return Err(Error::invalid(
                     path,

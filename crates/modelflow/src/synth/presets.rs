@@ -613,6 +613,12 @@ impl Synthetic {
         if opts.shake > 0.0 {
             s.shake(opts.shake);
         }
+        // The rig's clocks, as the scene file tells them to the tracker.
+        let n = s.cameras.len();
+        let lags: Vec<f64> = (0..n).map(|c| s.exposure_lag(c, n)).collect();
+        for (cam, lag) in s.cameras.iter_mut().zip(lags) {
+            cam.time_offset = lag;
+        }
         if let Some(d) = opts.distortion.as_ref().filter(|d| !d.is_identity()) {
             for (cam, (k, _, _)) in s.cameras.iter_mut().zip(&s.krt) {
                 let lens = Lens::new(*k, d.clone());
@@ -669,8 +675,10 @@ impl Synthetic {
         self.mesh.with_positions(self.truth[frame as usize].clone())
     }
 
-    /// The true positions at time `t` in frames: linear between the frames around it, and
-    /// continued along the first or last frame pair before the first or past the last frame.
+    /// The true positions at time `t` in frames: through the frames around it by a Catmull–Rom
+    /// spline (exact at the frames, with a velocity that changes smoothly through them, as a
+    /// moving object's does), and continued along the first or last frame pair before the
+    /// first or past the last frame.
     pub fn positions_at(&self, t: f64) -> Vec<Point3<f64>> {
         let n = self.truth.len();
         if n == 1 || t == t.floor() && (0.0..n as f64).contains(&t) {
@@ -678,24 +686,53 @@ impl Synthetic {
         }
         let i = (t.floor().max(0.0) as usize).min(n - 2);
         let a = t - i as f64;
-        self.truth[i]
-            .iter()
-            .zip(&self.truth[i + 1])
-            .map(|(p, q)| p + (q - p) * a)
+        let (p1, p2) = (&self.truth[i], &self.truth[i + 1]);
+        if !(0.0..=1.0).contains(&a) {
+            return p1.iter().zip(p2).map(|(p, q)| p + (q - p) * a).collect();
+        }
+        // Neighbours beyond the ends are continued linearly.
+        let p0: Vec<Point3<f64>> = match i {
+            0 => p1.iter().zip(p2).map(|(p, q)| p - (q - p)).collect(),
+            _ => self.truth[i - 1].clone(),
+        };
+        let p3: Vec<Point3<f64>> = match self.truth.get(i + 2) {
+            Some(p) => p.clone(),
+            None => p2.iter().zip(p1).map(|(q, p)| q + (q - p)).collect(),
+        };
+        let (a2, a3) = (a * a, a * a * a);
+        let w = [
+            0.5 * (-a3 + 2.0 * a2 - a),
+            0.5 * (3.0 * a3 - 5.0 * a2 + 2.0),
+            0.5 * (-3.0 * a3 + 4.0 * a2 + a),
+            0.5 * (a3 - a2),
+        ];
+        (0..p1.len())
+            .map(|v| {
+                Point3::from(
+                    p0[v].coords * w[0]
+                        + p1[v].coords * w[1]
+                        + p2[v].coords * w[2]
+                        + p3[v].coords * w[3],
+                )
+            })
             .collect()
+    }
+
+    /// How late camera `camera` of `n` records each frame, in frames
+    /// ([`SynthOptions::sync_error`]).
+    fn exposure_lag(&self, camera: usize, n: usize) -> f64 {
+        if n > 1 {
+            self.options.sync_error * camera as f64 / (n - 1) as f64
+        } else {
+            0.0
+        }
     }
 
     /// The times (in frames) whose renders make camera `camera`'s image of `frame`: its clock's
     /// lag ([`SynthOptions::sync_error`]) and the shutter's samples
     /// ([`SynthOptions::motion_blur`]).
     fn exposure_times(&self, camera: usize, frame: u32) -> Vec<f64> {
-        let n = self.cameras.len();
-        let lag = if n > 1 {
-            self.options.sync_error * camera as f64 / (n - 1) as f64
-        } else {
-            0.0
-        };
-        let t = frame as f64 + lag;
+        let t = frame as f64 + self.exposure_lag(camera, self.cameras.len());
         let s = self.options.motion_blur;
         if s > 0.0 {
             (0..BLUR_SAMPLES)
@@ -837,6 +874,7 @@ impl Synthetic {
                         coefficients: l.distortion().coefficients(),
                     }),
                     frame_offset: 0,
+                    time_offset: cam.time_offset,
                     images: format!("images/{}/{{frame:04}}.png", cam.name),
                 })
                 .collect(),
@@ -1122,10 +1160,12 @@ mod tests {
         assert_eq!(late.render(0, 2), locked.render(0, 2));
         assert_ne!(late.render(1, 2), locked.render(1, 2));
         assert_ne!(late.render(1, 2), locked.render(1, 3));
-        // Between frames the surface is where the frames around it put it, in proportion.
-        let mid = locked.positions_at(2.25);
-        let want = locked.truth[2][7] + (locked.truth[3][7] - locked.truth[2][7]) * 0.25;
-        assert!((mid[7] - want).norm() < 1e-12);
+        // Between frames the surface is on the Catmull–Rom spline through the frames around
+        // it: halfway, the mean of the middle two less an eighth of the outer ones' excess.
+        let mid = locked.positions_at(2.5);
+        let tr = |f: usize| locked.truth[f][7].coords;
+        let want = (tr(2) + tr(3)) * 0.5625 - (tr(1) + tr(4)) * 0.0625;
+        assert!((mid[7].coords - want).norm() < 1e-12);
         // Past the last frame it goes on along the last pair.
         let past = locked.positions_at(5.0);
         let want = locked.truth[4][7] + (locked.truth[4][7] - locked.truth[3][7]);

@@ -543,6 +543,7 @@ pub fn align(
                 cancel: None,
                 moving_source: Some(&x0),
                 gauge_floor: opts.gauge_floor,
+                lag: None,
             };
             // The chosen robust loss from the first round: an occluder in front of the surface
             // (a rod, a hand) or a highlight is seen differently by every camera, and with a

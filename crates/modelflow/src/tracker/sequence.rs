@@ -20,7 +20,7 @@ use crate::tracker::patch::{PatchOptions, PatchSet};
 use crate::tracker::pyramid::Pyramid;
 use crate::tracker::regularise::{self, EdgeSet, FrameContext, Regulariser};
 use crate::tracker::solve::{
-    Loss, Motion, Problem, SolveSummary, SolverOptions, StopReason, VertexConfidence,
+    Lag, Loss, Motion, Problem, SolveSummary, SolverOptions, StopReason, VertexConfidence,
 };
 use nalgebra::Point3;
 use rayon::prelude::*;
@@ -92,8 +92,11 @@ pub struct Tracker {
     regularisers: Vec<Box<dyn Regulariser>>,
     two_sided: bool,
     cancel: Option<Arc<AtomicBool>>,
-    /// Anchor patches per level (built once from the first frame).
+    /// Anchor patches per level (built from the first frame; again once its velocity is known,
+    /// when cameras record late or early).
     anchor: Vec<PatchSet>,
+    /// The first frame (where the anchor was taken).
+    anchor_frame: u32,
     prev: Template,
     before_prev: Option<Vec<Point3<f64>>>,
 }
@@ -146,6 +149,7 @@ impl Tracker {
             two_sided: !mesh.is_closed(),
             cancel: None,
             anchor: Vec::new(),
+            anchor_frame: frame,
             prev: Template {
                 positions: mesh.positions.clone(),
                 pyramids,
@@ -157,7 +161,9 @@ impl Tracker {
         // pull for half the work.
         if opts.anchor_weight > 0.0 {
             t.anchor = (0..levels)
-                .map(|l| t.template_patches(&t.prev, l, 2.0 * opts.anchor_weight as f32, true))
+                .map(|l| {
+                    t.template_patches(&t.prev, None, l, 2.0 * opts.anchor_weight as f32, true)
+                })
                 .collect();
         }
         Ok(t)
@@ -175,18 +181,36 @@ impl Tracker {
     /// Puts the tracker in the state it had right after solving `frame`: the frame's images
     /// (as [`prepare`]d), its solved positions and, when there is one, the solved positions of
     /// the frame before it (for the constant-velocity prediction). Continuing from here gives
-    /// exactly what an uninterrupted run gives (how `--resume` continues a run).
+    /// exactly what an uninterrupted run gives (how `--resume` continues a run) when, for
+    /// cameras with a `time_offset`, `first_next` gives the solved positions of the frame after
+    /// the first (the anchor is taken where those cameras saw the surface move); it is read
+    /// only on a tracker fresh from [`Tracker::new`].
     pub fn restore(
         &mut self,
         frame: u32,
         prepared: Prepared,
         positions: Vec<Point3<f64>>,
         before: Option<Vec<Point3<f64>>>,
+        first_next: Option<Vec<Point3<f64>>>,
     ) -> Result<()> {
         self.check_prepared(&prepared)?;
         self.check_positions(&positions)?;
         if let Some(b) = &before {
             self.check_positions(b)?;
+        }
+        if let Some(n) = &first_next {
+            self.check_positions(n)?;
+            if self.prev.frame == self.anchor_frame && self.before_prev.is_none() {
+                let first = std::mem::replace(
+                    &mut self.prev,
+                    Template {
+                        positions: Vec::new(),
+                        pyramids: Vec::new(),
+                        frame,
+                    },
+                );
+                self.rebuild_anchor(&first, n);
+            }
         }
         self.prev = Template {
             positions,
@@ -257,9 +281,13 @@ impl Tracker {
         }
     }
 
+    /// The patches of template `tpl` at `level`. With `before` (the positions one frame before
+    /// the template's), a camera that records late or early (`Camera::time_offset`) is given
+    /// the surface where it was when that camera saw it: moved on along its velocity.
     fn template_patches(
         &self,
         tpl: &Template,
+        before: Option<&[Point3<f64>]>,
         level: usize,
         weight: f32,
         checkerboard: bool,
@@ -275,8 +303,18 @@ impl Tracker {
             .map(|(c, cam)| {
                 let mut set = PatchSet::default();
                 let proj = level_projection(cam.at(tpl.frame), level);
+                let d = cam.time_offset;
+                let seen: std::borrow::Cow<[Point3<f64>]> = match before {
+                    Some(b) if d != 0.0 => tpl
+                        .positions
+                        .iter()
+                        .zip(b)
+                        .map(|(p, q)| p + (p - q) * d)
+                        .collect(),
+                    _ => std::borrow::Cow::Borrowed(&tpl.positions),
+                };
                 set.add_camera(
-                    &tpl.positions,
+                    &seen,
                     &self.triangles,
                     &proj,
                     &tpl.pyramids[c].levels[level],
@@ -289,6 +327,32 @@ impl Tracker {
             })
             .collect();
         merge(per_cam)
+    }
+
+    /// Rebuilds the anchor from the first frame's template `first` for cameras that record late
+    /// or early, with the surface moved along the first frame's velocity `next − first`.
+    fn rebuild_anchor(&mut self, first: &Template, next: &[Point3<f64>]) {
+        if self.opts.anchor_weight <= 0.0 || !self.cameras.iter().any(|c| c.time_offset != 0.0) {
+            return;
+        }
+        // `template_patches` moves along `positions − before`: the forward difference here.
+        let before: Vec<Point3<f64>> = first
+            .positions
+            .iter()
+            .zip(next)
+            .map(|(p, n)| p - (n - p))
+            .collect();
+        self.anchor = (0..self.opts.levels)
+            .map(|l| {
+                self.template_patches(
+                    first,
+                    Some(&before),
+                    l,
+                    2.0 * self.opts.anchor_weight as f32,
+                    true,
+                )
+            })
+            .collect();
     }
 
     /// Solves for `frame` given its images (one per camera) and makes it the new template.
@@ -316,6 +380,8 @@ impl Tracker {
         let mut pixels = 0;
         let mut stop = StopReason::NoData;
         let mut confidence = Vec::new();
+        let offsets: Vec<f64> = self.cameras.iter().map(|c| c.time_offset).collect();
+        let lagged = offsets.iter().any(|&d| d != 0.0);
         // The constant-velocity prediction when there is a velocity, the previous shape
         // otherwise: the membrane's reference (it penalises changes of the deformation's rate).
         let predicted_shape: Vec<Point3<f64>> = match &self.before_prev {
@@ -339,7 +405,8 @@ impl Tracker {
             let tp = Instant::now();
             let cb = level == 0 && self.opts.checkerboard;
             let weight = if cb { 2.0 } else { 1.0 };
-            let mut set = self.template_patches(&self.prev, level, weight, cb);
+            let mut set =
+                self.template_patches(&self.prev, self.before_prev.as_deref(), level, weight, cb);
             if let Some(anchor) = self.anchor.get(level) {
                 // Anchor patches only where the triangle is seen in the previous frame too
                 // (otherwise it has turned away or been covered since the first frame).
@@ -387,6 +454,11 @@ impl Tracker {
                 cancel: self.cancel.as_deref(),
                 moving_source: None,
                 gauge_floor: 0.0,
+                lag: lagged.then_some(Lag {
+                    offsets: &offsets,
+                    previous: &self.prev.positions,
+                    before: self.before_prev.as_deref(),
+                }),
             };
             if level == levels - 1 && self.opts.predict {
                 if let Some(pp) = &self.before_prev {
@@ -449,6 +521,7 @@ impl Tracker {
                 .iter()
                 .any(|s| matches!(s.stop, StopReason::CostRose | StopReason::NonFinite));
         if !stalled {
+            let first_motion = self.before_prev.is_none() && self.prev.frame == self.anchor_frame;
             let old = std::mem::replace(
                 &mut self.prev,
                 Template {
@@ -457,6 +530,12 @@ impl Tracker {
                     frame,
                 },
             );
+            if first_motion && lagged {
+                // The first frame's velocity is known now: cameras that recorded it late or
+                // early saw the surface moved along it, so their anchor pixels are taken again
+                // where they saw it.
+                self.rebuild_anchor(&old, &self.prev.positions.clone());
+            }
             self.before_prev = Some(old.positions);
         }
         // A stalled frame's images are not made the template: the next frame is compared with

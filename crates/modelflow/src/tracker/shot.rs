@@ -87,7 +87,14 @@ fn track_into(
             let prepared = prepare(&scene.load_images(last)?, opts);
             let positions = folder.read_positions(last)?;
             let before = folder.read_positions(last - 1)?;
-            tracker.restore(last, prepared, positions, Some(before))?;
+            // Cameras that record late or early took their anchor where the surface had moved
+            // by the frame after the first.
+            let first_next = if scene.cameras.iter().any(|c| c.time_offset != 0.0) {
+                Some(folder.read_positions(scene.first + 1)?)
+            } else {
+                None
+            };
+            tracker.restore(last, prepared, positions, Some(before), first_next)?;
             last
         }
     };

@@ -165,6 +165,40 @@ pub(crate) struct Problem<'a> {
     /// With a rigid or similarity motion: whole-mesh motions whose curvature is below this
     /// fraction of the best-fixed one's are left out of every step (0: none are).
     pub gauge_floor: f64,
+    /// Cameras that record the next frame late or early (`Camera::time_offset`), with the
+    /// previous frame's positions: camera `c` sees the surface at `x + δ_c·(x − previous)`.
+    /// `None`: every camera on time.
+    pub lag: Option<Lag<'a>>,
+}
+
+/// When each camera records the frame solved, and where the surface was one and two frames
+/// before: a camera `δ` frames late sees it moved on along its velocity `v`, at `x + δ·v`, with
+/// `v` the backward difference of the positions, `x − previous` or, when the frame before that
+/// is known, the second-order `(3x − 4·previous + before)/2` (exact for a steady acceleration).
+/// Either is linear in `x`, so the camera's warp derivative is an on-time camera's times
+/// `∂(x + δ·v)/∂x`.
+#[derive(Clone, Copy)]
+pub(crate) struct Lag<'a> {
+    /// Per camera, in frames.
+    pub offsets: &'a [f64],
+    pub previous: &'a [Point3<f64>],
+    pub before: Option<&'a [Point3<f64>]>,
+}
+
+impl Lag<'_> {
+    /// Where a camera `d` frames late sees vertex `v` when the frame's positions are `x`, and
+    /// the derivative of that with respect to `x[v]` (a multiple of the identity).
+    #[inline]
+    fn seen(&self, x: &[Point3<f64>], v: usize, d: f64) -> (Point3<f64>, f64) {
+        let (p, q) = (x[v], self.previous[v]);
+        match self.before {
+            Some(b) => {
+                let vel = (p.coords * 3.0 - q.coords * 4.0 + b[v].coords) * 0.5;
+                (p + vel * d, 1.0 + 1.5 * d)
+            }
+            None => (p + (p - q) * d, 1.0 + d),
+        }
+    }
 }
 
 /// The warp of a patch whose source camera sees the same, moving, mesh (`align`): from pixel
@@ -444,13 +478,25 @@ impl Problem<'_> {
             let cam = patch.camera as usize;
             let proj = &self.projections[cam];
             let img = self.targets[cam];
-            let mut y = xs.map(|p| proj.project_h(&p));
             let pm = proj.matrix();
             let mut m = [
                 [pm[(0, 0)], pm[(0, 1)], pm[(0, 2)]],
                 [pm[(1, 0)], pm[(1, 1)], pm[(1, 2)]],
                 [pm[(2, 0)], pm[(2, 1)], pm[(2, 2)]],
             ];
+            let mut y = match self.lag {
+                Some(lag) if lag.offsets.get(cam).is_some_and(|&d| d != 0.0) => {
+                    let d = lag.offsets[cam];
+                    let seen = tri.map(|v| lag.seen(x, v as usize, d));
+                    for row in m.iter_mut() {
+                        for e in row.iter_mut() {
+                            *e *= seen[0].1;
+                        }
+                    }
+                    seen.map(|(p, _)| proj.project_h(&p))
+                }
+                _ => xs.map(|p| proj.project_h(&p)),
+            };
             // A moving source (`align`) changes the warp's columns and derivative, and the
             // barycentrics the derivative is weighted by.
             let mut to_current = None;

@@ -8,7 +8,7 @@ use crate::base::mesh::{grid, rms_distance, Mesh};
 use crate::tracker::patch::{PatchOptions, PatchSet};
 use crate::tracker::pyramid::Pyramid;
 use crate::tracker::regularise::{self, EdgeSet, FrameContext, Regularisation};
-use crate::tracker::solve::{GainModel, Interpolation, Loss, Motion, Problem, SolverOptions};
+use crate::tracker::solve::{GainModel, Interpolation, Lag, Loss, Motion, Problem, SolverOptions};
 use crate::tracker::{TrackOptions, Tracker};
 use nalgebra::{Matrix3, Point3, Vector3};
 use std::sync::Arc;
@@ -343,6 +343,7 @@ fn assembled_gradient_matches_finite_differences_of_the_cost() {
         cancel: None,
         moving_source: None,
         gauge_floor: 0.0,
+        lag: None,
     };
     // Huber off (huge threshold) so the cost is the plain sum of squares whose gradient is 2·Jᵀr.
     // Both ways of sampling the next frame: the Jacobian is each interpolant's own derivative.
@@ -365,6 +366,48 @@ fn assembled_gradient_matches_finite_differences_of_the_cost() {
         );
     }
     assert_eq!(checked, 24);
+
+    // Cameras that record late or early see the surface moved on along its velocity (first-
+    // and second-order): the derivative carries the velocity's dependence on the positions.
+    let offsets: Vec<f64> = (0..cams.len()).map(|c| 0.3 - 0.45 * c as f64).collect();
+    let previous: Vec<Point3<f64>> = mesh
+        .positions
+        .iter()
+        .map(|p| p - Vector3::new(0.003, -0.001, 0.002))
+        .collect();
+    let before: Vec<Point3<f64>> = mesh
+        .positions
+        .iter()
+        .map(|p| p - Vector3::new(0.005, -0.003, 0.003))
+        .collect();
+    let opts = SolverOptions {
+        huber: 1e3,
+        ..SolverOptions::default()
+    };
+    let mut x = mesh.positions.clone();
+    x[5].x += 0.01;
+    for second_order in [false, true] {
+        let lagged = Problem {
+            lag: Some(Lag {
+                offsets: &offsets,
+                previous: &previous,
+                before: second_order.then_some(&before[..]),
+            }),
+            targets: dst.iter().map(|p| &p.levels[0]).collect(),
+            projections: cams.iter().map(|c| c.at(1).clone()).collect(),
+            ..problem
+        };
+        let (c_on, c_late) = (problem.cost(&x, &opts), lagged.cost(&x, &opts));
+        assert!(c_on != c_late, "the lag changed nothing");
+        let n = check_gradient(
+            &lagged,
+            &x,
+            &opts,
+            &[5, 6, 9, 10],
+            &format!("lagged cameras, second order {second_order}"),
+        );
+        assert_eq!(n, 12);
+    }
 
     // The confidence the tracker reads from a solve's last linearisation is the one a fresh
     // linearisation at the solve's result gives, exactly.
@@ -404,6 +447,7 @@ fn springs_alone_relax_a_stretched_mesh() {
         cancel: None,
         moving_source: None,
         gauge_floor: 0.0,
+        lag: None,
     };
     let opts = SolverOptions {
         max_iterations: 60,
@@ -688,6 +732,7 @@ fn moving_source_gradient_matches_finite_differences_of_the_cost() {
         cancel: None,
         moving_source: Some(&x0),
         gauge_floor: 0.0,
+        lag: None,
     };
     let opts = SolverOptions {
         huber: 1e3,

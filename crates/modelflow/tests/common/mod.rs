@@ -47,6 +47,7 @@ pub fn camera(name: &str, eye: Point3<f64>) -> CameraEntry {
         p: None,
         distortion: None,
         frame_offset: 0,
+        time_offset: 0.0,
         images: format!("images/{name}/{{frame:04}}.png"),
     }
 }

@@ -61,6 +61,7 @@ pub fn scene_file(
                     coefficients: d.coefficients(),
                 }),
                 frame_offset: 0,
+                time_offset: 0.0,
                 images: images.replace("{camera}", &c.name),
             })
             .collect(),
