@@ -99,6 +99,8 @@ pub struct Tracker {
     anchor_frame: u32,
     prev: Template,
     before_prev: Option<Vec<Point3<f64>>>,
+    /// The frame `before_prev` was solved for.
+    before_frame: u32,
 }
 
 /// Refuses `images` images for `cameras` cameras unless there is one per camera.
@@ -133,6 +135,15 @@ impl Tracker {
     ) -> Result<Self> {
         opts.validate()?;
         one_per_camera(cameras.len(), images.len())?;
+        for (i, c) in cameras.iter().enumerate() {
+            if !(c.time_offset.is_finite() && (-1.0..=1.0).contains(&c.time_offset)) {
+                return Err(Error::option(
+                    format!("cameras[{i}].time_offset"),
+                    c.time_offset,
+                    "a lag from -1 to 1 frame",
+                ));
+            }
+        }
         let opts = opts.resolved_for(cameras.iter().map(|c| (c.width, c.height)));
         let used = opts.used();
         let opts = used.options;
@@ -156,6 +167,7 @@ impl Tracker {
                 frame,
             },
             before_prev: None,
+            before_frame: frame,
         };
         // The anchor keeps every other pixel (checkerboard) at twice the weight: the same total
         // pull for half the work.
@@ -209,7 +221,7 @@ impl Tracker {
                         frame,
                     },
                 );
-                self.rebuild_anchor(&first, n);
+                self.rebuild_anchor(&first, n, 1.0);
             }
         }
         self.prev = Template {
@@ -218,6 +230,7 @@ impl Tracker {
             frame,
         };
         self.before_prev = before;
+        self.before_frame = frame.saturating_sub(1);
         Ok(())
     }
 
@@ -281,13 +294,14 @@ impl Tracker {
         }
     }
 
-    /// The patches of template `tpl` at `level`. With `before` (the positions one frame before
-    /// the template's), a camera that records late or early (`Camera::time_offset`) is given
-    /// the surface where it was when that camera saw it: moved on along its velocity.
+    /// The patches of template `tpl` at `level`. With `before` (earlier positions and how many
+    /// frames before the template's), a camera that records late or early
+    /// (`Camera::time_offset`) is given the surface where it was when that camera saw it: moved
+    /// on along its velocity (see `solve::Lag`).
     fn template_patches(
         &self,
         tpl: &Template,
-        before: Option<&[Point3<f64>]>,
+        before: Option<(&[Point3<f64>], f64)>,
         level: usize,
         weight: f32,
         checkerboard: bool,
@@ -305,11 +319,11 @@ impl Tracker {
                 let proj = level_projection(cam.at(tpl.frame), level);
                 let d = cam.time_offset;
                 let seen: std::borrow::Cow<[Point3<f64>]> = match before {
-                    Some(b) if d != 0.0 => tpl
+                    Some((b, gap)) if d != 0.0 => tpl
                         .positions
                         .iter()
                         .zip(b)
-                        .map(|(p, q)| p + (p - q) * d)
+                        .map(|(p, q)| p + (p - q) * (d / gap))
                         .collect(),
                     _ => std::borrow::Cow::Borrowed(&tpl.positions),
                 };
@@ -330,8 +344,9 @@ impl Tracker {
     }
 
     /// Rebuilds the anchor from the first frame's template `first` for cameras that record late
-    /// or early, with the surface moved along the first frame's velocity `next − first`.
-    fn rebuild_anchor(&mut self, first: &Template, next: &[Point3<f64>]) {
+    /// or early, with the surface moved along the first frame's velocity `(next − first)/gap`
+    /// (`next`: the positions `gap` frames later).
+    fn rebuild_anchor(&mut self, first: &Template, next: &[Point3<f64>], gap: f64) {
         if self.opts.anchor_weight <= 0.0 || !self.cameras.iter().any(|c| c.time_offset != 0.0) {
             return;
         }
@@ -346,7 +361,7 @@ impl Tracker {
             .map(|l| {
                 self.template_patches(
                     first,
-                    Some(&before),
+                    Some((&before, gap)),
                     l,
                     2.0 * self.opts.anchor_weight as f32,
                     true,
@@ -405,8 +420,13 @@ impl Tracker {
             let tp = Instant::now();
             let cb = level == 0 && self.opts.checkerboard;
             let weight = if cb { 2.0 } else { 1.0 };
-            let mut set =
-                self.template_patches(&self.prev, self.before_prev.as_deref(), level, weight, cb);
+            let before = self.before_prev.as_deref().map(|b| {
+                (
+                    b,
+                    self.prev.frame.saturating_sub(self.before_frame).max(1) as f64,
+                )
+            });
+            let mut set = self.template_patches(&self.prev, before, level, weight, cb);
             if let Some(anchor) = self.anchor.get(level) {
                 // Anchor patches only where the triangle is seen in the previous frame too
                 // (otherwise it has turned away or been covered since the first frame).
@@ -454,10 +474,12 @@ impl Tracker {
                 cancel: self.cancel.as_deref(),
                 moving_source: None,
                 gauge_floor: 0.0,
-                lag: lagged.then_some(Lag {
+                // Until a velocity is known the templates are taken as the cameras saw them
+                // too, which for a steady motion is exact on both sides.
+                lag: (lagged && self.before_prev.is_some()).then_some(Lag {
                     offsets: &offsets,
                     previous: &self.prev.positions,
-                    before: self.before_prev.as_deref(),
+                    gap: frame.saturating_sub(self.prev.frame).max(1) as f64,
                 }),
             };
             if level == levels - 1 && self.opts.predict {
@@ -534,9 +556,11 @@ impl Tracker {
                 // The first frame's velocity is known now: cameras that recorded it late or
                 // early saw the surface moved along it, so their anchor pixels are taken again
                 // where they saw it.
-                self.rebuild_anchor(&old, &self.prev.positions.clone());
+                let gap = frame.saturating_sub(old.frame).max(1) as f64;
+                self.rebuild_anchor(&old, &self.prev.positions.clone(), gap);
             }
             self.before_prev = Some(old.positions);
+            self.before_frame = old.frame;
         }
         // A stalled frame's images are not made the template: the next frame is compared with
         // the last frame that was solved (its positions are what this frame reports).

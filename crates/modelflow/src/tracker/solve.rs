@@ -171,18 +171,19 @@ pub(crate) struct Problem<'a> {
     pub lag: Option<Lag<'a>>,
 }
 
-/// When each camera records the frame solved, and where the surface was one and two frames
-/// before: a camera `δ` frames late sees it moved on along its velocity `v`, at `x + δ·v`, with
-/// `v` the backward difference of the positions, `x − previous` or, when the frame before that
-/// is known, the second-order `(3x − 4·previous + before)/2` (exact for a steady acceleration).
-/// Either is linear in `x`, so the camera's warp derivative is an on-time camera's times
-/// `∂(x + δ·v)/∂x`.
+/// When each camera records the frame solved, and where the surface was at the frame before: a
+/// camera `δ` frames late sees it moved on along its velocity, at `x + δ·(x − previous)/gap`
+/// (`gap`: frames from the previous positions to these, 1 but after a stalled frame), so its
+/// warp's derivative is an on-time camera's times `1 + δ/gap`. The template frame's pixels are
+/// placed the same way (`sequence`), so a steady acceleration's error in this backward
+/// difference is the same on both sides and cancels. A camera early by the whole gap sees the
+/// previous positions: its pixels then say nothing about `x`.
 #[derive(Clone, Copy)]
 pub(crate) struct Lag<'a> {
     /// Per camera, in frames.
     pub offsets: &'a [f64],
     pub previous: &'a [Point3<f64>],
-    pub before: Option<&'a [Point3<f64>]>,
+    pub gap: f64,
 }
 
 impl Lag<'_> {
@@ -190,14 +191,9 @@ impl Lag<'_> {
     /// the derivative of that with respect to `x[v]` (a multiple of the identity).
     #[inline]
     fn seen(&self, x: &[Point3<f64>], v: usize, d: f64) -> (Point3<f64>, f64) {
+        let s = d / self.gap;
         let (p, q) = (x[v], self.previous[v]);
-        match self.before {
-            Some(b) => {
-                let vel = (p.coords * 3.0 - q.coords * 4.0 + b[v].coords) * 0.5;
-                (p + vel * d, 1.0 + 1.5 * d)
-            }
-            None => (p + (p - q) * d, 1.0 + d),
-        }
+        (p + (p - q) * s, 1.0 + s)
     }
 }
 
