@@ -20,7 +20,7 @@ use crate::tracker::patch::{PatchOptions, PatchSet};
 use crate::tracker::pyramid::Pyramid;
 use crate::tracker::regularise::{self, EdgeSet, FrameContext, Regulariser};
 use crate::tracker::solve::{
-    Lag, Loss, Motion, Problem, SolveSummary, SolverOptions, StopReason, VertexConfidence,
+    moved_on, Lag, Loss, Motion, Problem, SolveSummary, SolverOptions, StopReason, VertexConfidence,
 };
 use nalgebra::Point3;
 use rayon::prelude::*;
@@ -169,15 +169,7 @@ impl Tracker {
             before_prev: None,
             before_frame: frame,
         };
-        // The anchor keeps every other pixel (checkerboard) at twice the weight: the same total
-        // pull for half the work.
-        if opts.anchor_weight > 0.0 {
-            t.anchor = (0..levels)
-                .map(|l| {
-                    t.template_patches(&t.prev, None, l, 2.0 * opts.anchor_weight as f32, true)
-                })
-                .collect();
-        }
+        t.anchor = t.anchor_patches(&t.prev, None);
         Ok(t)
     }
 
@@ -213,15 +205,7 @@ impl Tracker {
         if let Some(n) = &first_next {
             self.check_positions(n)?;
             if self.prev.frame == self.anchor_frame && self.before_prev.is_none() {
-                let first = std::mem::replace(
-                    &mut self.prev,
-                    Template {
-                        positions: Vec::new(),
-                        pyramids: Vec::new(),
-                        frame,
-                    },
-                );
-                self.rebuild_anchor(&first, n, 1.0);
+                self.anchor = self.anchor_patches(&self.prev, Some((n, 1.0)));
             }
         }
         self.prev = Template {
@@ -323,7 +307,7 @@ impl Tracker {
                         .positions
                         .iter()
                         .zip(b)
-                        .map(|(p, q)| p + (p - q) * (d / gap))
+                        .map(|(p, q)| moved_on(p, q, d, gap))
                         .collect(),
                     _ => std::borrow::Cow::Borrowed(&tpl.positions),
                 };
@@ -343,31 +327,34 @@ impl Tracker {
         merge(per_cam)
     }
 
-    /// Rebuilds the anchor from the first frame's template `first` for cameras that record late
-    /// or early, with the surface moved along the first frame's velocity `(next − first)/gap`
-    /// (`next`: the positions `gap` frames later).
-    fn rebuild_anchor(&mut self, first: &Template, next: &[Point3<f64>], gap: f64) {
-        if self.opts.anchor_weight <= 0.0 || !self.cameras.iter().any(|c| c.time_offset != 0.0) {
-            return;
+    /// The anchor's patches, every level, from the first frame's template `first` (none when
+    /// the anchor is off). With `next` (the positions solved `gap` frames later), cameras that
+    /// record late or early take them where they saw the surface: moved along the first
+    /// frame's velocity `(next − first)/gap`. The anchor keeps every other pixel (checkerboard)
+    /// at twice the weight: the same total pull for half the work.
+    fn anchor_patches(
+        &self,
+        first: &Template,
+        next: Option<(&[Point3<f64>], f64)>,
+    ) -> Vec<PatchSet> {
+        if self.opts.anchor_weight <= 0.0 {
+            return Vec::new();
         }
         // `template_patches` moves along `positions − before`: the forward difference here.
-        let before: Vec<Point3<f64>> = first
-            .positions
-            .iter()
-            .zip(next)
-            .map(|(p, n)| p - (n - p))
-            .collect();
-        self.anchor = (0..self.opts.levels)
+        let before: Option<Vec<Point3<f64>>> = next.map(|(n, _)| {
+            first
+                .positions
+                .iter()
+                .zip(n)
+                .map(|(p, n)| p - (n - p))
+                .collect()
+        });
+        let before = before.as_deref().zip(next.map(|(_, gap)| gap));
+        (0..self.opts.levels)
             .map(|l| {
-                self.template_patches(
-                    first,
-                    Some((&before, gap)),
-                    l,
-                    2.0 * self.opts.anchor_weight as f32,
-                    true,
-                )
+                self.template_patches(first, before, l, 2.0 * self.opts.anchor_weight as f32, true)
             })
-            .collect();
+            .collect()
     }
 
     /// Solves for `frame` given its images (one per camera) and makes it the new template.
@@ -557,7 +544,7 @@ impl Tracker {
                 // early saw the surface moved along it, so their anchor pixels are taken again
                 // where they saw it.
                 let gap = frame.saturating_sub(old.frame).max(1) as f64;
-                self.rebuild_anchor(&old, &self.prev.positions.clone(), gap);
+                self.anchor = self.anchor_patches(&old, Some((&self.prev.positions, gap)));
             }
             self.before_prev = Some(old.positions);
             self.before_frame = old.frame;

@@ -166,7 +166,7 @@ pub(crate) struct Problem<'a> {
     /// fraction of the best-fixed one's are left out of every step (0: none are).
     pub gauge_floor: f64,
     /// Cameras that record the next frame late or early (`Camera::time_offset`), with the
-    /// previous frame's positions: camera `c` sees the surface at `x + δ_c·(x − previous)`.
+    /// previous frame's positions: camera `c` sees the surface at `x + δ_c·(x − previous)/gap`.
     /// `None`: every camera on time.
     pub lag: Option<Lag<'a>>,
 }
@@ -191,10 +191,19 @@ impl Lag<'_> {
     /// the derivative of that with respect to `x[v]` (a multiple of the identity).
     #[inline]
     fn seen(&self, x: &[Point3<f64>], v: usize, d: f64) -> (Point3<f64>, f64) {
-        let s = d / self.gap;
-        let (p, q) = (x[v], self.previous[v]);
-        (p + (p - q) * s, 1.0 + s)
+        (
+            moved_on(&x[v], &self.previous[v], d, self.gap),
+            1.0 + d / self.gap,
+        )
     }
+}
+
+/// Where a camera `d` frames late sees a point that is at `p` at the frame's time and was at `q`
+/// `gap` frames before: moved on along the backward difference, `p + d·(p − q)/gap`. The one
+/// formula for the frame solved ([`Lag`]) and for the template frame's pixels (`sequence`).
+#[inline]
+pub(crate) fn moved_on(p: &Point3<f64>, q: &Point3<f64>, d: f64, gap: f64) -> Point3<f64> {
+    p + (p - q) * (d / gap)
 }
 
 /// The warp of a patch whose source camera sees the same, moving, mesh (`align`): from pixel
