@@ -20,7 +20,7 @@ pub struct TrackArgs {
     /// the whole mesh.
     #[arg(long)]
     pub no_rigid_stage: bool,
-    /// Weight of the first frame as a second template (0 = compare with the previous frame only, as in the thesis; 0 to 100).
+    /// Weight of the first frame as a second template, compared at every pyramid level but the coarsest (0 = compare with the previous frame only, as in the thesis; 0 to 100).
     #[arg(long, default_value_t = TrackOptions::default().anchor_weight)]
     pub anchor_weight: f64,
     /// Spring constant k of the cubic edge springs (Eq. 5.16) on the edges' strain, each edge

@@ -303,3 +303,49 @@ fn a_used_folder_is_refused_and_force_replaces_only_run_files() {
     );
     modelflow::evaluate(&short, &run).unwrap();
 }
+
+/// Real webcam footage (`fixtures/caliscope-board-sample`, a copy of the shared clip's
+/// undistorted frames): a glossy board held in both hands, four webcams, 4–18 px per frame.
+#[test]
+fn the_real_webcam_board_is_tracked_without_folding() {
+    let p = concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../../fixtures/caliscope-board-sample/scene.json"
+    );
+    let scene = Scene::load(std::path::Path::new(p)).expect("the webcam sample loads");
+    let dir = tempfile::tempdir().unwrap();
+    track_scene(
+        &scene,
+        &TrackOptions::default(),
+        dir.path(),
+        &RunOptions::default(),
+        &mut |_| {},
+    )
+    .unwrap();
+    let run = modelflow::read_run(dir.path()).unwrap();
+    let report = modelflow::evaluate(&scene, &run).unwrap();
+    let per_frame: Vec<f64> = report.per_frame.iter().map(|f| f.rms_pct).collect();
+    eprintln!("webcam board: {per_frame:.2?} %");
+    // The truth is a rigid pose fitted to corner detections, good to about 0.5 % of the board;
+    // at frame 4 one camera saw the board about 10 px off the others' pose (its README), so that
+    // frame is left out of the per-frame bound. With the first frame compared at the coarsest
+    // pyramid level too, a corner of the board folded out of its plane at frames 11–15
+    // (1.6–2.1 %, final 1.5 %); the defaults measure 0.52 % mean, 0.70 % worst frame but 4,
+    // 0.30 % final.
+    for (f, &e) in per_frame.iter().enumerate() {
+        assert!(
+            f == 4 || e <= 1.0,
+            "frame {f}: {e:.2} % of the board's size"
+        );
+    }
+    assert!(
+        report.rms_mean_pct <= 0.8,
+        "mean {:.2} %",
+        report.rms_mean_pct
+    );
+    assert!(
+        report.rms_final_pct <= 0.6,
+        "final {:.2} %",
+        report.rms_final_pct
+    );
+}

@@ -19,7 +19,8 @@ pub struct TrackOptions {
     pub levels: usize,
     /// Gaussian smoothing (pixels, at each level's own scale) before gradients are taken.
     pub blur: f64,
-    /// Weight of the first-frame template relative to the previous-frame one (0 = thesis only).
+    /// Weight of the first-frame template relative to the previous-frame one (0 = thesis only),
+    /// compared at every pyramid level but the coarsest (`sequence::anchored_levels`).
     pub anchor_weight: f64,
     /// Silhouette margin in pixels.
     pub margin: usize,

@@ -327,7 +327,7 @@ impl Tracker {
         merge(per_cam)
     }
 
-    /// The anchor's patches, every level, from the first frame's template `first` (none when
+    /// The anchor's patches, every level it is compared at ([`anchored_levels`]), from the first frame's template `first` (none when
     /// the anchor is off). With `next` (the positions solved `gap` frames later), cameras that
     /// record late or early take them where they saw the surface: moved along the first
     /// frame's velocity `(next − first)/gap`. The anchor keeps every other pixel (checkerboard)
@@ -350,7 +350,7 @@ impl Tracker {
                 .collect()
         });
         let before = before.as_deref().zip(next.map(|(_, gap)| gap));
-        (0..self.opts.levels)
+        (0..anchored_levels(self.opts.levels))
             .map(|l| {
                 self.template_patches(first, before, l, 2.0 * self.opts.anchor_weight as f32, true)
             })
@@ -580,6 +580,20 @@ impl Prepared {
     pub fn seconds(&self) -> f64 {
         self.seconds
     }
+}
+
+/// The pyramid levels (the finest ones, `0..n`) at which the first frame is compared as a
+/// second template: every level but the coarsest (the only one when there is one). The
+/// coarsest level is where a frame's motion is caught, from the blurred images at their
+/// smallest, with the convex Huber loss and every vertex free; there the first frame's
+/// appearance differs from the frame's most (highlights and reflections that stayed with the
+/// lights, shading after a turn, a hand that has moved), and those differences are large blobs
+/// that pull the mesh as a whole. Compared there, the first frame folded a corner of the real
+/// webcam board out of its plane (frames 12–15) under most small changes of the options; from
+/// the next level on, it does what it is for, holding the mesh to the first frame against
+/// drift, with pixel-sized residuals (docs/tracker.md, "The first frame as a second template").
+pub(crate) fn anchored_levels(levels: usize) -> usize {
+    levels.saturating_sub(1).max(1)
 }
 
 /// Builds the pyramids the tracker with `opts` needs from one frame's images (one per camera).
