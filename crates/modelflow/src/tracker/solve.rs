@@ -334,6 +334,56 @@ struct TriAccum {
     g: [Vector3<f64>; 3],
 }
 
+/// Which brightness gains a patch's fit left free (see [`gain_schur`]).
+#[derive(Clone, Copy, PartialEq, Eq)]
+enum Fitted {
+    /// None (off, or clamped at a bound): nothing to project out.
+    None,
+    /// One gain for the patch.
+    Constant,
+    /// A gain linear over the triangle (one per corner).
+    Linear,
+}
+
+/// The part of a patch's position curvature that its fitted gains take away, per vertex pair
+/// (`PAIRS` order, block (i, j) with rows of vertex i): `Q_i·H_gg⁻¹·Q_jᵀ`, where
+/// `Q_i[a][j] = coupling[i][j][a]` couples coordinate a of vertex i with gain basis j and
+/// `gram` is the gains' own curvature. `None` when no gain is free or the gains' curvature
+/// cannot be inverted. Written by hand: 3×3 algebra on nalgebra's small matrices.
+fn gain_schur(
+    coupling: &[[[f64; 3]; 3]; 3],
+    gram: &Matrix3<f64>,
+    fitted: Fitted,
+) -> Option<[Matrix3<f64>; 6]> {
+    let q: [Matrix3<f64>; 3] = std::array::from_fn(|i| Matrix3::from_fn(|a, j| coupling[i][j][a]));
+    let (left, right): ([Matrix3<f64>; 3], [Matrix3<f64>; 3]) = match fitted {
+        Fitted::None => return None,
+        Fitted::Linear => {
+            let inv = gram.try_inverse()?;
+            if !inv.iter().all(|v| v.is_finite()) {
+                return None;
+            }
+            (q.map(|qi| qi * inv), q)
+        }
+        Fitted::Constant => {
+            // One basis function, 1 = Σ_j μ_j: its coupling is the sum over j.
+            let h = gram.sum();
+            if h.is_nan() || h <= 0.0 {
+                return None;
+            }
+            let col = q.map(|qi| {
+                let c = qi.column_sum();
+                Matrix3::from_columns(&[c, Vector3::zeros(), Vector3::zeros()])
+            });
+            (col.map(|c| c / h), col)
+        }
+    };
+    Some(std::array::from_fn(|k| {
+        let (i, j) = PAIRS[k];
+        left[i] * right[j].transpose()
+    }))
+}
+
 /// A pixel of a patch after warping: its index in the patch, warped position, `1/h_z`, and the
 /// next image's colour and gradients there.
 struct Warped {
@@ -533,7 +583,9 @@ impl Problem<'_> {
             let pw = patch.weight as f64;
             // Per-patch sums of the six distinct 3×3 vertex-pair blocks, each kept as its six
             // distinct entries (every block is symmetric), folded into the triangle once.
-            let mut hp = [[0.0f64; 6]; 6];
+            // Entries 6..9 of each: the pair's share of the positions–gains coupling and of the
+            // gains' own curvature (see below), summed in the same loop.
+            let mut hp = [[0.0f64; 10]; 6];
             let mut gp = [[0.0f64; 3]; 3];
             // Pass 1: warp and sample every pixel of the patch.
             scratch.clear();
@@ -581,18 +633,41 @@ impl Problem<'_> {
             // (triangle, camera), fitted by least squares to the warped pixels — constant, or
             // linear over the triangle (smooth shading). Because the gain is optimal for the
             // current positions, the gradient with respect to them is unchanged (envelope theorem).
-            let gains: [f32; 3] = match opts.gain {
-                GainModel::Off => [1.0; 3],
-                _ if gm.trace() <= 0.0 => [1.0; 3],
+            // Which gains were fitted freely (none clamped): their directions are projected out
+            // of the normal equations below.
+            let constant = |gm: &Matrix3<f64>, gr: &Vector3<f64>| {
+                let g = gr.sum() / gm.sum();
+                let c = g.clamp(0.5, 2.0);
+                (
+                    [c as f32; 3],
+                    if c == g {
+                        Fitted::Constant
+                    } else {
+                        Fitted::None
+                    },
+                )
+            };
+            let (gains, fitted): ([f32; 3], Fitted) = match opts.gain {
+                GainModel::Off => ([1.0; 3], Fitted::None),
+                _ if gm.trace() <= 0.0 => ([1.0; 3], Fitted::None),
                 GainModel::Linear if scratch.len() >= 12 => match gm.try_inverse() {
                     Some(inv) if (inv * gm).iter().all(|v| v.is_finite()) => {
                         let g = inv * gr;
-                        [g.x, g.y, g.z].map(|v| v.clamp(0.5, 2.0) as f32)
+                        let c = g.map(|v| v.clamp(0.5, 2.0));
+                        let fitted = if c == g { Fitted::Linear } else { Fitted::None };
+                        ([c.x as f32, c.y as f32, c.z as f32], fitted)
                     }
-                    _ => [(gr.sum() / gm.sum()).clamp(0.5, 2.0) as f32; 3],
+                    _ => constant(&gm, &gr),
                 },
-                _ => [(gr.sum() / gm.sum()).clamp(0.5, 2.0) as f32; 3],
+                _ => constant(&gm, &gr),
             };
+            // Σ w·λ_i·μ_j·t and Σ w·μ_i·μ_j·|c|² over the patch (μ: the gain's basis, the
+            // stored barycentrics; t: see below): the coupling of positions and gains.
+            let mut coupling = [[[0.0f64; 3]; 3]; 3];
+            let mut gain_gram = Matrix3::<f64>::zeros();
+            // Summed per vertex pair (`PAIRS`, in `hp`) when the gain's basis is the pixels' own
+            // barycentrics (every patch but `align`'s, whose pixels slide over the triangle).
+            let on_template = system && fitted != Fitted::None && to_current.is_none();
             // Pass 2: residuals, loss, normal equations.
             for wp in scratch.iter() {
                 let px = &pixels[wp.index as usize];
@@ -690,10 +765,31 @@ impl Problem<'_> {
                     ra * da[2] + rb * db[2],
                 ];
                 let wl = [w * l[0], w * l[1], w * l[2]];
+                // ∂r/∂(gain basis j) = −μ_j·c, so J_Xᵀ·J_g for vertex i, coordinate a and basis j
+                // is −λ_i·μ_j·t_a with t = da·(∇_x I·c) + db·(∇_y I·c) (μ: the gain's basis,
+                // the stored barycentrics), and J_gᵀ·J_g is μ_i·μ_j·|c|².
+                let (t, cc) = if fitted == Fitted::None {
+                    ([0.0; 3], 0.0)
+                } else {
+                    let c = [px.color[0] as f64, px.color[1] as f64, px.color[2] as f64];
+                    let xc = gx[0] * c[0] + gx[1] * c[1] + gx[2] * c[2];
+                    let yc = gy[0] * c[0] + gy[1] * c[1] + gy[2] * c[2];
+                    (
+                        [
+                            da[0] * xc + db[0] * yc,
+                            da[1] * xc + db[1] * yc,
+                            da[2] * xc + db[2] * yc,
+                        ],
+                        c[0] * c[0] + c[1] * c[1] + c[2] * c[2],
+                    )
+                };
+                // With pixels glued to the triangle μ = λ: the coupling is symmetric in the
+                // vertex and the basis, and shares the vertex pair's weight.
+                let gt = [g[0], g[1], g[2], g[3], g[4], g[5], t[0], t[1], t[2], cc];
                 for (k, &(i, j)) in PAIRS.iter().enumerate() {
                     let c = wl[i] * l[j];
-                    for e in 0..6 {
-                        hp[k][e] += c * g[e];
+                    for e in 0..10 {
+                        hp[k][e] += c * gt[e];
                     }
                 }
                 for i in 0..3 {
@@ -701,12 +797,51 @@ impl Problem<'_> {
                         gp[i][k] += wl[i] * r3[k];
                     }
                 }
+                if fitted != Fitted::None && !on_template {
+                    let mu = [
+                        px.lambda[0] as f64,
+                        px.lambda[1] as f64,
+                        px.lambda[2] as f64,
+                    ];
+                    for i in 0..3 {
+                        for j in 0..3 {
+                            let f = wl[i] * mu[j];
+                            for a in 0..3 {
+                                coupling[i][j][a] += f * t[a];
+                            }
+                            gain_gram[(i, j)] += w * cc * mu[i] * mu[j];
+                        }
+                    }
+                }
             }
+            if on_template {
+                for (k, &(i, j)) in PAIRS.iter().enumerate() {
+                    let c = [hp[k][6], hp[k][7], hp[k][8]];
+                    coupling[i][j] = c;
+                    coupling[j][i] = c;
+                    gain_gram[(i, j)] = hp[k][9];
+                    gain_gram[(j, i)] = hp[k][9];
+                }
+            }
+            // The gains are re-fitted at every evaluation (variable projection), so the
+            // Gauss–Newton matrix of the positions alone is the Schur complement
+            // H_XX − H_Xg·H_gg⁻¹·H_gX of the joint one. Without it the model sees the positions
+            // as stiffer than they are along every motion a gain change mimics (a shading ramp
+            // sliding over the triangle) and steps fall short, so the solve creeps. The gradient
+            // needs no such term: the gains are optimal (envelope theorem).
+            let gain_blocks = if system {
+                gain_schur(&coupling, &gain_gram, fitted)
+            } else {
+                None
+            };
             if system {
                 for k in 0..6 {
                     let e = hp[k];
-                    acc.h[k] +=
-                        Matrix3::new(e[0], e[3], e[4], e[3], e[1], e[5], e[4], e[5], e[2]) * pw;
+                    let mut h = Matrix3::new(e[0], e[3], e[4], e[3], e[1], e[5], e[4], e[5], e[2]);
+                    if let Some(g) = &gain_blocks {
+                        h -= g[k];
+                    }
+                    acc.h[k] += h * pw;
                 }
                 for i in 0..3 {
                     acc.g[i] += Vector3::from(gp[i]) * pw;

@@ -770,3 +770,125 @@ fn moving_source_gradient_matches_finite_differences_of_the_cost() {
     let size: f64 = b.iter().map(|p| p.norm()).sum();
     assert!(diff > 0.1 * size, "{diff} vs {size}");
 }
+
+/// The brightness gains are re-fitted at every evaluation, so the cost the solver lowers is the
+/// cost *profiled* over them, and its Gauss–Newton matrix is the Schur complement of the joint
+/// one (variable projection). At a zero-residual point Gauss–Newton is exact: along any
+/// direction, the profiled cost's second derivative (finite differences of `Problem::cost`, which
+/// re-fits the gains) is `2·δᵀAδ`. The matrix without the complement overrates it along every
+/// motion a gain change can mimic, which made the free stage creep.
+#[test]
+fn normal_equations_are_the_curvature_of_the_cost_with_its_gains_refitted() {
+    let rig = rig();
+    let plane = plane_at(Vector3::zeros());
+    let mesh = grid(4, 4, |s, t| plane.at(s, t));
+    let cams = rig.cameras();
+    // A faint texture under strong shading across the images (a ramp): moving the mesh along it
+    // changes a triangle's mean brightness, which a gain can mimic.
+    let src: Vec<Pyramid> = rig
+        .images(&plane)
+        .iter()
+        .map(|i| {
+            let w = i.width() as f32;
+            let shaded = RgbImage::from_fn(i.width(), i.height(), |x, y| {
+                i.get(x, y)
+                    .map(|c| (0.5 + 0.1 * (c - 0.5)) * (0.3 + 1.2 * x as f32 / w))
+            });
+            Pyramid::new(&shaded, 1, 1.0)
+        })
+        .collect();
+    // The next frame: the surface has not moved, the light has dimmed by 15 %: a gain fits it
+    // exactly, so the mesh's own positions are a zero-residual point.
+    let dst: Vec<Pyramid> = src
+        .iter()
+        .map(|p| {
+            let mut img = p.levels[0].clone();
+            img.pixels_mut()
+                .iter_mut()
+                .for_each(|px| *px = px.map(|c| 0.85 * c));
+            Pyramid { levels: vec![img] }
+        })
+        .collect();
+    let popts = PatchOptions {
+        margin: 1,
+        min_cos: 0.1,
+        two_sided: true,
+        checkerboard: false,
+    };
+    let mut set = PatchSet::default();
+    for (c, cam) in cams.iter().enumerate() {
+        set.add_camera(
+            &mesh.positions,
+            &mesh.triangles,
+            cam.at(0),
+            &src[c].levels[0],
+            c as u16,
+            1.0,
+            &popts,
+            None,
+        );
+    }
+    let by_triangle = set.by_triangle();
+    let edges = EdgeSet::new(&mesh);
+    let problem = Problem {
+        triangles: &mesh.triangles,
+        patches: &set.patches,
+        pixels: &set.pixels,
+        by_triangle: &by_triangle,
+        targets: dst.iter().map(|p| &p.levels[0]).collect(),
+        projections: cams.iter().map(|c| c.at(1).clone()).collect(),
+        pattern: &edges.edges,
+        regularisers: &[],
+        cancel: None,
+        moving_source: None,
+        gauge_floor: 0.0,
+        lag: None,
+    };
+    let x = mesh.positions.clone();
+    let n = x.len();
+    for gain in [GainModel::Constant, GainModel::Linear] {
+        let opts = SolverOptions {
+            huber: 1e3,
+            gain,
+            ..SolverOptions::default()
+        };
+        let (cost, a, _) = problem.linearize(&x, &opts);
+        assert!(
+            cost < 1e-12,
+            "{gain:?}: not a zero-residual point ({cost:e})"
+        );
+        // Directions: every vertex moving along the surface's normal, one vertex alone, and a
+        // slide in the plane.
+        let normal = plane.u.cross(&plane.v).normalize();
+        let dirs: Vec<Vec<Vector3<f64>>> = vec![
+            vec![normal; n],
+            (0..n)
+                .map(|i| {
+                    if i == 5 {
+                        Vector3::new(0.3, 0.2, -1.0)
+                    } else {
+                        Vector3::zeros()
+                    }
+                })
+                .collect(),
+            (0..n)
+                .map(|i| plane.u.normalize() * (0.5 + (i % 4) as f64 * 0.25))
+                .collect(),
+        ];
+        for (d, dir) in dirs.iter().enumerate() {
+            let mut ad = vec![Vector3::zeros(); n];
+            a.mul(dir, &mut ad);
+            let model: f64 = 2.0 * dir.iter().zip(&ad).map(|(u, v)| u.dot(v)).sum::<f64>();
+            let h = 2e-4;
+            let at = |e: f64| {
+                let y: Vec<Point3<f64>> = x.iter().zip(dir).map(|(p, u)| p + u * e).collect();
+                problem.cost(&y, &opts)
+            };
+            let fd = (at(h) - 2.0 * at(0.0) + at(-h)) / (h * h);
+            assert!(
+                (fd - model).abs() <= 0.03 * fd.abs(),
+                "{gain:?}, direction {d}: cost's curvature {fd:.6e}, model's {model:.6e}"
+            );
+        }
+    }
+}
