@@ -297,23 +297,8 @@ fn check_gradient(
     checked
 }
 
-#[test]
-fn assembled_gradient_matches_finite_differences_of_the_cost() {
-    let rig = rig();
-    let plane0 = plane_at(Vector3::zeros());
-    let plane1 = plane_at(Vector3::new(0.004, 0.0, -0.003));
-    let mesh = grid(4, 4, |s, t| plane0.at(s, t));
-    let cams = rig.cameras();
-    let src: Vec<Pyramid> = rig
-        .images(&plane0)
-        .iter()
-        .map(|i| Pyramid::new(i, 1, 1.0))
-        .collect();
-    let dst: Vec<Pyramid> = rig
-        .images(&plane1)
-        .iter()
-        .map(|i| Pyramid::new(i, 1, 1.0))
-        .collect();
+/// Every camera's patches of `mesh` at frame 0 (full resolution, every pixel), from `src`.
+fn frame0_patches(mesh: &Mesh, cams: &[Camera], src: &[Pyramid]) -> PatchSet {
     let popts = PatchOptions {
         margin: 1,
         min_cos: 0.1,
@@ -333,6 +318,27 @@ fn assembled_gradient_matches_finite_differences_of_the_cost() {
             None,
         );
     }
+    set
+}
+
+#[test]
+fn assembled_gradient_matches_finite_differences_of_the_cost() {
+    let rig = rig();
+    let plane0 = plane_at(Vector3::zeros());
+    let plane1 = plane_at(Vector3::new(0.004, 0.0, -0.003));
+    let mesh = grid(4, 4, |s, t| plane0.at(s, t));
+    let cams = rig.cameras();
+    let src: Vec<Pyramid> = rig
+        .images(&plane0)
+        .iter()
+        .map(|i| Pyramid::new(i, 1, 1.0))
+        .collect();
+    let dst: Vec<Pyramid> = rig
+        .images(&plane1)
+        .iter()
+        .map(|i| Pyramid::new(i, 1, 1.0))
+        .collect();
+    let mut set = frame0_patches(&mesh, &cams, &src);
     let by_triangle = set.by_triangle();
     let edges = Arc::new(EdgeSet::new(&mesh));
     // A stretched spring (k = 5) and a membrane term are included too.
@@ -809,25 +815,7 @@ fn normal_equations_are_the_curvature_of_the_cost_with_its_gains_refitted() {
             Pyramid { levels: vec![img] }
         })
         .collect();
-    let popts = PatchOptions {
-        margin: 1,
-        min_cos: 0.1,
-        two_sided: true,
-        checkerboard: false,
-    };
-    let mut set = PatchSet::default();
-    for (c, cam) in cams.iter().enumerate() {
-        set.add_camera(
-            &mesh.positions,
-            &mesh.triangles,
-            cam.at(0),
-            &src[c].levels[0],
-            c as u16,
-            1.0,
-            &popts,
-            None,
-        );
-    }
+    let mut set = frame0_patches(&mesh, &cams, &src);
     let by_triangle = set.by_triangle();
     let edges = EdgeSet::new(&mesh);
     let problem = Problem {
