@@ -23,6 +23,9 @@ pub struct TrackArgs {
     /// Weight of the first frame as a second template, compared at every pyramid level but the coarsest (0 = compare with the previous frame only, as in the thesis; 0 to 100).
     #[arg(long, default_value_t = TrackOptions::default().anchor_weight)]
     pub anchor_weight: f64,
+    /// Leave out template pixels that every other camera seeing the same surface point contradicts (an occluder in front of the surface in one camera, a highlight): the threshold, as a multiple of the median colour difference between cameras (0 = off; 0 to 1000).
+    #[arg(long, default_value_t = TrackOptions::default().consensus)]
+    pub consensus: f64,
     /// Spring constant k of the cubic edge springs (Eq. 5.16) on the edges' strain, each edge
     /// weighted by its share of the surface's area, so independent of units and triangulation
     /// (0 = off; 0 to 1e6).
@@ -132,6 +135,7 @@ impl TrackArgs {
         TrackOptions {
             levels: self.levels,
             anchor_weight: self.anchor_weight,
+            consensus: self.consensus,
             blur: self.blur,
             checkerboard: !self.all_pixels,
             rigid_first: !self.no_rigid_stage,

@@ -41,6 +41,7 @@ fn track_options_out_of_range_are_refused_by_name() {
         ("--huber", "NaN", "(0, 10]"),
         ("--huber", "-1", "(0, 10]"),
         ("--anchor-weight", "-1", "[0, 100]"),
+        ("--consensus", "-1", "[0, 1000]"),
         ("--spring-k", "NaN", "[0, 1000000]"),
         ("--spring-t", "0", "(0, 10]"),
         ("--membrane", "-0.5", "[0, 1000000]"),

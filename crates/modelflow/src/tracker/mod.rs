@@ -8,6 +8,7 @@
 //! files, through `run`; everything else takes and returns memory.
 
 pub(crate) mod align;
+pub(crate) mod consensus;
 mod options;
 pub(crate) mod outline;
 pub(crate) mod patch;

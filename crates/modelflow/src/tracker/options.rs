@@ -38,6 +38,16 @@ pub struct TrackOptions {
     /// triangle's pixels constrain together).
     #[serde(default = "yes")]
     pub rigid_first: bool,
+    /// Template pixels that every other camera seeing the same surface point contradicts (an
+    /// occluder in front of the surface in one camera, a highlight) are left out
+    /// (`tracker::consensus`): the threshold, as a multiple of the median residual between
+    /// cameras (0 = off).
+    #[serde(default = "default_consensus")]
+    pub consensus: f64,
+}
+
+fn default_consensus() -> f64 {
+    3.0
 }
 
 fn yes() -> bool {
@@ -57,6 +67,7 @@ impl Default for TrackOptions {
             predict: true,
             checkerboard: true,
             rigid_first: true,
+            consensus: default_consensus(),
         }
     }
 }
@@ -133,6 +144,13 @@ impl TrackOptions {
                 low: (0.0, true),
                 high: (100.0, true),
                 why: "",
+            },
+            Range {
+                option: "--consensus",
+                value: self.consensus,
+                low: (0.0, true),
+                high: (1000.0, true),
+                why: "times the median residual between cameras; 0 = off",
             },
             Range {
                 option: "--spring-k",

@@ -15,6 +15,7 @@ use crate::base::camera::{Camera, Projection};
 use crate::base::image::RgbImage;
 use crate::base::mesh::Mesh;
 use crate::error::{Error, Result};
+use crate::tracker::consensus::{drop_contradicted, ConsensusOptions};
 use crate::tracker::options::{OptionsUsed, TrackOptions};
 use crate::tracker::patch::{PatchOptions, PatchSet};
 use crate::tracker::pyramid::Pyramid;
@@ -41,6 +42,11 @@ pub struct FrameReport {
     pub cost_after: f64,
     /// Pixels compared at the solution, finest level.
     pub pixels: usize,
+    /// Pixels of the previous frame's template at the finest level that every other camera
+    /// seeing the same surface point contradicted (an occluder, a highlight), left out
+    /// (`TrackOptions::consensus`).
+    #[serde(default)]
+    pub contradicted: usize,
     /// Why the finest level stopped.
     pub stop: StopReason,
     /// Whether the constant-velocity prediction was used as the start.
@@ -269,6 +275,14 @@ impl Tracker {
         &self.prev.positions
     }
 
+    fn consensus_options(&self) -> ConsensusOptions {
+        ConsensusOptions {
+            k: self.opts.consensus,
+            min: self.opts.solver.tukey_min,
+            px: self.opts.solver.tukey_px,
+        }
+    }
+
     fn patch_options(&self) -> PatchOptions {
         PatchOptions {
             margin: self.opts.margin,
@@ -281,7 +295,8 @@ impl Tracker {
     /// The patches of template `tpl` at `level`. With `before` (earlier positions and how many
     /// frames before the template's), a camera that records late or early
     /// (`Camera::time_offset`) is given the surface where it was when that camera saw it: moved
-    /// on along its velocity (see `solve::Lag`).
+    /// on along its velocity (see `solve::Lag`). Pixels every other camera contradicts are left
+    /// out (`consensus`); their count is returned with the patches.
     fn template_patches(
         &self,
         tpl: &Template,
@@ -289,7 +304,7 @@ impl Tracker {
         level: usize,
         weight: f32,
         checkerboard: bool,
-    ) -> PatchSet {
+    ) -> (PatchSet, usize) {
         let popts = PatchOptions {
             checkerboard,
             ..self.patch_options()
@@ -324,7 +339,27 @@ impl Tracker {
                 set
             })
             .collect();
-        merge(per_cam)
+        let mut set = merge(per_cam);
+        let mut contradicted = 0;
+        if self.opts.consensus > 0.0 && self.cameras.len() > 1 {
+            let projections: Vec<Projection> = self
+                .cameras
+                .iter()
+                .map(|c| level_projection(c.at(tpl.frame), level))
+                .collect();
+            let images: Vec<&RgbImage> = tpl.pyramids.iter().map(|p| &p.levels[level]).collect();
+            let copts = self.consensus_options();
+            contradicted = drop_contradicted(
+                &mut set,
+                &tpl.positions,
+                &self.triangles,
+                &projections,
+                &images,
+                &copts,
+            )
+            .dropped;
+        }
+        (set, contradicted)
     }
 
     /// The anchor's patches, every level it is compared at ([`anchored_levels`]), from the first frame's template `first` (none when
@@ -353,6 +388,7 @@ impl Tracker {
         (0..anchored_levels(self.opts.levels))
             .map(|l| {
                 self.template_patches(first, before, l, 2.0 * self.opts.anchor_weight as f32, true)
+                    .0
             })
             .collect()
     }
@@ -380,6 +416,7 @@ impl Tracker {
         let mut cost_before = 0.0;
         let mut cost_after = 0.0;
         let mut pixels = 0;
+        let mut contradicted = 0;
         let mut stop = StopReason::NoData;
         let mut confidence = Vec::new();
         let offsets: Vec<f64> = self.cameras.iter().map(|c| c.time_offset).collect();
@@ -413,7 +450,10 @@ impl Tracker {
                     self.prev.frame.saturating_sub(self.before_frame).max(1) as f64,
                 )
             });
-            let mut set = self.template_patches(&self.prev, before, level, weight, cb);
+            let (mut set, dropped) = self.template_patches(&self.prev, before, level, weight, cb);
+            if level == 0 {
+                contradicted = dropped;
+            }
             if let Some(anchor) = self.anchor.get(level) {
                 // Anchor patches only where the triangle is seen in the previous frame too
                 // (otherwise it has turned away or been covered since the first frame).
@@ -556,6 +596,7 @@ impl Tracker {
             cost_before,
             cost_after,
             pixels,
+            contradicted,
             stop,
             predicted,
             stalled,

@@ -1,0 +1,365 @@
+//! Template pixels that the other cameras contradict (our addition to the thesis, for occluders
+//! and highlights). A template pixel is meant to be the colour of one surface point; every other
+//! camera that sees the same triangle sees that point too, through the triangle's plane (the
+//! point `Σ λ_k·X_k` of its barycentric coordinates, projected: the cross-camera warp of
+//! `align`). Where an occluder stands in front of the surface in one camera (a rod, a hand) or a
+//! highlight sits on it, that camera's pixel disagrees with what the others see there, while the
+//! surface's own texture agrees. Such a pixel would carry the occluder or the highlight into the
+//! next frame (or, from the first frame's template, into every frame) and pull the mesh with it,
+//! so it is left out of the template.
+//!
+//! The colours are compared up to gains: per ordered pair of cameras one per channel (exposure,
+//! white balance), fitted on every fourth pixel of the template, times one per (triangle,
+//! camera, other camera) within [2/3, 3/2] (a glossy surface is brighter from one side; the
+//! bound keeps an occluder's flat colour from being explained away), fitted twice, the second
+//! time without the pixels the first fit rejected. A pixel is contradicted by a camera when its
+//! RGB residual exceeds `k` times the median residual (of every fourth pixel; at least `min`),
+//! widened by `px` pixels of misalignment times the image gradient there (the mesh is only as
+//! good as the last solve). It is dropped when *every* other camera that sees its triangle
+//! contradicts it, and a patch most of whose checked pixels are dropped is dropped whole (what
+//! agrees in it agrees by chance); a pixel no other camera can check is kept. Hand-written: the
+//! tracker's own data on its own warps. Deterministic whatever the thread count.
+
+use crate::base::camera::Projection;
+use crate::base::image::RgbImage;
+use crate::tracker::patch::{Patch, PatchSet, PixelSample};
+use nalgebra::Point3;
+use rayon::prelude::*;
+
+/// How disagreement between cameras is judged.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(crate) struct ConsensusOptions {
+    /// Threshold as a multiple of the median cross-camera residual.
+    pub k: f64,
+    /// Smallest threshold (image units).
+    pub min: f64,
+    /// Misalignment (pixels of the level) a pixel may have and still agree.
+    pub px: f64,
+}
+
+/// What the check did to one template.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub(crate) struct ConsensusStats {
+    /// Pixels dropped.
+    pub dropped: usize,
+}
+
+/// The statistics (pair gains, median residual) are taken on every `STRIDE`-th pixel.
+const STRIDE: usize = 4;
+/// Range of the per-patch gain on top of the pair's.
+const PATCH_GAIN: f64 = 1.5;
+
+/// Drops from `set` the pixels every other camera contradicts. `positions` is the template's
+/// mesh, `projections[c]` and `images[c]` camera `c`'s at the template's frame and the set's
+/// level (the patches' `source` indexes them).
+pub(crate) fn drop_contradicted(
+    set: &mut PatchSet,
+    positions: &[Point3<f64>],
+    triangles: &[[u32; 3]],
+    projections: &[Projection],
+    images: &[&RgbImage],
+    opts: &ConsensusOptions,
+) -> ConsensusStats {
+    let ncam = projections.len();
+    if ncam < 2 || set.patches.is_empty() {
+        return ConsensusStats::default();
+    }
+    let covered = set.coverage(triangles.len(), ncam);
+    let view = View {
+        pixels: &set.pixels,
+        positions,
+        triangles,
+        projections,
+        images,
+        covered: &covered,
+    };
+    let patches = &set.patches;
+    let limit = |median: f64| Limit {
+        d2: ((opts.k * median).max(opts.min)).powi(2) as f32,
+        tol2: (opts.px * opts.px) as f32,
+    };
+    // The statistics twice: the second time without what the first rejected.
+    let gains = view.pair_gains(patches, None);
+    let first = limit(view.median_residual(patches, &gains));
+    let gains = view.pair_gains(patches, Some((&gains, &first)));
+    let limit = limit(view.median_residual(patches, &gains));
+    let keep: Vec<Vec<bool>> = patches
+        .par_iter()
+        .map_init(Vec::new, |buf, p| view.verdict(p, &gains, &limit, buf))
+        .collect();
+    let mut stats = ConsensusStats::default();
+    let mut out = PatchSet {
+        patches: Vec::with_capacity(patches.len()),
+        pixels: Vec::with_capacity(set.pixels.len()),
+    };
+    for (p, keep) in patches.iter().zip(&keep) {
+        let start = out.pixels.len() as u32;
+        let px = &set.pixels[p.start as usize..p.end as usize];
+        out.pixels
+            .extend(px.iter().zip(keep).filter(|k| *k.1).map(|k| *k.0));
+        let end = out.pixels.len() as u32;
+        stats.dropped += px.len() - (end - start) as usize;
+        if end > start {
+            out.patches.push(Patch { start, end, ..*p });
+        }
+    }
+    *set = out;
+    stats
+}
+
+/// A residual's limit: `d2 + tol2·|∇|²`.
+struct Limit {
+    d2: f32,
+    tol2: f32,
+}
+
+/// One other camera's sample of a template pixel's surface point: its colour times the pair's
+/// gains, and the squared gradient norm summed over channels (same gains).
+#[derive(Clone, Copy)]
+struct Seen {
+    b: [f32; 3],
+    g2: f32,
+}
+
+/// The template's patches' pixels and mesh, and the other cameras' views of the same frame.
+struct View<'a> {
+    pixels: &'a [PixelSample],
+    positions: &'a [Point3<f64>],
+    triangles: &'a [[u32; 3]],
+    projections: &'a [Projection],
+    images: &'a [&'a RgbImage],
+    covered: &'a [bool],
+}
+
+impl View<'_> {
+    /// Every `stride`-th pixel of `p` as each other camera that sees its triangle samples it:
+    /// `f(pixel index, its colour, the sample, other camera, slot)`; `None` where the point
+    /// falls outside that camera's image.
+    fn each_sample(
+        &self,
+        p: &Patch,
+        stride: usize,
+        mut f: impl FnMut(usize, [f32; 3], Option<[f32; 9]>, usize, usize),
+    ) {
+        let ncam = self.projections.len();
+        let t = p.triangle as usize;
+        let x = self.triangles[t].map(|v| self.positions[v as usize]);
+        let src = p.source as usize;
+        let px = &self.pixels[p.start as usize..p.end as usize];
+        for (slot, other) in (0..ncam).filter(|&c| c != src).enumerate() {
+            if !self.covered[t * ncam + other] {
+                continue;
+            }
+            let proj = &self.projections[other];
+            let img = self.images[other];
+            for (i, s) in px.iter().enumerate().step_by(stride) {
+                let l = s.lambda;
+                let pt = Point3::from(
+                    x[0].coords * l[0] as f64
+                        + x[1].coords * l[1] as f64
+                        + x[2].coords * l[2] as f64,
+                );
+                let smp = proj.project(&pt).and_then(|q| img.sample_exact(q.x, q.y));
+                f(i, s.color, smp, other, slot);
+            }
+        }
+    }
+
+    /// Per ordered camera pair `(source, other)` (index `source·n + other`), the per-channel gain
+    /// `Σ a·b / Σ b²` over every `STRIDE`-th pixel both see; with `first` (earlier gains and a
+    /// limit), only over the pixels that fit within the limit under those gains.
+    fn pair_gains(&self, patches: &[Patch], first: Option<(&[[f32; 3]], &Limit)>) -> Vec<[f32; 3]> {
+        let ncam = self.projections.len();
+        let others = ncam - 1;
+        let ones = vec![[1.0f32; 3]; ncam * ncam];
+        // Summed in fixed chunks, then in order: the same sums whatever the thread count.
+        let chunks: Vec<Vec<[f64; 6]>> = patches
+            .par_chunks(256)
+            .map(|chunk| {
+                let mut out = vec![[0.0; 6]; ncam * ncam];
+                let mut buf = Vec::new();
+                for p in chunk {
+                    let px = &self.pixels[p.start as usize..p.end as usize];
+                    let src = p.source as usize;
+                    let (g, limit) = match first {
+                        Some((g, l)) => (g, Some(l)),
+                        None => (&ones[..], None),
+                    };
+                    self.gather(p, g, STRIDE, &mut buf);
+                    for (slot, other) in (0..ncam).filter(|&c| c != src).enumerate() {
+                        let s = limit.map(|_| own_gain(px, &buf, others, slot, None));
+                        let gi = &g[src * ncam + other];
+                        for (i, a) in px.iter().enumerate().step_by(STRIDE) {
+                            let Some(seen) = buf[i * others + slot] else {
+                                continue;
+                            };
+                            if let (Some(l), Some(s)) = (limit, s) {
+                                if residual2(a, &seen, s) > l.d2 + l.tol2 * seen.g2 {
+                                    continue;
+                                }
+                            }
+                            let o = &mut out[src * ncam + other];
+                            for ch in 0..3 {
+                                // Undo the gains the samples were gathered with.
+                                let b = (seen.b[ch] / gi[ch]) as f64;
+                                o[ch] += a.color[ch] as f64 * b;
+                                o[3 + ch] += b * b;
+                            }
+                        }
+                    }
+                }
+                out
+            })
+            .collect();
+        let mut pair = vec![[0.0f64; 6]; ncam * ncam];
+        for c in &chunks {
+            for (x, y) in pair.iter_mut().zip(c) {
+                for k in 0..6 {
+                    x[k] += y[k];
+                }
+            }
+        }
+        pair.iter()
+            .map(|s| {
+                [0, 1, 2].map(|ch| {
+                    if s[3 + ch] > 1e-12 {
+                        (s[ch] / s[3 + ch]).clamp(0.25, 4.0) as f32
+                    } else {
+                        1.0
+                    }
+                })
+            })
+            .collect()
+    }
+
+    /// The median RGB residual over every `STRIDE`-th pixel and the other cameras that see it,
+    /// each patch with its own gain fitted on those pixels.
+    fn median_residual(&self, patches: &[Patch], gains: &[[f32; 3]]) -> f64 {
+        let mut all: Vec<f32> = patches
+            .par_iter()
+            .map_init(Vec::new, |buf, p| {
+                let others = self.projections.len() - 1;
+                let px = &self.pixels[p.start as usize..p.end as usize];
+                self.gather(p, gains, STRIDE, buf);
+                let mut e = Vec::new();
+                for slot in 0..others {
+                    let s = own_gain(px, buf, others, slot, None);
+                    for (i, a) in px.iter().enumerate().step_by(STRIDE) {
+                        if let Some(seen) = buf[i * others + slot] {
+                            e.push(residual2(a, &seen, s).sqrt());
+                        }
+                    }
+                }
+                e
+            })
+            .flatten()
+            .collect();
+        if all.is_empty() {
+            return 0.0;
+        }
+        let mid = all.len() / 2;
+        let (_, m, _) = all.select_nth_unstable_by(mid, f32::total_cmp);
+        *m as f64
+    }
+
+    /// Fills `buf[i·others + slot]` with what the other cameras see of `p`'s pixels (every
+    /// `stride`-th; the rest `None`).
+    fn gather(&self, p: &Patch, gains: &[[f32; 3]], stride: usize, buf: &mut Vec<Option<Seen>>) {
+        let ncam = self.projections.len();
+        let others = ncam - 1;
+        let n = (p.end - p.start) as usize;
+        let src = p.source as usize;
+        buf.clear();
+        buf.resize(n * others, None);
+        self.each_sample(p, stride, |i, _, smp, other, slot| {
+            if let Some(b) = smp {
+                let g = &gains[src * ncam + other];
+                let mut g2 = 0.0;
+                for ch in 0..3 {
+                    let (gx, gy) = (g[ch] * b[3 + ch], g[ch] * b[6 + ch]);
+                    g2 += gx * gx + gy * gy;
+                }
+                buf[i * others + slot] = Some(Seen {
+                    b: [0, 1, 2].map(|ch| g[ch] * b[ch]),
+                    g2,
+                });
+            }
+        });
+    }
+
+    /// Which of `p`'s pixels to keep.
+    fn verdict(
+        &self,
+        p: &Patch,
+        gains: &[[f32; 3]],
+        limit: &Limit,
+        buf: &mut Vec<Option<Seen>>,
+    ) -> Vec<bool> {
+        let others = self.projections.len() - 1;
+        let n = (p.end - p.start) as usize;
+        let px = &self.pixels[p.start as usize..p.end as usize];
+        self.gather(p, gains, 1, buf);
+        let mut checked = vec![false; n];
+        let mut agreed = vec![false; n];
+        for slot in 0..others {
+            // Fitted on all pixels, then again on those that fit.
+            let s0 = own_gain(px, buf, others, slot, None);
+            let fits = |i: usize, s: f32| {
+                buf[i * others + slot].is_some_and(|seen| {
+                    residual2(&px[i], &seen, s) <= limit.d2 + limit.tol2 * seen.g2
+                })
+            };
+            let s = own_gain(px, buf, others, slot, Some(&|i| fits(i, s0)));
+            for i in 0..n {
+                if buf[i * others + slot].is_some() {
+                    checked[i] = true;
+                    agreed[i] |= fits(i, s);
+                }
+            }
+        }
+        let nc = checked.iter().filter(|&&c| c).count();
+        let nd = (0..n).filter(|&i| checked[i] && !agreed[i]).count();
+        let whole = 2 * nd > nc;
+        (0..n)
+            .map(|i| !checked[i] || (agreed[i] && !whole))
+            .collect()
+    }
+}
+
+/// The patch's own gain on top of the pair's for one other camera (`slot`), over the pixels
+/// `use_pixel` accepts (all with `None`), within `[1/PATCH_GAIN, PATCH_GAIN]`.
+fn own_gain(
+    px: &[PixelSample],
+    buf: &[Option<Seen>],
+    others: usize,
+    slot: usize,
+    use_pixel: Option<&dyn Fn(usize) -> bool>,
+) -> f32 {
+    let (mut ab, mut bb) = (0.0f64, 0.0f64);
+    for (i, a) in px.iter().enumerate() {
+        let Some(seen) = buf[i * others + slot] else {
+            continue;
+        };
+        if use_pixel.is_none_or(|f| f(i)) {
+            for ch in 0..3 {
+                ab += a.color[ch] as f64 * seen.b[ch] as f64;
+                bb += seen.b[ch] as f64 * seen.b[ch] as f64;
+            }
+        }
+    }
+    if bb > 1e-12 {
+        (ab / bb).clamp(1.0 / PATCH_GAIN, PATCH_GAIN) as f32
+    } else {
+        1.0
+    }
+}
+
+/// Squared RGB residual of a template pixel against another camera's sample times gain `s`.
+fn residual2(a: &PixelSample, seen: &Seen, s: f32) -> f32 {
+    let mut e2 = 0.0;
+    for ch in 0..3 {
+        let r = a.color[ch] - s * seen.b[ch];
+        e2 += r * r;
+    }
+    e2
+}
