@@ -646,6 +646,19 @@ fn paint_rod(img: &mut RgbImage, x0: usize, x1: usize) {
     }
 }
 
+/// The plane moving 1 px per frame for 5 frames behind a static rod in camera 0: the RMS error
+/// per frame.
+fn track_behind_rod(opts: TrackOptions) -> Vec<f64> {
+    let rig = rig();
+    let motion = Vector3::new(0.004, -0.002, 0.003);
+    let images = |plane: &Plane| {
+        let mut im = rig.images(plane);
+        paint_rod(&mut im[0], 70, 86);
+        im
+    };
+    track_plane(&rig, opts, motion, 5, mesh_of, images)
+}
+
 #[test]
 fn a_static_occluder_does_not_hold_the_surface_back() {
     // A rod stands still in front of the moving plane (1 px per frame) in one camera, covering
@@ -655,13 +668,6 @@ fn a_static_occluder_does_not_hold_the_surface_back() {
     // they are misaligned by more than its tolerance, so the error stays under a pixel (5 mm)
     // instead of growing. (Within the tolerance, 1 px, the rod's edges still pull: a motion of
     // a pixel cannot tell a static edge from a slow one.)
-    let rig = rig();
-    let motion = Vector3::new(0.004, -0.002, 0.003);
-    let images = |plane: &Plane| {
-        let mut im = rig.images(plane);
-        paint_rod(&mut im[0], 70, 86);
-        im
-    };
     let run = |loss: Loss| {
         let mut opts = TrackOptions {
             // The rod is left in the templates: this is the loss's part alone (the test below
@@ -670,7 +676,7 @@ fn a_static_occluder_does_not_hold_the_surface_back() {
             ..TrackOptions::default()
         };
         opts.solver.loss = loss;
-        track_plane(&rig, opts, motion, 5, mesh_of, images)
+        track_behind_rod(opts)
     };
     let (huber, tukey) = (run(Loss::Huber), run(Loss::Tukey));
     eprintln!("rms error per frame (m): huber {huber:?}, tukey {tukey:?}");
@@ -898,19 +904,12 @@ fn an_occluder_in_one_camera_is_left_out_of_the_templates() {
     // stays near what the plane gives without a rod (0.2 mm): 0.7–1.0 mm, against 3.2–4.4 mm
     // with the check off (what remains comes from the rod in the frame being solved, which
     // only the Tukey refinement handles).
-    let rig = rig();
-    let motion = Vector3::new(0.004, -0.002, 0.003);
-    let images = |plane: &Plane| {
-        let mut im = rig.images(plane);
-        paint_rod(&mut im[0], 70, 86);
-        im
-    };
     let run = |consensus: f64| {
         let opts = TrackOptions {
             consensus,
             ..TrackOptions::default()
         };
-        track_plane(&rig, opts, motion, 5, mesh_of, images)
+        track_behind_rod(opts)
     };
     let (on, off) = (run(TrackOptions::default().consensus), run(0.0));
     eprintln!("rms error per frame (m): consensus {on:?}, without {off:?}");
