@@ -525,8 +525,8 @@ impl Tracker {
             // A cancelled solve ends the step: the tracker stays at the previous frame and
             // nothing of this step is kept.
             let last_complete = self.prev.frame;
-            let solve = |x: &[Point3<f64>], lin, o: &SolverOptions, motion| {
-                let out = problem.solve_motion(x, lin, o, motion);
+            let solve = |x: &[Point3<f64>], lin, o: &SolverOptions, motion, median| {
+                let out = problem.solve_stage(x, lin, o, motion, median);
                 if out.1.stop == StopReason::Cancelled {
                     Err(Error::Interrupted { last_complete })
                 } else {
@@ -535,15 +535,18 @@ impl Tracker {
             };
             let mut linearised = None;
             if self.opts.rigid_first {
-                let (sol, summary, lin) = solve(&x, None, &sopts, Motion::Rigid)?;
+                let (sol, summary, lin) = solve(&x, None, &sopts, Motion::Rigid, false)?;
                 x = sol;
                 linearised = Some(lin);
                 summaries.push(summary);
             }
-            let (sol, mut summary, mut lin) = solve(&x, linearised, &sopts, Motion::Free)?;
+            // Before a refine, the Huber solve takes the residuals' median at its result as it
+            // goes, which sets the refine's threshold without a pass of its own.
+            let (sol, mut summary, mut lin) = solve(&x, linearised, &sopts, Motion::Free, refine)?;
             x = sol;
             if refine {
-                let (sol, refined, refined_lin) = solve(&x, None, &robust, Motion::Free)?;
+                let (sol, refined, refined_lin) =
+                    solve(&x, Some(lin), &robust, Motion::Free, false)?;
                 x = sol;
                 lin = refined_lin;
                 summaries.push(std::mem::replace(&mut summary, refined));

@@ -488,11 +488,16 @@ impl Problem<'_> {
             Loss::Huber => *opts,
             Loss::Tukey => {
                 let m = self.median_residual(x, opts).unwrap_or(opts.huber);
-                SolverOptions {
-                    huber: (opts.tukey_k * m).max(opts.tukey_min),
-                    ..*opts
-                }
+                self.tukey_options(m, opts)
             }
+        }
+    }
+
+    /// The options of a Tukey solve whose residuals at the start have the median `m`.
+    fn tukey_options(&self, m: f64, opts: &SolverOptions) -> SolverOptions {
+        SolverOptions {
+            huber: (opts.tukey_k * m).max(opts.tukey_min),
+            ..*opts
         }
     }
 
@@ -860,15 +865,69 @@ impl Problem<'_> {
         opts: &SolverOptions,
         system: Option<(&mut BlockSparse, &mut Vec<Vector3<f64>>)>,
     ) -> (f64, usize, Vec<TriAccum>) {
+        let (cost, pixels, parts, _) = self.evaluate_with(x, opts, system, false);
+        (cost, pixels, parts)
+    }
+
+    /// [`Problem::evaluate`], and with `median` also the weighted median residual norm at `x`
+    /// (what [`Problem::median_residual`] gives, from the same pass).
+    fn evaluate_with(
+        &self,
+        x: &[Point3<f64>],
+        opts: &SolverOptions,
+        system: Option<(&mut BlockSparse, &mut Vec<Vector3<f64>>)>,
+        median: bool,
+    ) -> (f64, usize, Vec<TriAccum>, Option<f64>) {
         let want = system.is_some();
-        let parts: Vec<TriAccum> = self
-            .by_triangle
-            .par_iter()
-            .with_min_len(16)
-            .map_init(Scratch::default, |scratch, (t, r)| {
-                self.triangle(*t, r, x, opts, want, scratch)
-            })
-            .collect();
+        let (parts, median) = if median {
+            // Each worker's histogram is summed in integers, so the median does not depend on
+            // how the triangles were split; the parts are put back in triangle order.
+            let folded: Vec<_> = self
+                .by_triangle
+                .par_iter()
+                .enumerate()
+                .with_min_len(16)
+                .fold(
+                    || {
+                        (
+                            Vec::new(),
+                            Scratch {
+                                warped: Vec::new(),
+                                hist: Some(ResidualHistogram::new()),
+                            },
+                        )
+                    },
+                    |(mut out, mut scratch), (i, (t, r))| {
+                        out.push((i, self.triangle(*t, r, x, opts, want, &mut scratch)));
+                        (out, scratch)
+                    },
+                )
+                .map(|(out, scratch)| (out, scratch.hist))
+                .collect();
+            let mut hist = ResidualHistogram::new();
+            let mut indexed = Vec::with_capacity(self.by_triangle.len());
+            for (out, h) in folded {
+                indexed.extend(out);
+                if let Some(h) = h {
+                    hist = hist.merge(h);
+                }
+            }
+            indexed.sort_unstable_by_key(|&(i, _)| i);
+            (
+                indexed.into_iter().map(|(_, acc)| acc).collect(),
+                hist.median(),
+            )
+        } else {
+            let parts: Vec<TriAccum> = self
+                .by_triangle
+                .par_iter()
+                .with_min_len(16)
+                .map_init(Scratch::default, |scratch, (t, r)| {
+                    self.triangle(*t, r, x, opts, want, scratch)
+                })
+                .collect();
+            (parts, None)
+        };
         let n = self.weighted_pixels().max(1.0);
         let inv_n = 1.0 / n;
         let mut cost = 0.0;
@@ -894,7 +953,7 @@ impl Problem<'_> {
         for r in self.regularisers {
             cost += r.accumulate(x, sys.as_mut().map(|(a, b)| (&mut **a, &mut b[..])));
         }
-        (cost, pixels, parts)
+        (cost, pixels, parts, median)
     }
 
     /// Cost at `x` and the normal equations there: `(cost, JᵀJ, −Jᵀr)` (for tests: the solver
@@ -1006,9 +1065,26 @@ impl Problem<'_> {
         opts: &SolverOptions,
         motion: Motion,
     ) -> (Vec<Point3<f64>>, SolveSummary, Linearised) {
-        // An adaptive loss is re-scaled here, so a linearisation made with another scale is
-        // not reused.
-        let opts = &self.solve_options(start, opts);
+        self.solve_stage(start, at_start, opts, motion, false)
+    }
+
+    /// [`Problem::solve_motion`]; with `collect_median`, every evaluation also takes the median
+    /// residual, so that the returned linearisation carries it at the result (a Tukey solve
+    /// started there then needs no pass of its own for its threshold).
+    pub fn solve_stage(
+        &self,
+        start: &[Point3<f64>],
+        at_start: Option<Linearised>,
+        opts: &SolverOptions,
+        motion: Motion,
+        collect_median: bool,
+    ) -> (Vec<Point3<f64>>, SolveSummary, Linearised) {
+        // An adaptive loss is re-scaled here (from the median the linearisation at the start
+        // carries, when it does), so a linearisation made with another scale is not reused.
+        let opts = &match (opts.loss, at_start.as_ref().and_then(|l| l.median)) {
+            (Loss::Tukey, Some(m)) => self.tukey_options(m, opts),
+            _ => self.solve_options(start, opts),
+        };
         let at_start = if opts.loss == Loss::Huber {
             at_start
         } else {
@@ -1024,7 +1100,8 @@ impl Problem<'_> {
             None => {
                 let mut a = BlockSparse::new(nv, self.pattern);
                 let mut b = vec![Vector3::zeros(); nv];
-                let (cost, pixels, parts) = self.evaluate(&x, opts, Some((&mut a, &mut b)));
+                let (cost, pixels, parts, median) =
+                    self.evaluate_with(&x, opts, Some((&mut a, &mut b)), collect_median);
                 (
                     Linearised {
                         a,
@@ -1032,6 +1109,7 @@ impl Problem<'_> {
                         cost,
                         pixels,
                         parts,
+                        median,
                     },
                     pixels as u64,
                 )
@@ -1139,8 +1217,8 @@ impl Problem<'_> {
                 };
                 break;
             }
-            let (new_cost, new_pixels, new_parts) =
-                self.evaluate(&trial, opts, Some((&mut a_new, &mut b_new)));
+            let (new_cost, new_pixels, new_parts, new_median) =
+                self.evaluate_with(&trial, opts, Some((&mut a_new, &mut b_new)), collect_median);
             pixel_evaluations += new_pixels as u64;
             let change = new_cost - cur.cost;
             let accepted = new_cost < cur.cost;
@@ -1151,6 +1229,7 @@ impl Problem<'_> {
                 std::mem::swap(&mut cur.b, &mut b_new);
                 cur.pixels = new_pixels;
                 cur.parts = new_parts;
+                cur.median = new_median;
                 cur.cost = new_cost;
                 rejections = 0;
                 lm = (lm / 3.0).max(1e-7);
@@ -1192,6 +1271,15 @@ pub(crate) struct Linearised {
     pixels: usize,
     /// Each triangle's photometric sums there (for [`Problem::confidence`]).
     parts: Vec<TriAccum>,
+    /// The weighted median residual norm there, when the solve was asked to collect it.
+    median: Option<f64>,
+}
+
+#[cfg(test)]
+impl Linearised {
+    pub fn median(&self) -> Option<f64> {
+        self.median
+    }
 }
 
 /// How the mesh may move in one solve.

@@ -437,6 +437,19 @@ fn assembled_gradient_matches_finite_differences_of_the_cost() {
     let fresh = problem.vertex_confidence(&x, &problem.solve_options(&start, &opts));
     assert_eq!(problem.confidence(&lin), fresh);
     assert!(fresh.iter().any(|c| c.information > 0.0));
+    // A Huber solve asked to collect the residuals' median carries, at its result, exactly the
+    // median a pass of its own there gives; a Tukey solve started from that linearisation ends
+    // where one that takes the median itself does.
+    let huber = SolverOptions {
+        loss: Loss::Huber,
+        ..opts
+    };
+    let (xh, _, lin_h) = problem.solve_stage(&start, None, &huber, Motion::Free, true);
+    assert!(lin_h.median().is_some());
+    assert_eq!(lin_h.median(), problem.median_residual(&xh, &huber));
+    let (carried, _, _) = problem.solve_motion(&xh, Some(lin_h), &opts, Motion::Free);
+    let (own, _, _) = problem.solve_motion(&xh, None, &opts, Motion::Free);
+    assert_eq!(carried, own);
 }
 
 #[test]
