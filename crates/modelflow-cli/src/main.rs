@@ -54,7 +54,7 @@ enum Command {
     Report(report::Args),
     /// Track the scene's mesh through every frame (Model Flow).
     Track(track::Args),
-    /// Write synthetic multi-view footage with ground truth (presets: cloth, blob).
+    /// Write synthetic multi-view footage with ground truth (presets: cloth, blob, irregular).
     Synth(synth::Args),
 }
 
