@@ -806,6 +806,107 @@ fn moving_source_gradient_matches_finite_differences_of_the_cost() {
     assert!(diff > 0.1 * size, "{diff} vs {size}");
 }
 
+/// `align`'s normal equations are the curvature of its cost: at the true surface, where the
+/// cameras agree, Gauss–Newton is exact up to the residuals left by resampling, so along any
+/// direction the cost's second derivative (finite differences of `Problem::cost`, the source
+/// rays sliding and the gains re-fitted) is `2·δᵀAδ`. Without the source's motion in the
+/// derivative, the matrix is another one, which the test tells apart.
+#[test]
+fn moving_source_normal_equations_are_the_curvature_of_the_cost() {
+    let rig = rig();
+    let plane = plane_at(Vector3::zeros());
+    let mesh = grid(4, 4, |s, t| plane.at(s, t));
+    let cams = rig.cameras();
+    let pyr: Vec<Pyramid> = rig
+        .images(&plane)
+        .iter()
+        .map(|i| Pyramid::new(i, 1, 1.0))
+        .collect();
+    let targets: Vec<&RgbImage> = pyr.iter().map(|p| &p.levels[0]).collect();
+    let projections: Vec<Projection> = cams.iter().map(|c| c.at(0).clone()).collect();
+    let popts = PatchOptions {
+        margin: 1,
+        min_cos: 0.1,
+        two_sided: true,
+        checkerboard: false,
+    };
+    let x = mesh.positions.clone();
+    let mut set =
+        crate::tracker::align::cross_patches(&x, &mesh.triangles, &projections, &targets, &popts);
+    let by_triangle = set.by_triangle();
+    let edges = EdgeSet::new(&mesh);
+    let problem = Problem {
+        triangles: &mesh.triangles,
+        patches: &set.patches,
+        pixels: &set.pixels,
+        by_triangle: &by_triangle,
+        targets,
+        projections,
+        pattern: &edges.edges,
+        regularisers: &[],
+        cancel: None,
+        moving_source: Some(&x),
+        gauge_floor: 0.0,
+        lag: None,
+    };
+    let fixed = Problem {
+        moving_source: None,
+        targets: problem.targets.clone(),
+        projections: problem.projections.clone(),
+        ..problem
+    };
+    let n = x.len();
+    let normal = plane.u.cross(&plane.v).normalize();
+    let dirs: Vec<Vec<Vector3<f64>>> = vec![
+        vec![normal; n],
+        (0..n)
+            .map(|i| {
+                if i == 5 {
+                    Vector3::new(0.3, 0.2, -1.0)
+                } else {
+                    Vector3::zeros()
+                }
+            })
+            .collect(),
+        (0..n)
+            .map(|i| plane.u.normalize() * (0.5 + (i % 4) as f64 * 0.25))
+            .collect(),
+    ];
+    for gain in [GainModel::Off, GainModel::Linear] {
+        let opts = SolverOptions {
+            huber: 1e3,
+            gain,
+            ..SolverOptions::default()
+        };
+        let (_, a, _) = problem.linearize(&x, &opts);
+        let (_, a_fixed, _) = fixed.linearize(&x, &opts);
+        for (d, dir) in dirs.iter().enumerate() {
+            let curvature = |a: &crate::tracker::sparse::BlockSparse| {
+                let mut ad = vec![Vector3::zeros(); n];
+                a.mul(dir, &mut ad);
+                2.0 * dir.iter().zip(&ad).map(|(u, v)| u.dot(v)).sum::<f64>()
+            };
+            let (model, model_fixed) = (curvature(&a), curvature(&a_fixed));
+            let h = 2e-4;
+            let at = |e: f64| {
+                let y: Vec<Point3<f64>> = x.iter().zip(dir).map(|(p, u)| p + u * e).collect();
+                problem.cost(&y, &opts)
+            };
+            let fd = (at(h) - 2.0 * at(0.0) + at(-h)) / (h * h);
+            // (A slide within the plane leaves every source ray on the same surface: no
+            // curvature at all, which the derivative without the source's motion misses.)
+            assert!(
+                (fd - model).abs() <= 0.02 * fd.abs() + 1e-6,
+                "{gain:?}, direction {d}: cost's curvature {fd:.6e}, model's {model:.6e}"
+            );
+            assert!(
+                (fd - model_fixed).abs() > 0.15 * fd.abs().max(model_fixed.abs()),
+                "{gain:?}, direction {d}: the glued pixels' matrix agrees ({model_fixed:.6e})"
+            );
+        }
+    }
+}
+
 /// The brightness gains are re-fitted at every evaluation, so the cost the solver lowers is the
 /// cost *profiled* over them, and its Gauss–Newton matrix is the Schur complement of the joint
 /// one (variable projection). At a zero-residual point Gauss–Newton is exact: along any
