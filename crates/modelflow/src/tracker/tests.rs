@@ -739,49 +739,90 @@ fn a_sliver_triangle_does_not_stall_the_tracker() {
     }
 }
 
+/// The test plane as `align` sees it: every camera's pixels of it, taken with the mesh at `x0`,
+/// to be compared in the other cameras of the same frame, and what a [`Problem`] over them
+/// borrows.
+struct CrossPlane {
+    plane: Plane,
+    mesh: Mesh,
+    pyramids: Vec<Pyramid>,
+    projections: Vec<Projection>,
+    x0: Vec<Point3<f64>>,
+    set: PatchSet,
+    by_triangle: Vec<(u32, std::ops::Range<usize>)>,
+    edges: EdgeSet,
+}
+
+impl CrossPlane {
+    /// `x0` is the plane's 4×4 grid changed by `displace`.
+    fn new(displace: impl Fn(&mut [Point3<f64>])) -> Self {
+        let rig = rig();
+        let plane = plane_at(Vector3::zeros());
+        let mesh = grid(4, 4, |s, t| plane.at(s, t));
+        let pyramids: Vec<Pyramid> = rig
+            .images(&plane)
+            .iter()
+            .map(|i| Pyramid::new(i, 1, 1.0))
+            .collect();
+        let projections: Vec<Projection> = rig.cameras().iter().map(|c| c.at(0).clone()).collect();
+        let popts = PatchOptions {
+            margin: 1,
+            min_cos: 0.1,
+            two_sided: true,
+            checkerboard: false,
+        };
+        let mut x0 = mesh.positions.clone();
+        displace(&mut x0);
+        let targets: Vec<&RgbImage> = pyramids.iter().map(|p| &p.levels[0]).collect();
+        let mut set = crate::tracker::align::cross_patches(
+            &x0,
+            &mesh.triangles,
+            &projections,
+            &targets,
+            &popts,
+        );
+        assert!(set.patches.iter().all(|p| p.source != p.camera));
+        let by_triangle = set.by_triangle();
+        let edges = EdgeSet::new(&mesh);
+        CrossPlane {
+            plane,
+            mesh,
+            pyramids,
+            projections,
+            x0,
+            set,
+            by_triangle,
+            edges,
+        }
+    }
+
+    /// `align`'s problem (the source rays sliding as the mesh moves), or with `glued` the
+    /// tracker's derivative over the same pixels (as if they were glued to the surface).
+    fn problem(&self, glued: bool) -> Problem<'_> {
+        Problem {
+            triangles: &self.mesh.triangles,
+            patches: &self.set.patches,
+            pixels: &self.set.pixels,
+            by_triangle: &self.by_triangle,
+            targets: self.pyramids.iter().map(|p| &p.levels[0]).collect(),
+            projections: self.projections.clone(),
+            pattern: &self.edges.edges,
+            regularisers: &[],
+            cancel: None,
+            moving_source: (!glued).then_some(&self.x0[..]),
+            gauge_floor: 0.0,
+            lag: None,
+        }
+    }
+}
+
 #[test]
 fn moving_source_gradient_matches_finite_differences_of_the_cost() {
     // `align`'s warp between two cameras of one frame: the pixels are taken from each camera
     // with the mesh at `x0`, and as the mesh moves, the surface point each pixel sees slides
     // along its own camera's ray. The assembled gradient must be that cost's exact derivative.
-    let rig = rig();
-    let plane0 = plane_at(Vector3::zeros());
-    let mesh = grid(4, 4, |s, t| plane0.at(s, t));
-    let cams = rig.cameras();
-    let pyr: Vec<Pyramid> = rig
-        .images(&plane0)
-        .iter()
-        .map(|i| Pyramid::new(i, 1, 1.0))
-        .collect();
-    let targets: Vec<&RgbImage> = pyr.iter().map(|p| &p.levels[0]).collect();
-    let projections: Vec<Projection> = cams.iter().map(|c| c.at(0).clone()).collect();
-    let popts = PatchOptions {
-        margin: 1,
-        min_cos: 0.1,
-        two_sided: true,
-        checkerboard: false,
-    };
-    let mut x0 = mesh.positions.clone();
-    x0[5].z += 0.01;
-    let mut set =
-        crate::tracker::align::cross_patches(&x0, &mesh.triangles, &projections, &targets, &popts);
-    assert!(set.patches.iter().all(|p| p.source != p.camera));
-    let by_triangle = set.by_triangle();
-    let edges = EdgeSet::new(&mesh);
-    let problem = Problem {
-        triangles: &mesh.triangles,
-        patches: &set.patches,
-        pixels: &set.pixels,
-        by_triangle: &by_triangle,
-        targets,
-        projections,
-        pattern: &edges.edges,
-        regularisers: &[],
-        cancel: None,
-        moving_source: Some(&x0),
-        gauge_floor: 0.0,
-        lag: None,
-    };
+    let cross = CrossPlane::new(|x| x[5].z += 0.01);
+    let (problem, x0) = (cross.problem(false), &cross.x0);
     let opts = SolverOptions {
         huber: 1e3,
         gain: GainModel::Off,
@@ -796,11 +837,7 @@ fn moving_source_gradient_matches_finite_differences_of_the_cost() {
     let (_, _, b) = problem.linearize(&x, &opts);
     // Without the source's motion (the tracker's derivative, as if the pixels were glued to
     // the surface) the gradient is a different one: the test can tell them apart.
-    let fixed = Problem {
-        moving_source: None,
-        ..problem
-    };
-    let (_, _, b_fixed) = fixed.linearize(&x, &opts);
+    let (_, _, b_fixed) = cross.problem(true).linearize(&x, &opts);
     let diff: f64 = b.iter().zip(&b_fixed).map(|(p, q)| (p - q).norm()).sum();
     let size: f64 = b.iter().map(|p| p.norm()).sum();
     assert!(diff > 0.1 * size, "{diff} vs {size}");
@@ -813,48 +850,9 @@ fn moving_source_gradient_matches_finite_differences_of_the_cost() {
 /// derivative, the matrix is another one, which the test tells apart.
 #[test]
 fn moving_source_normal_equations_are_the_curvature_of_the_cost() {
-    let rig = rig();
-    let plane = plane_at(Vector3::zeros());
-    let mesh = grid(4, 4, |s, t| plane.at(s, t));
-    let cams = rig.cameras();
-    let pyr: Vec<Pyramid> = rig
-        .images(&plane)
-        .iter()
-        .map(|i| Pyramid::new(i, 1, 1.0))
-        .collect();
-    let targets: Vec<&RgbImage> = pyr.iter().map(|p| &p.levels[0]).collect();
-    let projections: Vec<Projection> = cams.iter().map(|c| c.at(0).clone()).collect();
-    let popts = PatchOptions {
-        margin: 1,
-        min_cos: 0.1,
-        two_sided: true,
-        checkerboard: false,
-    };
-    let x = mesh.positions.clone();
-    let mut set =
-        crate::tracker::align::cross_patches(&x, &mesh.triangles, &projections, &targets, &popts);
-    let by_triangle = set.by_triangle();
-    let edges = EdgeSet::new(&mesh);
-    let problem = Problem {
-        triangles: &mesh.triangles,
-        patches: &set.patches,
-        pixels: &set.pixels,
-        by_triangle: &by_triangle,
-        targets,
-        projections,
-        pattern: &edges.edges,
-        regularisers: &[],
-        cancel: None,
-        moving_source: Some(&x),
-        gauge_floor: 0.0,
-        lag: None,
-    };
-    let fixed = Problem {
-        moving_source: None,
-        targets: problem.targets.clone(),
-        projections: problem.projections.clone(),
-        ..problem
-    };
+    let cross = CrossPlane::new(|_| {});
+    let (problem, fixed) = (cross.problem(false), cross.problem(true));
+    let (x, plane) = (cross.x0.clone(), &cross.plane);
     let n = x.len();
     let normal = plane.u.cross(&plane.v).normalize();
     let dirs: Vec<Vec<Vector3<f64>>> = vec![
