@@ -34,6 +34,47 @@ impl Plane {
     fn at(&self, s: f64, t: f64) -> Point3<f64> {
         self.origin + self.u * s + self.v * t
     }
+
+    /// Directions to move a 4×4 grid of `n` vertices on the plane along, for curvature tests:
+    /// every vertex along the normal, vertex 5 alone, and a slide within the plane.
+    fn directions(&self, n: usize) -> Vec<Vec<Vector3<f64>>> {
+        let normal = self.u.cross(&self.v).normalize();
+        vec![
+            vec![normal; n],
+            (0..n)
+                .map(|i| {
+                    if i == 5 {
+                        Vector3::new(0.3, 0.2, -1.0)
+                    } else {
+                        Vector3::zeros()
+                    }
+                })
+                .collect(),
+            (0..n)
+                .map(|i| self.u.normalize() * (0.5 + (i % 4) as f64 * 0.25))
+                .collect(),
+        ]
+    }
+}
+
+/// Along `dir` from `x`: the Gauss–Newton model's curvature `2·δᵀAδ` and the cost's own, by
+/// second differences of `Problem::cost`.
+fn curvatures(
+    problem: &Problem,
+    a: &crate::tracker::sparse::BlockSparse,
+    x: &[Point3<f64>],
+    dir: &[Vector3<f64>],
+    opts: &SolverOptions,
+) -> (f64, f64) {
+    let mut ad = vec![Vector3::zeros(); x.len()];
+    a.mul(dir, &mut ad);
+    let model = 2.0 * dir.iter().zip(&ad).map(|(u, v)| u.dot(v)).sum::<f64>();
+    let h = 2e-4;
+    let at = |e: f64| {
+        let y: Vec<Point3<f64>> = x.iter().zip(dir).map(|(p, u)| p + u * e).collect();
+        problem.cost(&y, opts)
+    };
+    (model, (at(h) - 2.0 * at(0.0) + at(-h)) / (h * h))
 }
 
 /// Ray-traces the plane with 3×3 supersampling (pixel centres at integer coordinates).
@@ -854,22 +895,7 @@ fn moving_source_normal_equations_are_the_curvature_of_the_cost() {
     let (problem, fixed) = (cross.problem(false), cross.problem(true));
     let (x, plane) = (cross.x0.clone(), &cross.plane);
     let n = x.len();
-    let normal = plane.u.cross(&plane.v).normalize();
-    let dirs: Vec<Vec<Vector3<f64>>> = vec![
-        vec![normal; n],
-        (0..n)
-            .map(|i| {
-                if i == 5 {
-                    Vector3::new(0.3, 0.2, -1.0)
-                } else {
-                    Vector3::zeros()
-                }
-            })
-            .collect(),
-        (0..n)
-            .map(|i| plane.u.normalize() * (0.5 + (i % 4) as f64 * 0.25))
-            .collect(),
-    ];
+    let dirs = plane.directions(n);
     for gain in [GainModel::Off, GainModel::Linear] {
         let opts = SolverOptions {
             huber: 1e3,
@@ -879,18 +905,8 @@ fn moving_source_normal_equations_are_the_curvature_of_the_cost() {
         let (_, a, _) = problem.linearize(&x, &opts);
         let (_, a_fixed, _) = fixed.linearize(&x, &opts);
         for (d, dir) in dirs.iter().enumerate() {
-            let curvature = |a: &crate::tracker::sparse::BlockSparse| {
-                let mut ad = vec![Vector3::zeros(); n];
-                a.mul(dir, &mut ad);
-                2.0 * dir.iter().zip(&ad).map(|(u, v)| u.dot(v)).sum::<f64>()
-            };
-            let (model, model_fixed) = (curvature(&a), curvature(&a_fixed));
-            let h = 2e-4;
-            let at = |e: f64| {
-                let y: Vec<Point3<f64>> = x.iter().zip(dir).map(|(p, u)| p + u * e).collect();
-                problem.cost(&y, &opts)
-            };
-            let fd = (at(h) - 2.0 * at(0.0) + at(-h)) / (h * h);
+            let (model, fd) = curvatures(&problem, &a, &x, dir, &opts);
+            let (model_fixed, _) = curvatures(&fixed, &a_fixed, &x, dir, &opts);
             // (A slide within the plane leaves every source ray on the same surface: no
             // curvature at all, which the derivative without the source's motion misses.)
             assert!(
@@ -973,34 +989,9 @@ fn normal_equations_are_the_curvature_of_the_cost_with_its_gains_refitted() {
             cost < 1e-12,
             "{gain:?}: not a zero-residual point ({cost:e})"
         );
-        // Directions: every vertex moving along the surface's normal, one vertex alone, and a
-        // slide in the plane.
-        let normal = plane.u.cross(&plane.v).normalize();
-        let dirs: Vec<Vec<Vector3<f64>>> = vec![
-            vec![normal; n],
-            (0..n)
-                .map(|i| {
-                    if i == 5 {
-                        Vector3::new(0.3, 0.2, -1.0)
-                    } else {
-                        Vector3::zeros()
-                    }
-                })
-                .collect(),
-            (0..n)
-                .map(|i| plane.u.normalize() * (0.5 + (i % 4) as f64 * 0.25))
-                .collect(),
-        ];
+        let dirs = plane.directions(n);
         for (d, dir) in dirs.iter().enumerate() {
-            let mut ad = vec![Vector3::zeros(); n];
-            a.mul(dir, &mut ad);
-            let model: f64 = 2.0 * dir.iter().zip(&ad).map(|(u, v)| u.dot(v)).sum::<f64>();
-            let h = 2e-4;
-            let at = |e: f64| {
-                let y: Vec<Point3<f64>> = x.iter().zip(dir).map(|(p, u)| p + u * e).collect();
-                problem.cost(&y, &opts)
-            };
-            let fd = (at(h) - 2.0 * at(0.0) + at(-h)) / (h * h);
+            let (model, fd) = curvatures(&problem, &a, &x, dir, &opts);
             assert!(
                 (fd - model).abs() <= 0.03 * fd.abs(),
                 "{gain:?}, direction {d}: cost's curvature {fd:.6e}, model's {model:.6e}"
