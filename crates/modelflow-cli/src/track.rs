@@ -67,6 +67,11 @@ pub struct TrackArgs {
     /// kept (the threshold grows by this times the local image gradient; 0 to 100).
     #[arg(long, default_value_t = TrackOptions::default().solver.tukey_px)]
     pub tukey_px: f64,
+    /// With --loss tukey: a (triangle, camera) patch whose pixels fit worse, on average, than
+    /// this fraction of their rejection thresholds (a highlight over a whole facet) is
+    /// down-weighted as a whole, by a Cauchy loss of that scale (0 = off; 0 to 100).
+    #[arg(long, default_value_t = TrackOptions::default().solver.patch_scale)]
+    pub patch_scale: f64,
     /// Gaussian smoothing of the images before gradients are taken: its sigma, in pixels of
     /// each pyramid level (0 to 20).
     #[arg(long, default_value_t = TrackOptions::default().blur)]
@@ -156,6 +161,7 @@ impl TrackArgs {
                 tukey_k: self.tukey_k,
                 tukey_min: self.tukey_min,
                 tukey_px: self.tukey_px,
+                patch_scale: self.patch_scale,
                 interpolation: match self.interpolation {
                     InterpolationArg::Cubic => Interpolation::Cubic,
                     InterpolationArg::Linear => Interpolation::Linear,

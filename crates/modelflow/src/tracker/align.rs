@@ -83,6 +83,8 @@ impl Default for AlignOptions {
             min_cos: 0.1,
             solver: SolverOptions {
                 max_iterations: 10,
+                // Measured with pixels alone; the patches' Cauchy weighting is the tracker's.
+                patch_scale: 0.0,
                 ..SolverOptions::default()
             },
         }

@@ -216,6 +216,13 @@ impl TrackOptions {
                 why: "pixels",
             },
             Range {
+                option: "--patch-scale",
+                value: s.patch_scale,
+                low: (0.0, true),
+                high: (100.0, true),
+                why: "fraction of the pixels' thresholds, 0 = off",
+            },
+            Range {
                 option: "--max-iterations",
                 value: s.max_iterations as f64,
                 low: (1.0, true),

@@ -55,6 +55,11 @@ pub struct SolverOptions {
     /// and still be kept: the threshold grows by this times the image gradient's norm there.
     #[serde(default = "default_tukey_px")]
     pub tukey_px: f64,
+    /// With [`Loss::Tukey`]: the scale of the Cauchy loss on each (triangle, camera) patch's
+    /// mean pixel cost, as a fraction of its pixels' mean threshold; a patch that fits worse
+    /// than that as a whole (a highlight over a facet) is down-weighted. 0 turns it off.
+    #[serde(default = "default_patch_scale")]
+    pub patch_scale: f64,
     /// Initial Levenberg–Marquardt damping (relative to the diagonal).
     pub damping: f64,
     /// Rejected steps in a row before giving up.
@@ -91,6 +96,10 @@ fn default_tukey_px() -> f64 {
 
 fn default_tukey_min() -> f64 {
     0.03
+}
+
+fn default_patch_scale() -> f64 {
+    0.5
 }
 
 /// The robust loss `ρ(e²)` on a pixel's RGB residual norm `e` (both are `e²` for small `e`).
@@ -131,6 +140,7 @@ impl Default for SolverOptions {
             tukey_k: default_tukey_k(),
             tukey_min: default_tukey_min(),
             tukey_px: default_tukey_px(),
+            patch_scale: default_patch_scale(),
             damping: 1e-4,
             max_rejections: 4,
             cg_tolerance: 1e-3,
@@ -297,6 +307,11 @@ pub struct IterationSummary {
     pub cost: f64,
     /// Cost change of the tried step (negative = decrease).
     pub cost_change: f64,
+    /// Cost change the Gauss–Newton model predicted for the tried step (negative = decrease;
+    /// `cost_change / model_change` near 1 means the model was right). Absent in logs written
+    /// before it was recorded.
+    #[serde(default)]
+    pub model_change: f64,
     /// Largest vertex displacement of the tried step, in scene units.
     pub step: f64,
     pub accepted: bool,
@@ -534,6 +549,11 @@ impl Problem<'_> {
         };
         let hub2 = huber * huber;
         let tol2 = opts.tukey_px * opts.tukey_px;
+        // Tukey's patch scale, as a fraction of the pixels' own thresholds (see below).
+        let patch2 = match opts.loss {
+            Loss::Tukey => opts.patch_scale * opts.patch_scale,
+            Loss::Huber => 0.0,
+        };
         for patch in &self.patches[range.clone()] {
             let cam = patch.camera as usize;
             let proj = &self.projections[cam];
@@ -591,6 +611,9 @@ impl Problem<'_> {
             // Entries 6..9 of each: the pair's share of the positions–gains coupling and of the
             // gains' own curvature (see below), summed in the same loop.
             let mut hp = [[0.0f64; 10]; 6];
+            let mut pcost = 0.0f64;
+            let mut pd2 = 0.0f64;
+            let mut pn = 0u32;
             let mut gp = [[0.0f64; 3]; 3];
             // Pass 1: warp and sample every pixel of the patch.
             scratch.clear();
@@ -717,6 +740,7 @@ impl Problem<'_> {
                             g2 += (s[k] * s[k]) as f64;
                         }
                         let d2 = hub2 + tol2 * g2;
+                        pd2 += d2;
                         if e2 >= d2 {
                             (d2 / 3.0, 0.0)
                         } else {
@@ -725,7 +749,8 @@ impl Problem<'_> {
                         }
                     }
                 };
-                acc.cost += pw * rho;
+                pcost += rho;
+                pn += 1;
                 acc.pixels += 1;
                 acc.weight += pw;
                 if !system {
@@ -839,6 +864,29 @@ impl Problem<'_> {
             } else {
                 None
             };
+            // Per (triangle, camera): a patch whose pixels are all kept but fit systematically
+            // worse than its thresholds allow (a highlight or reflection over a whole facet, a
+            // shadow: a change the warp and the gain cannot explain, yet small per pixel) is
+            // down-weighted as a whole. Its cost is a Cauchy loss of its pixels' mean robust
+            // cost m, `n·σ²·ln(1 + m/σ²)`, whose gradient and Gauss–Newton matrix are the
+            // pixels' scaled by `1/(1 + m/σ²)`. The scale σ² is `patch_scale²` times the
+            // pixels' mean Tukey threshold δ², which grows with the image gradient as the
+            // pixels' own do: a well-textured patch, whose residuals are large while it is
+            // still being aligned, is not the one judged unreliable.
+            let (pcost, pf) = if patch2 > 0.0 && pn > 0 {
+                let n = pn as f64;
+                let m = pcost / n;
+                let s2 = patch2 * pd2 / n;
+                if s2 > 0.0 {
+                    (n * s2 * (m / s2).ln_1p(), 1.0 / (1.0 + m / s2))
+                } else {
+                    (pcost, 1.0)
+                }
+            } else {
+                (pcost, 1.0)
+            };
+            acc.cost += pw * pcost;
+            let pw = pw * pf;
             if system {
                 for k in 0..6 {
                     let e = hp[k];
@@ -1204,6 +1252,7 @@ impl Problem<'_> {
                     iteration: it + 1,
                     cost: cur.cost,
                     cost_change: 0.0,
+                    model_change: -predicted,
                     step,
                     accepted: false,
                     damping: lm,
@@ -1243,6 +1292,7 @@ impl Problem<'_> {
                 iteration: it + 1,
                 cost: cur.cost,
                 cost_change: change,
+                model_change: -predicted,
                 step,
                 accepted,
                 damping: lm,

@@ -431,6 +431,31 @@ fn assembled_gradient_matches_finite_differences_of_the_cost() {
     }
     assert_eq!(checked, 24);
 
+    // Tukey with a threshold the displaced pixels reach, and the patches' Cauchy loss on top
+    // (its gradient is the pixels' scaled per patch; the threshold's gradient term is off, so
+    // the thresholds do not move with the positions): the cost it adds is differentiated too.
+    // Gains off: they are fitted by least squares, which is optimal for (and so needs no
+    // derivative in) the plain squares only.
+    let mut x = mesh.positions.clone();
+    x[5].x += 0.02;
+    x[6].z -= 0.01;
+    let tukey = |patch_scale: f64| SolverOptions {
+        loss: Loss::Tukey,
+        huber: 0.3,
+        tukey_px: 0.0,
+        patch_scale,
+        gain: GainModel::Off,
+        ..SolverOptions::default()
+    };
+    assert!(
+        problem.cost(&x, &tukey(0.5)) < 0.99 * problem.cost(&x, &tukey(0.0)),
+        "the patches' loss changed nothing"
+    );
+    assert_eq!(
+        check_gradient(&problem, &x, &tukey(0.5), &[5, 6, 9, 10], "patches"),
+        12
+    );
+
     // Cameras that record late or early see the surface moved on along its velocity (over one
     // frame, and over two after a stalled frame): the derivative carries the velocity's
     // dependence on the positions.
