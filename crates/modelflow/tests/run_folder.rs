@@ -227,6 +227,22 @@ fn another_scene_s_run_and_other_options_are_refused() {
         "{err}"
     );
     assert_eq!(contents(&out), before);
+    // A run made before the patches were weighed (its manifest has no `patch_scale`) ran
+    // without it: resuming it is refused, naming the option it did not have.
+    let old = tmp.path().join("older-build");
+    interrupted_after(scene, &old, 2);
+    let manifest = old.join("run.json");
+    let mut m: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&manifest).unwrap()).unwrap();
+    let solver = m["options"]["used"]["options"]["solver"]
+        .as_object_mut()
+        .unwrap();
+    assert!(solver.remove("patch_scale").is_some());
+    std::fs::write(&manifest, serde_json::to_string_pretty(&m).unwrap()).unwrap();
+    let err = track_scene(&s, &TrackOptions::default(), &old, &resume(), &mut |_| {})
+        .unwrap_err()
+        .to_string();
+    assert!(err.contains("solver.patch_scale: none -> 0.5"), "{err}");
     // The same folder for a shorter shot is another scene's run.
     s.last -= 1;
     let err = track_scene(

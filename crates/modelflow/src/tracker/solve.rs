@@ -57,8 +57,9 @@ pub struct SolverOptions {
     pub tukey_px: f64,
     /// With [`Loss::Tukey`]: the scale of the Cauchy loss on each (triangle, camera) patch's
     /// mean pixel cost, as a fraction of its pixels' mean threshold; a patch that fits worse
-    /// than that as a whole (a highlight over a facet) is down-weighted. 0 turns it off.
-    #[serde(default = "default_patch_scale")]
+    /// than that as a whole (a highlight over a facet) is down-weighted. 0 turns it off; options
+    /// written before it existed (a run's manifest) read as 0, which is how those builds ran.
+    #[serde(default)]
     pub patch_scale: f64,
     /// Initial Levenberg–Marquardt damping (relative to the diagonal).
     pub damping: f64,
