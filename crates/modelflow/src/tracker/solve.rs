@@ -874,15 +874,11 @@ impl Problem<'_> {
             // pixels' mean Tukey threshold δ², which grows with the image gradient as the
             // pixels' own do: a well-textured patch, whose residuals are large while it is
             // still being aligned, is not the one judged unreliable.
-            let (pcost, pf) = if patch2 > 0.0 && pn > 0 {
-                let n = pn as f64;
+            let n = pn.max(1) as f64;
+            let s2 = patch2 * pd2 / n;
+            let (pcost, pf) = if s2 > 0.0 {
                 let m = pcost / n;
-                let s2 = patch2 * pd2 / n;
-                if s2 > 0.0 {
-                    (n * s2 * (m / s2).ln_1p(), 1.0 / (1.0 + m / s2))
-                } else {
-                    (pcost, 1.0)
-                }
+                (n * s2 * (m / s2).ln_1p(), 1.0 / (1.0 + m / s2))
             } else {
                 (pcost, 1.0)
             };
