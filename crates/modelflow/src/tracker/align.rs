@@ -83,8 +83,9 @@ impl Default for AlignOptions {
             min_cos: 0.1,
             solver: SolverOptions {
                 max_iterations: 10,
-                // Measured with pixels alone; the patches' Cauchy weighting is the tracker's.
-                patch_scale: 0.0,
+                // The patches are weighed as a whole as in the tracker (`patch_scale`): a
+                // highlight over a whole facet differs between viewpoints too, and pulled the
+                // loosely held rotations of a near-sphere (docs/tracker.md, `align`).
                 ..SolverOptions::default()
             },
         }
