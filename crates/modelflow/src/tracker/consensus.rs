@@ -78,11 +78,13 @@ pub(crate) fn drop_contradicted(
         d2: ((opts.k * median).max(opts.min)).powi(2) as f32,
         tol2: (opts.px * opts.px) as f32,
     };
-    // The statistics twice: the second time without what the first rejected.
-    let gains = view.pair_gains(patches, None);
-    let first = limit(view.median_residual(patches, &gains));
-    let gains = view.pair_gains(patches, Some((&gains, &first)));
-    let limit = limit(view.median_residual(patches, &gains));
+    // The statistics twice: the second time without what the first rejected. Both rounds read
+    // the same samples (only the gains applied to them differ), so they are taken once.
+    let sampled = view.sample_strided(patches);
+    let gains = view.pair_gains(patches, &sampled, None);
+    let first = limit(view.median_residual(patches, &sampled, &gains));
+    let gains = view.pair_gains(patches, &sampled, Some((&gains, &first)));
+    let limit = limit(view.median_residual(patches, &sampled, &gains));
     let keep: Vec<Vec<bool>> = patches
         .par_iter()
         .map_init(Vec::new, |buf, p| view.verdict(p, &gains, &limit, buf))
@@ -120,6 +122,38 @@ struct Seen {
     b: [f32; 3],
     g2: f32,
 }
+
+impl Seen {
+    /// A bilinear sample (`RgbImage::sample_exact`'s layout) under the pair's gains `g`.
+    fn new(b: &[f32; 9], g: &[f32; 3]) -> Seen {
+        let mut g2 = 0.0;
+        for ch in 0..3 {
+            let (gx, gy) = (g[ch] * b[3 + ch], g[ch] * b[6 + ch]);
+            g2 += gx * gx + gy * gy;
+        }
+        Seen {
+            b: [0, 1, 2].map(|ch| g[ch] * b[ch]),
+            g2,
+        }
+    }
+}
+
+/// The samples the statistics are taken on: per patch, `[j·others + slot]` for its
+/// `j·STRIDE`-th pixel in the `slot`-th other camera (`None`: not covered there, or outside
+/// that camera's image). Not kept past `STRIDED_BYTES` (many cameras at 4K): the statistics
+/// then sample the images again in each of their four passes, with the same result.
+struct Strided {
+    per_patch: Option<Vec<Vec<Option<[f32; 9]>>>>,
+}
+
+impl Strided {
+    fn patch(&self, k: usize) -> Option<&[Option<[f32; 9]>]> {
+        self.per_patch.as_ref().map(|v| &v[k][..])
+    }
+}
+
+/// The most memory the statistics' samples may take (bytes).
+const STRIDED_BYTES: usize = 256 << 20;
 
 /// The template's patches' pixels and mesh, and the other cameras' views of the same frame.
 struct View<'a> {
@@ -168,24 +202,30 @@ impl View<'_> {
     /// Per ordered camera pair `(source, other)` (index `source·n + other`), the per-channel gain
     /// `Σ a·b / Σ b²` over every `STRIDE`-th pixel both see; with `first` (earlier gains and a
     /// limit), only over the pixels that fit within the limit under those gains.
-    fn pair_gains(&self, patches: &[Patch], first: Option<(&[[f32; 3]], &Limit)>) -> Vec<[f32; 3]> {
+    fn pair_gains(
+        &self,
+        patches: &[Patch],
+        sampled: &Strided,
+        first: Option<(&[[f32; 3]], &Limit)>,
+    ) -> Vec<[f32; 3]> {
         let ncam = self.projections.len();
         let others = ncam - 1;
         let ones = vec![[1.0f32; 3]; ncam * ncam];
         // Summed in fixed chunks, then in order: the same sums whatever the thread count.
         let chunks: Vec<Vec<[f64; 6]>> = patches
             .par_chunks(256)
-            .map(|chunk| {
+            .enumerate()
+            .map(|(c, chunk)| {
                 let mut out = vec![[0.0; 6]; ncam * ncam];
                 let mut buf = Vec::new();
-                for p in chunk {
+                for (k, p) in chunk.iter().enumerate() {
                     let px = &self.pixels[p.start as usize..p.end as usize];
                     let src = p.source as usize;
                     let (g, limit) = match first {
                         Some((g, l)) => (g, Some(l)),
                         None => (&ones[..], None),
                     };
-                    self.gather(p, g, STRIDE, &mut buf);
+                    self.gather_strided(p, sampled.patch(c * 256 + k), g, &mut buf);
                     for (slot, other) in (0..ncam).filter(|&c| c != src).enumerate() {
                         let s = limit.map(|_| own_gain(px, &buf, others, slot, None));
                         let gi = &g[src * ncam + other];
@@ -234,13 +274,14 @@ impl View<'_> {
 
     /// The median RGB residual over every `STRIDE`-th pixel and the other cameras that see it,
     /// each patch with its own gain fitted on those pixels.
-    fn median_residual(&self, patches: &[Patch], gains: &[[f32; 3]]) -> f64 {
+    fn median_residual(&self, patches: &[Patch], sampled: &Strided, gains: &[[f32; 3]]) -> f64 {
         let mut all: Vec<f32> = patches
             .par_iter()
-            .map_init(Vec::new, |buf, p| {
+            .enumerate()
+            .map_init(Vec::new, |buf, (k, p)| {
                 let others = self.projections.len() - 1;
                 let px = &self.pixels[p.start as usize..p.end as usize];
-                self.gather(p, gains, STRIDE, buf);
+                self.gather_strided(p, sampled.patch(k), gains, buf);
                 let mut e = Vec::new();
                 for slot in 0..others {
                     let s = own_gain(px, buf, others, slot, None);
@@ -273,18 +314,63 @@ impl View<'_> {
         buf.resize(n * others, None);
         self.each_sample(p, stride, |i, _, smp, other, slot| {
             if let Some(b) = smp {
-                let g = &gains[src * ncam + other];
-                let mut g2 = 0.0;
-                for ch in 0..3 {
-                    let (gx, gy) = (g[ch] * b[3 + ch], g[ch] * b[6 + ch]);
-                    g2 += gx * gx + gy * gy;
-                }
-                buf[i * others + slot] = Some(Seen {
-                    b: [0, 1, 2].map(|ch| g[ch] * b[ch]),
-                    g2,
-                });
+                buf[i * others + slot] = Some(Seen::new(&b, &gains[src * ncam + other]));
             }
         });
+    }
+
+    /// Every `STRIDE`-th pixel of every patch as the other cameras sample it, in `patches`'
+    /// order (what [`View::gather_strided`] reads back).
+    fn sample_strided(&self, patches: &[Patch]) -> Strided {
+        let others = self.projections.len() - 1;
+        let entries: usize = patches
+            .iter()
+            .map(|p| ((p.end - p.start) as usize).div_ceil(STRIDE) * others)
+            .sum();
+        if entries * std::mem::size_of::<Option<[f32; 9]>>() > STRIDED_BYTES {
+            return Strided { per_patch: None };
+        }
+        let per_patch: Vec<Vec<Option<[f32; 9]>>> = patches
+            .par_iter()
+            .map(|p| {
+                let n = (p.end - p.start) as usize;
+                let mut out = vec![None; n.div_ceil(STRIDE) * others];
+                self.each_sample(p, STRIDE, |i, _, smp, _, slot| {
+                    out[(i / STRIDE) * others + slot] = smp;
+                });
+                out
+            })
+            .collect();
+        Strided {
+            per_patch: Some(per_patch),
+        }
+    }
+
+    /// [`View::gather`] with stride `STRIDE`, from the samples `sample_strided` took of `p`.
+    fn gather_strided(
+        &self,
+        p: &Patch,
+        samples: Option<&[Option<[f32; 9]>]>,
+        gains: &[[f32; 3]],
+        buf: &mut Vec<Option<Seen>>,
+    ) {
+        let Some(samples) = samples else {
+            return self.gather(p, gains, STRIDE, buf);
+        };
+        let ncam = self.projections.len();
+        let others = ncam - 1;
+        let n = (p.end - p.start) as usize;
+        let src = p.source as usize;
+        buf.clear();
+        buf.resize(n * others, None);
+        for (slot, other) in (0..ncam).filter(|&c| c != src).enumerate() {
+            let g = &gains[src * ncam + other];
+            for (j, i) in (0..n).step_by(STRIDE).enumerate() {
+                if let Some(b) = &samples[j * others + slot] {
+                    buf[i * others + slot] = Some(Seen::new(b, g));
+                }
+            }
+        }
     }
 
     /// Which of `p`'s pixels to keep.
