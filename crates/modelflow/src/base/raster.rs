@@ -22,6 +22,11 @@ pub struct IndexBuffer {
     pub owner: Vec<u32>,
     /// Depth (camera z) per pixel; `f32::INFINITY` where no triangle.
     pub depth: Vec<f32>,
+    /// Per triangle, its plane's inverse depth as an affine function of the pixel position:
+    /// `1/z = a·x + b·y + c` (`[a, b, c]`; NaN for a triangle not rasterized).
+    pub planes: Vec<[f64; 3]>,
+    /// The size of a pixel seen at unit depth (1 / the focal length in pixels).
+    pub footprint: f64,
 }
 
 #[cfg(test)]
@@ -82,16 +87,33 @@ pub fn rasterize(
     width: usize,
     height: usize,
 ) -> IndexBuffer {
+    // The focal length from the matrix alone (any scale of P): with M = λ·K·R, the cross
+    // product of its first and last rows is λ²·f·(r₁ × r₃).
+    let m = proj.matrix();
+    let (r1, r3) = (
+        nalgebra::Vector3::new(m[(0, 0)], m[(0, 1)], m[(0, 2)]),
+        nalgebra::Vector3::new(m[(2, 0)], m[(2, 1)], m[(2, 2)]),
+    );
+    let focal = r1.cross(&r3).norm() / r3.norm_squared();
     let mut ib = IndexBuffer {
         width,
         height,
         owner: vec![NONE; width * height],
         depth: vec![f32::INFINITY; width * height],
+        planes: vec![[f64::NAN; 3]; triangles.len()],
+        footprint: 1.0 / focal,
     };
     for (ti, tri) in triangles.iter().enumerate() {
         let Some(t) = project_triangle(positions, tri, proj) else {
             continue;
         };
+        // 1/z is affine in the image over a plane: read it at three pixel positions.
+        let inv_z = |x: f64, y: f64| {
+            let b = screen_barycentric(&t.p, t.area, x, y);
+            b[0] * t.inv_z[0] + b[1] * t.inv_z[1] + b[2] * t.inv_z[2]
+        };
+        let c = inv_z(0.0, 0.0);
+        ib.planes[ti] = [inv_z(1.0, 0.0) - c, inv_z(0.0, 1.0) - c, c];
         let ymin =
             t.p.iter()
                 .map(|q| q[1])
@@ -193,10 +215,19 @@ pub fn usable_triangles(
         .collect()
 }
 
+/// How far (in pixels seen at that depth) a neighbouring pixel's surface may lie off the plane
+/// of a pixel's triangle and still count as the same surface (see [`trackable_mask`]).
+const CONTINUOUS_PX: f64 = 1.5;
+
 /// Pixels that are safe to track: owned by a usable triangle, and every pixel within `margin`
-/// (Chebyshev distance) is owned by the same triangle or a mesh neighbour of it (one that shares a
-/// vertex). Pixels near the background, near an occluding fold or on a silhouette are dropped,
-/// because there the colour mixes two surfaces and the warp of one triangle does not hold.
+/// (Chebyshev distance) shows the same surface: it is owned by the same triangle, by a mesh
+/// neighbour of it (one that shares a vertex), or by a triangle whose depth there lies within
+/// `CONTINUOUS_PX` pixels (at that depth) of this triangle's plane. Pixels near the background,
+/// near an occluding fold or on a silhouette are dropped, because there the colour mixes two
+/// surfaces and the warp of one triangle does not hold. The depth test is what keeps a finely
+/// triangulated mesh at a coarse pyramid level, where a pixel's neighbours belong to triangles
+/// several rings away on the same smooth surface: with mesh neighbours alone a 10 000-vertex
+/// cloth kept no pixel at all at the coarsest level of its 640×480 footage.
 pub fn trackable_mask(
     ib: &IndexBuffer,
     triangles: &[[u32; 3]],
@@ -225,7 +256,21 @@ pub fn trackable_mask(
                     if o == t {
                         continue;
                     }
-                    if o == NONE || !triangles[o as usize].iter().any(|v| tv.contains(v)) {
+                    if o == NONE {
+                        ok = false;
+                        break 'nb;
+                    }
+                    if triangles[o as usize].iter().any(|v| tv.contains(v)) {
+                        continue;
+                    }
+                    // Not a mesh neighbour: the same surface only if the depth seen there lies
+                    // on this triangle's plane (within the tolerance).
+                    let [a, b, c] = ib.planes[t as usize];
+                    let z = ib.depth[yy as usize * w + xx as usize] as f64;
+                    let inv = a * xx as f64 + b * yy as f64 + c;
+                    let on_plane =
+                        inv > 0.0 && (1.0 / inv - z).abs() <= CONTINUOUS_PX * ib.footprint * z;
+                    if !on_plane {
                         ok = false;
                         break 'nb;
                     }
@@ -299,6 +344,81 @@ mod tests {
             (ib.depth[v * 64 + u] as f64 - z).abs() < 1e-5,
             "{} vs {z}",
             ib.depth[v * 64 + u]
+        );
+    }
+
+    /// A square grid of `n × n` vertices spanning pixels `[u0, u1] × [v0, v1]` at depth `z`
+    /// (facing the camera), as positions and triangles (indices offset by `base`).
+    fn grid(
+        n: u32,
+        (u0, u1): (f64, f64),
+        (v0, v1): (f64, f64),
+        z: f64,
+        base: u32,
+    ) -> (Vec<Point3<f64>>, Vec<[u32; 3]>) {
+        let mut pos = Vec::new();
+        for j in 0..n {
+            for i in 0..n {
+                let u = u0 + (u1 - u0) * i as f64 / (n - 1) as f64;
+                let v = v0 + (v1 - v0) * j as f64 / (n - 1) as f64;
+                pos.push(Point3::new(
+                    (u - 31.5) / 100.0 * z,
+                    (v - 23.5) / 100.0 * z,
+                    z,
+                ));
+            }
+        }
+        let mut tris = Vec::new();
+        for j in 0..n - 1 {
+            for i in 0..n - 1 {
+                let a = base + j * n + i;
+                tris.push([a, a + 1, a + n]);
+                tris.push([a + 1, a + n + 1, a + n]);
+            }
+        }
+        (pos, tris)
+    }
+
+    #[test]
+    fn sub_pixel_triangles_of_one_smooth_surface_keep_their_pixels_and_folds_do_not() {
+        // 0.25-pixel triangles: a pixel's neighbours are owned by triangles several rings away
+        // on the mesh, yet it is one surface, so the interior is trackable.
+        let p = camera();
+        let (pos, tris) = grid(121, (10.0, 40.0), (8.0, 38.0), 1.0, 0);
+        let ib = rasterize(&pos, &tris, &p, 64, 48);
+        let usable = vec![true; tris.len()];
+        let mask = trackable_mask(&ib, &tris, &usable, 1);
+        let interior = (12..37).flat_map(|y| (12..39).map(move |x| (x, y)));
+        let (n, kept) = interior.fold((0, 0), |(n, k), (x, y)| {
+            (n + 1, k + mask[y * 64 + x] as usize)
+        });
+        assert_eq!(kept, n, "every interior pixel of the fine grid is kept");
+        assert!(
+            !mask[8 * 64 + 20],
+            "the border next to the background is not"
+        );
+        // A second fine sheet half as far again behind it, sticking out on the right: where the
+        // near sheet ends in front of it, the depth jumps and those pixels are dropped on both
+        // sides; far from that edge the far sheet's pixels are kept.
+        let (far, far_tris) = grid(121, (25.0, 55.0), (8.0, 38.0), 1.5, pos.len() as u32);
+        let mut all = pos.clone();
+        all.extend(far);
+        let mut all_tris = tris.clone();
+        all_tris.extend(far_tris);
+        let ib = rasterize(&all, &all_tris, &p, 64, 48);
+        let usable = vec![true; all_tris.len()];
+        let mask = trackable_mask(&ib, &all_tris, &usable, 1);
+        assert!(
+            !mask[20 * 64 + 40],
+            "the near sheet's edge over the far sheet"
+        );
+        assert!(
+            !mask[20 * 64 + 41],
+            "the far sheet next to the near one's edge"
+        );
+        assert!(
+            mask[20 * 64 + 30] && mask[20 * 64 + 48],
+            "both sheets away from the edge"
         );
     }
 
