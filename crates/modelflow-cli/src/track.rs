@@ -278,9 +278,14 @@ pub fn run_scene(
     let progress = Progress::new("track", total);
     let result = track_scene(scene, opts, out, run, &mut |f| {
         let r = f.model_flow();
-        if r.is_some_and(|r| r.stalled) {
+        if let Some(r) = r.filter(|r| r.stalled) {
+            let why = if r.pixels == 0 {
+                "no pixel of the mesh was compared at full resolution (it is out of every camera's view, or hidden)"
+            } else {
+                "no step lowered the cost (every step, shortened down to 1/64, raised it)"
+            };
             progress.println(&format!(
-                "warning: frame {}: no step lowered the cost (every step, shortened down to 1/64, raised it); the mesh kept the previous frame's shape",
+                "warning: frame {}: {why}; the mesh kept the previous frame's shape",
                 f.frame
             ));
         }

@@ -52,8 +52,9 @@ pub struct FrameReport {
     /// Whether the constant-velocity prediction was used as the start.
     pub predicted: bool,
     /// The solver could not lower the cost at any level (every step, shortened down to 1/64,
-    /// raised it, or the cost was not finite): the mesh kept its starting positions although
-    /// the images asked for a change. Reported as a warning; `--strict` fails the run.
+    /// raised it, or the cost was not finite), or no pixel was compared at full resolution
+    /// (`pixels` 0: the mesh is out of every camera's view): the mesh kept its starting
+    /// positions. Reported as a warning; `--strict` fails the run.
     #[serde(default)]
     pub stalled: bool,
     /// Where the time went: building pyramids, building patches, solving (seconds).
@@ -566,12 +567,16 @@ impl Tracker {
             timing.solve += ts.elapsed().as_secs_f64() - own;
         }
         let iterations = summaries.iter().map(|s| s.iterations.len()).sum();
-        let stalled = !summaries
-            .iter()
-            .any(|s| s.iterations.iter().any(|i| i.accepted))
-            && summaries
+        // No pixel compared at full resolution (the mesh left every camera's view, or every
+        // template pixel was lost): whatever the steps did, only the regularisers moved the
+        // mesh, so the frame counts as stalled and keeps the previous frame's shape.
+        let stalled = pixels == 0
+            || (!summaries
                 .iter()
-                .any(|s| matches!(s.stop, StopReason::CostRose | StopReason::NonFinite));
+                .any(|s| s.iterations.iter().any(|i| i.accepted))
+                && summaries
+                    .iter()
+                    .any(|s| matches!(s.stop, StopReason::CostRose | StopReason::NonFinite)));
         if !stalled {
             let first_motion = self.before_prev.is_none() && self.prev.frame == self.anchor_frame;
             let old = std::mem::replace(

@@ -306,6 +306,28 @@ fn a_frame_that_cannot_be_improved_is_reported_as_stalled() {
     assert!(!rep.stalled);
 }
 
+#[test]
+fn a_frame_in_which_no_camera_sees_the_mesh_is_reported_as_stalled() {
+    // Moved out of every camera's view, the mesh has no pixel to compare: only the regularisers
+    // would move it (a mesh left in that state flew off and reported "converged" for every later
+    // frame), so the frame must count as stalled and keep its shape.
+    let rig = rig();
+    let plane0 = plane_at(Vector3::zeros());
+    let mesh = mesh_of(&plane0);
+    let imgs0 = rig.images(&plane0);
+    let mut tr = Tracker::new(&mesh, rig.cameras(), 0, &imgs0, TrackOptions::default()).unwrap();
+    let away: Vec<Point3<f64>> = mesh
+        .positions
+        .iter()
+        .map(|p| p + Vector3::new(0.0, 0.0, -100.0))
+        .collect();
+    tr.set_positions(away.clone()).unwrap();
+    let rep = tr.step(1, &rig.images(&plane0)).unwrap();
+    assert_eq!(rep.pixels, 0, "{rep:?}");
+    assert!(rep.stalled, "{rep:?}");
+    assert_eq!(tr.positions(), &away[..]);
+}
+
 /// Checks the assembled gradient (`−2·b`, the cost's gradient with Huber off) against central
 /// differences of the cost at `x`, every axis of `vertices`, to 1 % relative; returns how many
 /// entries it compared.
