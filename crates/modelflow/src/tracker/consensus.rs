@@ -152,6 +152,10 @@ impl Strided {
     }
 }
 
+/// Patches per chunk of the pair gains' fixed-order sums (also how a chunk's patches are found
+/// among the kept samples).
+const PAIR_CHUNK: usize = 256;
+
 /// The most memory the statistics' samples may take (bytes).
 const STRIDED_BYTES: usize = 256 << 20;
 
@@ -213,7 +217,7 @@ impl View<'_> {
         let ones = vec![[1.0f32; 3]; ncam * ncam];
         // Summed in fixed chunks, then in order: the same sums whatever the thread count.
         let chunks: Vec<Vec<[f64; 6]>> = patches
-            .par_chunks(256)
+            .par_chunks(PAIR_CHUNK)
             .enumerate()
             .map(|(c, chunk)| {
                 let mut out = vec![[0.0; 6]; ncam * ncam];
@@ -225,7 +229,7 @@ impl View<'_> {
                         Some((g, l)) => (g, Some(l)),
                         None => (&ones[..], None),
                     };
-                    self.gather_strided(p, sampled.patch(c * 256 + k), g, &mut buf);
+                    self.gather_strided(p, sampled.patch(c * PAIR_CHUNK + k), g, &mut buf);
                     for (slot, other) in (0..ncam).filter(|&c| c != src).enumerate() {
                         let s = limit.map(|_| own_gain(px, &buf, others, slot, None));
                         let gi = &g[src * ncam + other];
