@@ -34,6 +34,12 @@ pub struct TrackArgs {
     /// Spring threshold T, as a fraction of the rest length (Eq. 5.16; above 0, at most 10).
     #[arg(long, default_value_t = TrackOptions::default().regularisation.spring_t)]
     pub spring_t: f64,
+    /// Yield strain of the springs, as a fraction of the rest length: an edge the images held
+    /// stretched (or compressed) beyond it in the previous frame is pulled toward that length
+    /// less the yield instead of its rest length, so a surface that really stretches is
+    /// followed (0 = off: always the rest length, as in the thesis; 0 to 10).
+    #[arg(long, default_value_t = TrackOptions::default().regularisation.spring_yield)]
+    pub spring_yield: f64,
     /// Weight of the frame-to-frame membrane term, on the edges' change of rate over the mean
     /// edge length (0 = off; 0 to 1e6).
     #[arg(long, default_value_t = TrackOptions::default().regularisation.membrane)]
@@ -147,6 +153,7 @@ impl TrackArgs {
             regularisation: Regularisation {
                 spring_k: self.spring_k,
                 spring_t: self.spring_t,
+                spring_yield: self.spring_yield,
                 membrane: self.membrane,
                 bending: self.bending,
             },

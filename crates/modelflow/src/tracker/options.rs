@@ -167,6 +167,13 @@ impl TrackOptions {
                 why: "a fraction of the rest length",
             },
             Range {
+                option: "--spring-yield",
+                value: r.spring_yield,
+                low: (0.0, true),
+                high: (10.0, true),
+                why: "a fraction of the rest length; 0 = off",
+            },
+            Range {
                 option: "--membrane",
                 value: r.membrane,
                 low: (0.0, true),

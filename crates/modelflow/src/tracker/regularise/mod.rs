@@ -26,6 +26,13 @@ pub struct Regularisation {
     pub spring_k: f64,
     /// Threshold ratio `T` of Eq. 5.16, as a fraction of the rest length (0.1 = 10 %).
     pub spring_t: f64,
+    /// Yield strain of the springs, as a fraction of the rest length: an edge held stretched
+    /// (or compressed) beyond it in the previous frame has its spring centred on that length
+    /// less the yield, so a surface that really stretches is not pulled back to its first
+    /// frame's shape (`springs::spring_centre`). 0 = off: the springs always pull toward the
+    /// rest length, as in the thesis (and in runs made before the option existed).
+    #[serde(default)]
+    pub spring_yield: f64,
     /// Weight `μ` of the frame-to-frame membrane.
     pub membrane: f64,
     /// Weight `β` of the bending term against the rest shape.
@@ -37,6 +44,7 @@ impl Default for Regularisation {
         Regularisation {
             spring_k: 1.0,
             spring_t: 0.2,
+            spring_yield: 0.065,
             membrane: 0.002,
             bending: 0.01,
         }
@@ -156,6 +164,7 @@ pub(crate) fn build(
             edges.clone(),
             reg.spring_k,
             reg.spring_t,
+            (reg.spring_yield > 0.0).then_some(reg.spring_yield),
         )));
     }
     if reg.membrane > 0.0 {

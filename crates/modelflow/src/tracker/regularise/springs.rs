@@ -7,7 +7,7 @@
 //! edge is weighted by its share of the surface's area (the weights sum to 1), so the term
 //! does not depend on how finely or how irregularly the surface is triangulated.
 
-use super::{EdgeSet, Regulariser, System};
+use super::{EdgeSet, FrameContext, Regulariser, System};
 use nalgebra::{Matrix3, Point3, Vector3};
 use std::sync::Arc;
 
@@ -51,8 +51,32 @@ fn curvature(a: &Point3<f64>, b: &Point3<f64>, f: f64, grad: &Vector3<f64>) -> M
     h
 }
 
-/// The cubic springs on every edge of the mesh, against its rest lengths, each weighted by its
-/// share of the surface's area (`EdgeSet::area_weight`).
+/// The length an edge's spring pulls toward in a frame: its rest length, unless the edge was
+/// stretched or compressed by more than `yield_strain` (a fraction of the rest length) in the
+/// previous frame, in which case by as much as it went beyond it (`None`: always the rest
+/// length, as in the thesis).
+///
+/// Plastic flow, in the terms of materials: up to the yield strain the springs hold the surface
+/// to its first frame's shape (tracking drift, which is small, is pulled back), beyond it they
+/// follow a stretch that the images held in the previous frame (a swelling lobe, skin, rubber),
+/// while still resisting a sudden change from one frame to the next as the thesis' springs do.
+/// A stretch that the images give up is not kept: the centre follows the previous frame back.
+pub(crate) fn spring_centre(rest: f64, previous: f64, yield_strain: Option<f64>) -> f64 {
+    let Some(y) = yield_strain else {
+        return rest;
+    };
+    let strain = (previous - rest) / rest;
+    if !strain.is_finite() {
+        return rest;
+    }
+    let beyond = (strain.abs() - y).max(0.0);
+    rest * (1.0 + strain.signum() * beyond)
+}
+
+/// The cubic springs on every edge of the mesh, against its rest lengths (or, past the yield
+/// strain, the lengths of [`spring_centre`]), each weighted by its share of the surface's area
+/// (`EdgeSet::area_weight`). The strain is always measured over the rest length, so `T` keeps
+/// its meaning.
 ///
 /// The normal equations carry the term's true curvature where it is positive, not only the
 /// Gauss–Newton `JᵀJ`: with `c = w·F²` and `F` cubic in the strain, `∂²c/∂L² = 2w(F′² + F·F″)
@@ -63,11 +87,21 @@ pub(crate) struct CubicSprings {
     edges: Arc<EdgeSet>,
     k: f64,
     t: f64,
+    yield_strain: Option<f64>,
+    /// Each edge's length the spring pulls toward in this frame (`spring_centre`).
+    centre: Vec<f64>,
 }
 
 impl CubicSprings {
-    pub fn new(edges: Arc<EdgeSet>, k: f64, t: f64) -> Self {
-        CubicSprings { edges, k, t }
+    pub fn new(edges: Arc<EdgeSet>, k: f64, t: f64, yield_strain: Option<f64>) -> Self {
+        let centre = edges.rest.clone();
+        CubicSprings {
+            edges,
+            k,
+            t,
+            yield_strain,
+            centre,
+        }
     }
 }
 
@@ -76,21 +110,31 @@ impl Regulariser for CubicSprings {
         "cubic_springs"
     }
 
+    fn begin_frame(&mut self, frame: &FrameContext<'_>) {
+        let es = &*self.edges;
+        for ((c, edge), &rest) in self.centre.iter_mut().zip(&es.edges).zip(&es.rest) {
+            let [a, b] = edge.map(|v| v as usize);
+            let previous = (frame.previous[b] - frame.previous[a]).norm();
+            *c = spring_centre(rest, previous, self.yield_strain);
+        }
+    }
+
     fn accumulate(&self, x: &[Point3<f64>], mut system: Option<System<'_>>) -> f64 {
         let mut cost = 0.0;
         let es = &*self.edges;
-        for (e, ((edge, &rest), &w)) in es
+        for (e, (((edge, &rest), &w), &centre)) in es
             .edges
             .iter()
             .zip(&es.rest)
             .zip(&es.area_weight)
+            .zip(&self.centre)
             .enumerate()
         {
             if rest <= 0.0 || w <= 0.0 {
                 continue;
             }
             let [a, b] = edge.map(|v| v as usize);
-            let (f, grad) = cubic_spring(&x[a], &x[b], rest, rest, self.k, self.t);
+            let (f, grad) = cubic_spring(&x[a], &x[b], centre, rest, self.k, self.t);
             cost += w * f * f;
             if let Some(sys) = system.as_mut() {
                 let h = curvature(&x[a], &x[b], f, &grad) * w;
@@ -182,6 +226,49 @@ mod tests {
                 "{fd} vs {model}"
             );
         }
+    }
+
+    #[test]
+    fn past_the_yield_strain_the_spring_follows_the_previous_frame_less_the_yield() {
+        // Rest length 2, yield 5 %: within ±5 % the spring pulls to the rest length; an edge
+        // held 30 % longer (2.6) pulls to 25 % longer (2.5), one held 20 % shorter to 15 %.
+        let y = Some(0.05);
+        assert_eq!(spring_centre(2.0, 2.09, y), 2.0);
+        assert_eq!(spring_centre(2.0, 1.91, y), 2.0);
+        assert!((spring_centre(2.0, 2.6, y) - 2.5).abs() < 1e-12);
+        assert!((spring_centre(2.0, 1.6, y) - 1.7).abs() < 1e-12);
+        // Off: the thesis' springs, always the rest length.
+        assert_eq!(spring_centre(2.0, 2.6, None), 2.0);
+        // A degenerate rest length or a non-finite previous length keeps the rest length.
+        assert_eq!(spring_centre(0.0, 1.0, y), 0.0);
+        assert_eq!(spring_centre(2.0, f64::NAN, y), 2.0);
+    }
+
+    #[test]
+    fn an_edge_held_stretched_costs_little_the_next_frame_and_a_further_jump_still_costs() {
+        // A unit edge the images held 40 % longer in the previous frame.
+        let edges = Arc::new(EdgeSet {
+            edges: vec![[0, 1]],
+            rest: vec![1.0],
+            mean_length: 1.0,
+            area_weight: vec![1.0],
+        });
+        let previous = [Point3::origin(), Point3::new(1.4, 0.0, 0.0)];
+        let frame = FrameContext {
+            previous: &previous,
+            predicted: &previous,
+        };
+        let cost = |yield_strain: Option<f64>, length: f64| {
+            let mut s = CubicSprings::new(edges.clone(), 1.0, 0.2, yield_strain);
+            s.begin_frame(&frame);
+            s.accumulate(&[Point3::origin(), Point3::new(length, 0.0, 0.0)], None)
+        };
+        // Staying at 1.4 costs the thesis' springs F² = 0.4⁶/0.2⁴ = 2.56, and (0.05/0.4)⁶ of
+        // that with a 5 % yield (0.05 from the centre at 1.35).
+        assert!((cost(None, 1.4) - 2.56).abs() < 1e-12);
+        assert!((cost(Some(0.05), 1.4) - 2.56 / 8f64.powi(6)).abs() < 1e-15);
+        // A further jump of 0.4 in one frame is resisted as the first 0.4 was from rest.
+        assert!(cost(Some(0.05), 1.8) > cost(None, 1.4));
     }
 
     #[test]
