@@ -16,8 +16,8 @@ pub struct TrackArgs {
     /// as many as keep the coarsest level's short side at least 80 px (720 p: 4, 480 p: 3); 1 to 12.
     #[arg(long, default_value = "auto", value_parser = parse_levels)]
     pub levels: usize,
-    /// Solve each pyramid level per vertex only, without first solving for one rigid motion of
-    /// the whole mesh.
+    /// Solve every pyramid level per vertex only, without first solving the coarsest one for one
+    /// rigid motion of the whole mesh.
     #[arg(long)]
     pub no_rigid_stage: bool,
     /// Weight of the first frame as a second template, compared at every pyramid level but the coarsest (0 = compare with the previous frame only, as in the thesis; 0 to 100).

@@ -33,9 +33,10 @@ pub struct TrackOptions {
     /// nearly the same information, so this halves the finest level's work for no measurable
     /// loss of accuracy (the first-frame anchor is always a checkerboard).
     pub checkerboard: bool,
-    /// Solve each pyramid level for one rigid motion of the whole mesh first, then per vertex
-    /// (a hierarchy of motion models: large motion is caught by six unknowns that every
-    /// triangle's pixels constrain together).
+    /// Solve the coarsest pyramid level for one rigid motion of the whole mesh first, then per
+    /// vertex (a hierarchy of motion models: large motion is caught by six unknowns that every
+    /// triangle's pixels constrain together). The finer levels start from the coarser solution
+    /// and solve per vertex only.
     #[serde(default = "yes")]
     pub rigid_first: bool,
     /// Template pixels that every other camera seeing the same surface point contradicts (an
