@@ -78,9 +78,10 @@ impl Default for TrackOptions {
 pub struct OptionsUsed {
     /// The options after resolution (`levels` at least 1).
     pub options: TrackOptions,
-    /// How the next frame is sampled at each pyramid level, finest (level 0) first: the chosen
-    /// interpolation at full resolution, bilinear at the coarser levels (they only bring the
-    /// mesh near the solution; the finest level decides it).
+    /// How the next frame is sampled by each pyramid level's last solve, finest (level 0)
+    /// first: the chosen interpolation at full resolution, bilinear at the coarser levels (they
+    /// only bring the mesh near the solution; the finest level decides it). At full resolution
+    /// a Huber solve that a Tukey refine follows samples bilinearly too: the refine decides.
     pub interpolation_per_level: Vec<Interpolation>,
     /// The regularisers in the cost, in the order the solver adds them.
     pub regularisers: Vec<String>,

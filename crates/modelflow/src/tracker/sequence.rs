@@ -21,7 +21,8 @@ use crate::tracker::patch::{PatchOptions, PatchSet};
 use crate::tracker::pyramid::Pyramid;
 use crate::tracker::regularise::{self, EdgeSet, FrameContext, Regulariser};
 use crate::tracker::solve::{
-    moved_on, Lag, Loss, Motion, Problem, SolveSummary, SolverOptions, StopReason, VertexConfidence,
+    moved_on, Interpolation, Lag, Loss, Motion, Problem, SolveSummary, SolverOptions, StopReason,
+    VertexConfidence,
 };
 use nalgebra::Point3;
 use rayon::prelude::*;
@@ -481,11 +482,19 @@ impl Tracker {
                 interpolation: self.used.interpolation_per_level[level],
                 ..self.opts.solver
             };
+            let refine = robust.loss != Loss::Huber && level == 0;
+            // The Huber solves sample bilinearly, also at full resolution when a refine
+            // follows: they bring the mesh to within a fraction of a pixel, and the refine,
+            // in the chosen interpolation, decides the solution (docs/tracker.md, "Levels").
             let sopts = SolverOptions {
                 loss: Loss::Huber,
+                interpolation: if refine {
+                    Interpolation::Linear
+                } else {
+                    robust.interpolation
+                },
                 ..robust
             };
-            let refine = robust.loss != Loss::Huber && level == 0;
             let problem = Problem {
                 triangles: &self.triangles,
                 patches: &set.patches,
