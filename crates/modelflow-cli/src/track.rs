@@ -48,6 +48,12 @@ pub struct TrackArgs {
     /// rotation (0 = off; 0 to 1e6).
     #[arg(long, default_value_t = TrackOptions::default().regularisation.bending)]
     pub bending: f64,
+    /// Yield of the bending term, as a fraction of the mean edge length: where the previous
+    /// frame's local shape was further than this from the rest shape's (a fold, a dent the images
+    /// held), the term pulls toward that shape less the yield instead of the rest shape (0 = off:
+    /// always the rest shape; 0 to 10).
+    #[arg(long, default_value_t = TrackOptions::default().regularisation.bending_yield)]
+    pub bending_yield: f64,
     /// Gauss-Newton iterations at most per frame and level (1 to 10000).
     #[arg(long, default_value_t = TrackOptions::default().solver.max_iterations)]
     pub max_iterations: usize,
@@ -156,6 +162,7 @@ impl TrackArgs {
                 spring_yield: self.spring_yield,
                 membrane: self.membrane,
                 bending: self.bending,
+                bending_yield: self.bending_yield,
             },
             solver: SolverOptions {
                 max_iterations: self.max_iterations,

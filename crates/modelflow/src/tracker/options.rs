@@ -176,6 +176,13 @@ impl TrackOptions {
                 why: "a fraction of the rest length; 0 = off",
             },
             Range {
+                option: "--bending-yield",
+                value: r.bending_yield,
+                low: (0.0, true),
+                high: (10.0, true),
+                why: "a fraction of the mean edge length; 0 = off",
+            },
+            Range {
                 option: "--membrane",
                 value: r.membrane,
                 low: (0.0, true),

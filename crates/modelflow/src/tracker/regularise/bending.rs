@@ -157,6 +157,15 @@ impl Bending {
         )
     }
 
+    /// Stencil `k`'s Laplacian coordinates at `x`: its centre less the mean of its ring.
+    fn delta(&self, k: usize, x: &[Point3<f64>]) -> Vector3<f64> {
+        let (c, r) = self.stencil(k);
+        let sum = r
+            .iter()
+            .fold(Vector3::zeros(), |acc, &j| acc + x[j as usize].coords);
+        x[c].coords - sum * (1.0 / r.len() as f64)
+    }
+
     /// The rotation that best turns stencil `k`'s rest one-ring into the one at `x` (orthogonal
     /// Procrustes on the centred ring, reflections excluded).
     fn rotation(&self, k: usize, x: &[Point3<f64>]) -> Matrix3<f64> {
@@ -205,15 +214,11 @@ impl Bending {
         let mut cost = 0.0;
         for (k, target) in targets.iter().enumerate().take(self.len()) {
             let (c, r) = self.stencil(k);
-            let inv = 1.0 / r.len() as f64;
-            let mean = r
-                .iter()
-                .fold(Vector3::zeros(), |acc, &j| acc + x[j as usize].coords)
-                * inv;
-            let res = x[c].coords - mean - target;
+            let res = self.delta(k, x) - target;
             cost += s * res.norm_squared();
             if let Some((_, b)) = system.as_mut() {
                 // J = s^½·[1 at c, −1/n at each neighbour] ⊗ I₃.
+                let inv = 1.0 / r.len() as f64;
                 b[c] -= res * s;
                 for &j in r {
                     b[j as usize] += res * (s * inv);
@@ -224,22 +229,47 @@ impl Bending {
     }
 }
 
+/// Where the bending term pulls a stencil in this frame: `rest` (the rest shape's Laplacian
+/// coordinates turned into the previous frame), or, when the previous frame's own coordinates
+/// `previous` lay further than `band` from it, the point on the way from `rest` to `previous`
+/// that is `band` short of `previous`. So a deviation the images held for a frame (a fold, a
+/// dent) is kept, less the band, and a further change is resisted from there, as a change from
+/// rest is; within the band (small drift) the rest shape pulls as before.
+pub(crate) fn yielded_target(
+    rest: Vector3<f64>,
+    previous: Vector3<f64>,
+    band: f64,
+) -> Vector3<f64> {
+    let dev = previous - rest;
+    let n = dev.norm();
+    if n > band && n.is_finite() {
+        rest + dev * (1.0 - band / n)
+    } else {
+        rest
+    }
+}
+
 /// The bending term as the solver sees it: [`Bending`]'s stencils with the weight `β` (divided
 /// by the number of stencils) and the frame's target Laplacian coordinates, turned by rotations
-/// taken from the previous frame's shape (they change little in a frame).
+/// taken from the previous frame's shape (they change little in a frame), and past the yield
+/// moved toward the previous frame's own ([`yielded_target`]).
 pub(crate) struct BendingTerm {
     bending: Bending,
     weight: f64,
+    /// The yield as a length (`--bending-yield` times the mean rest edge length); `None`: off.
+    band: Option<f64>,
     targets: Vec<Vector3<f64>>,
 }
 
 impl BendingTerm {
-    pub fn new(bending: Bending, beta: f64) -> Self {
+    pub fn new(bending: Bending, beta: f64, yield_fraction: f64) -> Self {
         let weight = beta / bending.len().max(1) as f64;
         let targets = bending.rest_delta.clone();
+        let band = (yield_fraction > 0.0).then(|| yield_fraction * bending.mean_length);
         BendingTerm {
             bending,
             weight,
+            band,
             targets,
         }
     }
@@ -252,6 +282,11 @@ impl Regulariser for BendingTerm {
 
     fn begin_frame(&mut self, frame: &FrameContext<'_>) {
         self.targets = self.bending.targets_at(frame.previous);
+        if let Some(band) = self.band {
+            for (k, t) in self.targets.iter_mut().enumerate() {
+                *t = yielded_target(*t, self.bending.delta(k, frame.previous), band);
+            }
+        }
     }
 
     fn accumulate(&self, x: &[Point3<f64>], system: Option<System<'_>>) -> f64 {
@@ -423,5 +458,56 @@ mod tests {
             "{c1} vs {predicted}"
         );
         assert!(c1 > 0.0 && c0 > 0.0);
+    }
+
+    #[test]
+    fn the_yield_keeps_a_held_deviation_less_the_band_and_pulls_drift_back_to_rest() {
+        let rest = Vector3::new(0.0, 0.0, 0.1);
+        // Within the band (0.05): drift, pulled back to the rest shape.
+        let small = Vector3::new(0.03, 0.0, 0.13);
+        assert_eq!(yielded_target(rest, small, 0.05), rest);
+        // Beyond it: the deviation (0.3, 0.4, 0) of length 0.5 is kept less 0.05, i.e. 0.9 of it.
+        let fold = Vector3::new(0.3, 0.4, 0.1);
+        let t = yielded_target(rest, fold, 0.05);
+        assert!((t - Vector3::new(0.27, 0.36, 0.1)).norm() < 1e-15, "{t}");
+        // A non-finite shape (a degenerate previous frame) falls back to the rest shape.
+        let nan = Vector3::new(f64::NAN, 0.0, 0.0);
+        assert_eq!(yielded_target(rest, nan, 0.05), rest);
+    }
+
+    #[test]
+    fn past_the_yield_a_fold_held_in_the_previous_frame_costs_only_its_further_change() {
+        // A dent of the bumpy sheet held by the previous frame: without the yield the term pulls
+        // it all the way back to the rest shape; with it, the dent as it was costs only the band
+        // (here 4 % of it), and a dent growing further costs as a dent from rest would.
+        let m = bumpy();
+        let b = Bending::new(&m.triangles, &m.positions);
+        let mut dented = m.positions.clone();
+        dented[12].z += 0.2;
+        let frame = FrameContext {
+            previous: &dented,
+            predicted: &dented,
+        };
+        let mut stiff = BendingTerm::new(b.clone(), 1.0, 0.0);
+        let mut yielding = BendingTerm::new(b.clone(), 1.0, 0.05);
+        stiff.begin_frame(&frame);
+        yielding.begin_frame(&frame);
+        let (held_stiff, held_yield) = (
+            stiff.accumulate(&dented, None),
+            yielding.accumulate(&dented, None),
+        );
+        assert!(
+            held_yield < 0.1 * held_stiff,
+            "{held_yield} vs {held_stiff}"
+        );
+        // The rest shape is what the yielding term now resists, by about as much as the stiff
+        // one resists the dent: going back is a change too, until the images allow it.
+        let back = yielding.accumulate(&m.positions, None);
+        assert!(back > 0.5 * held_stiff, "{back} vs {held_stiff}");
+        // A further 0.2 costs at least what the first 0.2 did (less the band).
+        let mut deeper = dented.clone();
+        deeper[12].z += 0.2;
+        let further = yielding.accumulate(&deeper, None);
+        assert!(further > 0.7 * held_stiff, "{further} vs {held_stiff}");
     }
 }

@@ -37,6 +37,13 @@ pub struct Regularisation {
     pub membrane: f64,
     /// Weight `β` of the bending term against the rest shape.
     pub bending: f64,
+    /// Yield of the bending term, as a fraction of the mean rest edge length: a vertex whose
+    /// Laplacian coordinates the previous frame left further than this from the rest shape's
+    /// (turned by the vertex's rotation) is pulled toward that shape less the yield, not the rest
+    /// shape, so a fold or a dent the images held is followed (`bending::yielded_target`). 0 = off:
+    /// always the rest shape (as in runs made before the option existed).
+    #[serde(default)]
+    pub bending_yield: f64,
 }
 
 impl Default for Regularisation {
@@ -47,6 +54,7 @@ impl Default for Regularisation {
             spring_yield: 0.065,
             membrane: 0.002,
             bending: 0.01,
+            bending_yield: 0.05,
         }
     }
 }
@@ -175,7 +183,11 @@ pub(crate) fn build(
     }
     if reg.bending > 0.0 {
         let b = bending::Bending::new(&mesh.triangles, &mesh.positions);
-        out.push(Box::new(bending::BendingTerm::new(b, reg.bending)));
+        out.push(Box::new(bending::BendingTerm::new(
+            b,
+            reg.bending,
+            reg.bending_yield,
+        )));
     }
     debug_assert_eq!(
         out.iter().map(|r| r.name()).collect::<Vec<_>>(),
