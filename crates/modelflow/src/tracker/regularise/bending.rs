@@ -265,7 +265,7 @@ impl BendingTerm {
     pub fn new(bending: Bending, beta: f64, yield_fraction: f64) -> Self {
         let weight = beta / bending.len().max(1) as f64;
         let targets = bending.rest_delta.clone();
-        let band = (yield_fraction > 0.0).then(|| yield_fraction * bending.mean_length);
+        let band = (yield_fraction > 0.0).then_some(yield_fraction * bending.mean_length);
         BendingTerm {
             bending,
             weight,
