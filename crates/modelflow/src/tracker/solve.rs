@@ -438,15 +438,28 @@ impl ResidualHistogram {
         }
     }
 
+    /// The squared norms at which bins 1, 2, ... begin: bin `b` holds
+    /// `floor((log10(√e²) − LOG_MIN)·PER_DECADE) = b`. Found by a binary search instead of a
+    /// logarithm per pixel (which took 5 % of a whole run's time).
+    fn edges() -> &'static [f64] {
+        static EDGES: std::sync::LazyLock<Vec<f64>> = std::sync::LazyLock::new(|| {
+            (1..ResidualHistogram::BINS)
+                .map(|b| {
+                    let l = ResidualHistogram::LOG_MIN + b as f64 / ResidualHistogram::PER_DECADE;
+                    10f64.powf(2.0 * l)
+                })
+                .collect()
+        });
+        &EDGES
+    }
+
+    /// The bin of squared norm `e2` (NaN and anything below the first edge: bin 0).
+    fn bin(e2: f64) -> usize {
+        Self::edges().partition_point(|&edge| edge <= e2)
+    }
+
     fn add(&mut self, e2: f64, weight: f64) {
-        let l = 0.5 * e2.max(1e-300).log10();
-        let b = ((l - Self::LOG_MIN) * Self::PER_DECADE).floor();
-        let b = if b.is_nan() {
-            0.0
-        } else {
-            b.clamp(0.0, (Self::BINS - 1) as f64)
-        };
-        self.bins[b as usize] += (weight * 1024.0).round().max(1.0) as u64;
+        self.bins[Self::bin(e2)] += (weight * 1024.0).round().max(1.0) as u64;
     }
 
     fn merge(mut self, other: Self) -> Self {
@@ -1533,4 +1546,43 @@ pub(crate) fn pose_stiffness(
     }
     out.sort_by(|a, b| a.0.total_cmp(&b.0));
     out
+}
+
+#[cfg(test)]
+mod histogram_tests {
+    use super::ResidualHistogram as H;
+
+    #[test]
+    fn bins_are_the_logarithmic_ones_found_without_a_logarithm() {
+        // The bin the definition gives, floor((log10(√e²) − LOG_MIN)·PER_DECADE) clamped, for
+        // norms from 1e-6 to 100 (past both ends), 20 000 of them on a log scale with an
+        // irrational step; a norm within 1e-12 of an edge may fall on either side.
+        let by_log = |e2: f64| {
+            let l = 0.5 * e2.log10();
+            ((l - H::LOG_MIN) * H::PER_DECADE)
+                .floor()
+                .clamp(0.0, (H::BINS - 1) as f64) as usize
+        };
+        let mut checked = 0;
+        for i in 0..20_000 {
+            let norm =
+                10f64.powf(-6.0 + i as f64 * 8.0 / 20_000.0 * std::f64::consts::FRAC_1_SQRT_2);
+            let e2 = norm * norm;
+            let near_edge = H::edges().iter().any(|&e| ((e2 - e) / e).abs() < 1e-12);
+            if !near_edge {
+                assert_eq!(H::bin(e2), by_log(e2), "norm {norm:e}");
+                checked += 1;
+            }
+        }
+        assert!(checked > 19_900);
+        // Exact zero and NaN go to the first bin, anything huge to the last.
+        assert_eq!(H::bin(0.0), 0);
+        assert_eq!(H::bin(f64::NAN), 0);
+        assert_eq!(H::bin(1e10), H::BINS - 1);
+        // The median of one pixel of norm 0.05 lies in that pixel's bin.
+        let mut h = H::new();
+        h.add(0.05 * 0.05, 1.0);
+        let m = h.median().unwrap();
+        assert!((0.05 / m).log10().abs() < 1.0 / H::PER_DECADE, "{m}");
+    }
 }
