@@ -228,17 +228,22 @@ const CONTINUOUS_PX: f64 = 1.5;
 /// triangulated mesh at a coarse pyramid level, where a pixel's neighbours belong to triangles
 /// several rings away on the same smooth surface: with mesh neighbours alone a 10 000-vertex
 /// cloth kept no pixel at all at the coarsest level of its 640×480 footage.
+///
+/// With `checkerboard`, only pixels with even `x + y` are considered (the rest are `false`
+/// without being tested): the tracker keeps only those at full resolution.
 pub fn trackable_mask(
     ib: &IndexBuffer,
     triangles: &[[u32; 3]],
     usable: &[bool],
     margin: usize,
+    checkerboard: bool,
 ) -> Vec<bool> {
     let (w, h) = (ib.width, ib.height);
     let mut mask = vec![false; w * h];
     let m = margin as isize;
+    let step = if checkerboard { 2 } else { 1 };
     for y in 0..h {
-        for x in 0..w {
+        for x in (if checkerboard { y % 2 } else { 0 }..w).step_by(step) {
             let t = ib.owner[y * w + x];
             if t == NONE || !usable[t as usize] {
                 continue;
@@ -387,7 +392,7 @@ mod tests {
         let (pos, tris) = grid(121, (10.0, 40.0), (8.0, 38.0), 1.0, 0);
         let ib = rasterize(&pos, &tris, &p, 64, 48);
         let usable = vec![true; tris.len()];
-        let mask = trackable_mask(&ib, &tris, &usable, 1);
+        let mask = trackable_mask(&ib, &tris, &usable, 1, false);
         let interior = (12..37).flat_map(|y| (12..39).map(move |x| (x, y)));
         let (n, kept) = interior.fold((0, 0), |(n, k), (x, y)| {
             (n + 1, k + mask[y * 64 + x] as usize)
@@ -407,7 +412,15 @@ mod tests {
         all_tris.extend(far_tris);
         let ib = rasterize(&all, &all_tris, &p, 64, 48);
         let usable = vec![true; all_tris.len()];
-        let mask = trackable_mask(&ib, &all_tris, &usable, 1);
+        let mask = trackable_mask(&ib, &all_tris, &usable, 1, false);
+        // The checkerboard tests only the pixels with even x + y, and keeps exactly those of them
+        // the full mask keeps.
+        let half = trackable_mask(&ib, &all_tris, &usable, 1, true);
+        for (i, (&full, &cb)) in mask.iter().zip(&half).enumerate() {
+            let (x, y) = (i % 64, i / 64);
+            assert_eq!(cb, full && (x + y) % 2 == 0, "pixel ({x}, {y})");
+        }
+        assert!(half.iter().any(|&k| k));
         assert!(
             !mask[20 * 64 + 40],
             "the near sheet's edge over the far sheet"
@@ -438,13 +451,13 @@ mod tests {
         );
         let two_sided = usable_triangles(&pos, &tris, &p, true, 0.1);
         assert!(two_sided[0]);
-        let mask = trackable_mask(&ib, &tris, &two_sided, 1);
+        let mask = trackable_mask(&ib, &tris, &two_sided, 1, false);
         assert!(mask[10 * 64 + 10], "interior pixel is trackable");
         assert!(
             !mask[5 * 64 + 20],
             "pixel on the border next to the background is not"
         );
-        let none = trackable_mask(&ib, &tris, &[false], 1);
+        let none = trackable_mask(&ib, &tris, &[false], 1, false);
         assert!(none.iter().all(|&m| !m));
     }
 }

@@ -73,12 +73,7 @@ impl PatchSet {
         let (w, h) = (image.width(), image.height());
         let ib = rasterize(positions, triangles, proj, w, h);
         let usable = usable_triangles(positions, triangles, proj, opts.two_sided, opts.min_cos);
-        let mut mask = trackable_mask(&ib, triangles, &usable, opts.margin);
-        if opts.checkerboard {
-            for (i, m) in mask.iter_mut().enumerate() {
-                *m &= (i % w + i / w) % 2 == 0;
-            }
-        }
+        let mask = trackable_mask(&ib, triangles, &usable, opts.margin, opts.checkerboard);
         // Counting sort of the kept pixels by owner triangle.
         let mut count = vec![0u32; triangles.len() + 1];
         for (i, &m) in mask.iter().enumerate() {
