@@ -34,17 +34,23 @@ fn start(syn: &Synthetic) -> Tracker {
     .unwrap()
 }
 
+/// The default cloth at 320×240, `frames` frames.
+fn cloth_320x240(frames: u32) -> (SynthOptions, Synthetic) {
+    let opts = SynthOptions {
+        width: 320,
+        height: 240,
+        frames,
+        ..SynthOptions::default()
+    };
+    let syn = Synthetic::generate(&opts).unwrap();
+    (opts, syn)
+}
+
 #[test]
 fn first_frames_of_the_default_cloth_are_tracked_to_ground_truth() {
     // 320×240, 2 cameras with the default narrow baseline, the default cloth's first frames
     // (diffuse lighting on, so shading changes as it moves).
-    let opts = SynthOptions {
-        width: 320,
-        height: 240,
-        frames: 6,
-        ..SynthOptions::default()
-    };
-    let syn = Synthetic::generate(&opts).unwrap();
+    let (opts, syn) = cloth_320x240(6);
     let images = |f: u32| images(&syn, f);
     let mut tr = start(&syn);
     let diag = syn.mesh.bbox_diagonal();
@@ -166,13 +172,7 @@ fn a_cloth_that_folds_is_followed_not_pulled_back_to_its_first_shape() {
     // (default 0.05 of the mean edge length) a fold the images held in the previous frame is
     // kept, less the yield. At this size, frames 1–40: mean error 0.235 % with the default,
     // 0.262 % with `--bending-yield 0` (0.131 against 0.143 % over the 640×480 bench clip).
-    let opts = SynthOptions {
-        width: 320,
-        height: 240,
-        frames: 41,
-        ..SynthOptions::default()
-    };
-    let syn = Synthetic::generate(&opts).unwrap();
+    let (opts, syn) = cloth_320x240(41);
     let mut tr = start(&syn);
     let diag = syn.mesh.bbox_diagonal();
     let mut sum = 0.0;
