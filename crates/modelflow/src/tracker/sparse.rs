@@ -685,6 +685,84 @@ mod tests {
     }
 
     #[test]
+    fn the_product_is_the_same_to_the_bit_on_one_thread_and_on_several() {
+        // Both sides of `PARALLEL_ROWS`: a small system (one thread whatever the pool) and one
+        // large enough to be split across the threads, with a scalar part as the bending
+        // term adds.
+        for (w, h) in [(20u32, 20u32), (70, 70)] {
+            let edges = grid_edges(w, h);
+            let n = (w * h) as usize;
+            let mut a = BlockSparse::new(n, &edges);
+            for (e, &[i, j]) in edges.iter().enumerate() {
+                let t = e as f64 * 0.13;
+                let m = Matrix3::new(
+                    1.0 + t.sin(),
+                    0.2,
+                    t.cos(),
+                    0.2,
+                    0.8,
+                    0.1,
+                    t.cos(),
+                    0.1,
+                    1.2,
+                );
+                a.add_edge(e, [i as usize, j as usize], &m);
+            }
+            let rows: Vec<Vec<(u32, f64)>> = (0..n as u32)
+                .map(|i| {
+                    vec![
+                        (i, 1.0),
+                        ((i + 1) % n as u32, -0.5),
+                        ((i + 7) % n as u32, -0.5),
+                    ]
+                })
+                .collect();
+            a.add_scalar(
+                &Arc::new(ScalarSparse::gram(n, rows.iter().map(|r| &r[..]))),
+                0.3,
+            );
+            let x: Vec<Vector3<f64>> = (0..n)
+                .map(|i| {
+                    Vector3::new(
+                        (i as f64 * 0.01).sin(),
+                        (i % 7) as f64 / 3.0,
+                        1.0 / (1.0 + i as f64),
+                    )
+                })
+                .collect();
+            let product = |threads: usize| {
+                let pool = rayon::ThreadPoolBuilder::new()
+                    .num_threads(threads)
+                    .build()
+                    .expect("a thread pool");
+                let mut y = vec![Vector3::zeros(); n];
+                pool.install(|| a.mul(&x, &mut y));
+                y
+            };
+            let one = product(1);
+            assert_eq!(one, product(2), "{n} rows on two threads");
+            assert_eq!(one, product(3), "{n} rows on three threads");
+            // And it is the product: row 0 summed by hand.
+            let mut row0 = Vector3::zeros();
+            for (j, xj) in x.iter().enumerate() {
+                row0 += a_entry(&a, 0, j) * xj;
+            }
+            assert!((row0 - one[0]).norm() <= 1e-12 * (1.0 + row0.norm()));
+        }
+    }
+
+    /// Block `(i, j)` of `a`, its scalar part included (zero where none is stored).
+    fn a_entry(a: &BlockSparse, i: usize, j: usize) -> Matrix3<f64> {
+        let mut out = Matrix3::zeros();
+        a.for_each_entry(|r, c, b| {
+            if r == i && c == j {
+                out += b;
+            }
+        });
+        out
+    }
+
+    #[test]
     fn the_coarse_levels_solve_a_mesh_laplacian_in_far_fewer_iterations() {
         // Springs along a 60×60 grid's edges (a Laplacian, stiffer along x than y for each
         // vertex's own term), weak anisotropic data at every vertex, as the tracker's normal
