@@ -231,10 +231,10 @@ impl View<'_> {
                     };
                     self.gather_strided(p, sampled.patch(c * PAIR_CHUNK + k), g, &mut buf);
                     for (slot, other) in (0..ncam).filter(|&c| c != src).enumerate() {
-                        let s = limit.map(|_| own_gain(px, &buf, others, slot, None));
+                        let s = limit.map(|_| own_gain(px, &buf, others, slot, STRIDE, None));
                         let gi = &g[src * ncam + other];
-                        for (i, a) in px.iter().enumerate().step_by(STRIDE) {
-                            let Some(seen) = buf[i * others + slot] else {
+                        for (j, a) in px.iter().step_by(STRIDE).enumerate() {
+                            let Some(seen) = buf[j * others + slot] else {
                                 continue;
                             };
                             if let (Some(l), Some(s)) = (limit, s) {
@@ -279,26 +279,33 @@ impl View<'_> {
     /// The median RGB residual over every `STRIDE`-th pixel and the other cameras that see it,
     /// each patch with its own gain fitted on those pixels.
     fn median_residual(&self, patches: &[Patch], sampled: &Strided, gains: &[[f32; 3]]) -> f64 {
+        // Each worker appends to one vector of its own (the median of the multiset does not
+        // depend on the order): a vector per patch, flattened, cost more than the residuals.
         let mut all: Vec<f32> = patches
             .par_iter()
             .enumerate()
-            .map_init(Vec::new, |buf, (k, p)| {
-                let others = self.projections.len() - 1;
-                let px = &self.pixels[p.start as usize..p.end as usize];
-                self.gather_strided(p, sampled.patch(k), gains, buf);
-                let mut e = Vec::new();
-                for slot in 0..others {
-                    let s = own_gain(px, buf, others, slot, None);
-                    for (i, a) in px.iter().enumerate().step_by(STRIDE) {
-                        if let Some(seen) = buf[i * others + slot] {
-                            e.push(residual2(a, &seen, s).sqrt());
+            .fold(
+                || (Vec::new(), Vec::new()),
+                |(mut buf, mut e), (k, p)| {
+                    let others = self.projections.len() - 1;
+                    let px = &self.pixels[p.start as usize..p.end as usize];
+                    self.gather_strided(p, sampled.patch(k), gains, &mut buf);
+                    for slot in 0..others {
+                        let s = own_gain(px, &buf, others, slot, STRIDE, None);
+                        for (j, a) in px.iter().step_by(STRIDE).enumerate() {
+                            if let Some(seen) = buf[j * others + slot] {
+                                e.push(residual2(a, &seen, s).sqrt());
+                            }
                         }
                     }
-                }
-                e
-            })
-            .flatten()
-            .collect();
+                    (buf, e)
+                },
+            )
+            .map(|(_, e)| e)
+            .reduce(Vec::new, |mut a, b| {
+                a.extend(b);
+                a
+            });
         if all.is_empty() {
             return 0.0;
         }
@@ -307,18 +314,18 @@ impl View<'_> {
         *m as f64
     }
 
-    /// Fills `buf[i·others + slot]` with what the other cameras see of `p`'s pixels (every
-    /// `stride`-th; the rest `None`).
+    /// Fills `buf[j·others + slot]` with what the other cameras see of `p`'s every `stride`-th
+    /// pixel, the `j`-th of them (`None` where a camera does not see it).
     fn gather(&self, p: &Patch, gains: &[[f32; 3]], stride: usize, buf: &mut Vec<Option<Seen>>) {
         let ncam = self.projections.len();
         let others = ncam - 1;
         let n = (p.end - p.start) as usize;
         let src = p.source as usize;
         buf.clear();
-        buf.resize(n * others, None);
+        buf.resize(n.div_ceil(stride) * others, None);
         self.each_sample(p, stride, |i, _, smp, other, slot| {
             if let Some(b) = smp {
-                buf[i * others + slot] = Some(Seen::new(&b, &gains[src * ncam + other]));
+                buf[(i / stride) * others + slot] = Some(Seen::new(&b, &gains[src * ncam + other]));
             }
         });
     }
@@ -366,12 +373,12 @@ impl View<'_> {
         let n = (p.end - p.start) as usize;
         let src = p.source as usize;
         buf.clear();
-        buf.resize(n * others, None);
+        buf.resize(n.div_ceil(STRIDE) * others, None);
         for (slot, other) in (0..ncam).filter(|&c| c != src).enumerate() {
             let g = &gains[src * ncam + other];
-            for (j, i) in (0..n).step_by(STRIDE).enumerate() {
+            for j in 0..n.div_ceil(STRIDE) {
                 if let Some(b) = &samples[j * others + slot] {
-                    buf[i * others + slot] = Some(Seen::new(b, g));
+                    buf[j * others + slot] = Some(Seen::new(b, g));
                 }
             }
         }
@@ -393,13 +400,13 @@ impl View<'_> {
         let mut agreed = vec![false; n];
         for slot in 0..others {
             // Fitted on all pixels, then again on those that fit.
-            let s0 = own_gain(px, buf, others, slot, None);
+            let s0 = own_gain(px, buf, others, slot, 1, None);
             let fits = |i: usize, s: f32| {
                 buf[i * others + slot].is_some_and(|seen| {
                     residual2(&px[i], &seen, s) <= limit.d2 + limit.tol2 * seen.g2
                 })
             };
-            let s = own_gain(px, buf, others, slot, Some(&|i| fits(i, s0)));
+            let s = own_gain(px, buf, others, slot, 1, Some(&|i| fits(i, s0)));
             for i in 0..n {
                 if buf[i * others + slot].is_some() {
                     checked[i] = true;
@@ -416,21 +423,23 @@ impl View<'_> {
     }
 }
 
-/// The patch's own gain on top of the pair's for one other camera (`slot`), over the pixels
-/// `use_pixel` accepts (all with `None`), within `[1/PATCH_GAIN, PATCH_GAIN]`.
+/// The patch's own gain on top of the pair's for one other camera (`slot`), over its every
+/// `stride`-th pixel (as [`View::gather`] fills `buf`) that `use_pixel` accepts (given the
+/// pixel's index; all with `None`), within `[1/PATCH_GAIN, PATCH_GAIN]`.
 fn own_gain(
     px: &[PixelSample],
     buf: &[Option<Seen>],
     others: usize,
     slot: usize,
+    stride: usize,
     use_pixel: Option<&dyn Fn(usize) -> bool>,
 ) -> f32 {
     let (mut ab, mut bb) = (0.0f64, 0.0f64);
-    for (i, a) in px.iter().enumerate() {
-        let Some(seen) = buf[i * others + slot] else {
+    for (j, a) in px.iter().step_by(stride).enumerate() {
+        let Some(seen) = buf[j * others + slot] else {
             continue;
         };
-        if use_pixel.is_none_or(|f| f(i)) {
+        if use_pixel.is_none_or(|f| f(j * stride)) {
             for ch in 0..3 {
                 ab += a.color[ch] as f64 * seen.b[ch] as f64;
                 bb += seen.b[ch] as f64 * seen.b[ch] as f64;
