@@ -91,8 +91,9 @@ impl ScalarSparse {
     #[inline]
     fn row_times(&self, i: usize, x: &[Vector3<f64>]) -> Vector3<f64> {
         let mut acc = Vector3::zeros();
-        for k in self.row_ptr[i]..self.row_ptr[i + 1] {
-            acc += x[self.cols[k] as usize] * self.vals[k];
+        let (a, b) = (self.row_ptr[i], self.row_ptr[i + 1]);
+        for (&c, &v) in self.cols[a..b].iter().zip(&self.vals[a..b]) {
+            acc += x[c as usize] * v;
         }
         acc
     }
@@ -244,8 +245,9 @@ impl BlockSparse {
     pub fn mul(&self, x: &[Vector3<f64>], y: &mut [Vector3<f64>]) {
         let row = |i: usize| {
             let mut acc = Vector3::zeros();
-            for k in self.row_ptr[i]..self.row_ptr[i + 1] {
-                acc += self.blocks[k] * x[self.cols[k] as usize];
+            let (a, b) = (self.row_ptr[i], self.row_ptr[i + 1]);
+            for (block, &c) in self.blocks[a..b].iter().zip(&self.cols[a..b]) {
+                acc += block * x[c as usize];
             }
             if let Some((m, s)) = &self.scalar {
                 acc += m.row_times(i, x) * *s;
