@@ -39,23 +39,25 @@ fn table(r: &EvalReport) -> String {
     let len = Length::of(r.units);
     let u = len.unit();
     let mut s = format!(
-        "{:>6}  {:>14}  {:>8}  {:>14}  {:>8}  {:>6}\n",
+        "{:>6}  {:>14}  {:>8}  {:>14}  {:>8}  {:>6}  {:>8}\n",
         "frame",
         format!("rms ({u})"),
         "rms %",
         format!("max ({u})"),
         "seen %",
-        "seen"
+        "seen",
+        "followed"
     );
     for e in &r.per_frame {
         s += &format!(
-            "{:>6}  {:>14.6}  {:>8.4}  {:>14.6}  {:>8.4}  {:>6}\n",
+            "{:>6}  {:>14.6}  {:>8.4}  {:>14.6}  {:>8.4}  {:>6}  {:>8}\n",
             e.frame,
             len.value(e.rms),
             e.rms_pct,
             len.value(e.max),
             e.seen_rms_pct,
-            e.seen
+            e.seen,
+            e.followed.map_or("-".to_string(), |f| format!("{f:.3}"))
         );
     }
     s += &format!(
@@ -74,5 +76,10 @@ fn table(r: &EvalReport) -> String {
         len.value(r.seen_rms_final),
         r.seen_rms_final_pct
     );
+    if let Some(f) = r.followed_median {
+        s += &format!(
+            "motion followed per frame (seen vertices, the truth's step as 1): median {f:.3}\n"
+        );
+    }
     s
 }

@@ -47,6 +47,66 @@ fn truth_against_itself_is_exactly_zero() {
 }
 
 #[test]
+fn how_much_of_each_frame_s_motion_a_run_followed_is_measured() {
+    // The truth moves 0.01 along x per frame. The truth itself and a copy held at a constant
+    // offset follow all of it; a run that moves half as far, half; one that stands still, none.
+    let dir = tempfile::tempdir().unwrap();
+    let (path, _) = write_scene(dir.path());
+    let scene = Scene::load(&path).unwrap();
+    let followed = |name: &str, step: f64, offset: Vector3<f64>| {
+        let run_dir = dir.path().join(name);
+        for f in 0..FRAMES {
+            let m = mesh();
+            let moved = m
+                .positions
+                .iter()
+                .map(|p| p + offset + Vector3::new(step * f as f64, 0.0, 0.0))
+                .collect();
+            write_obj(
+                &run_dir.join(format!("{f:04}.obj")),
+                &m.with_positions(moved),
+            )
+            .unwrap();
+        }
+        let r = evaluate(&scene, &read_run(&run_dir).unwrap()).unwrap();
+        assert_eq!(
+            r.per_frame[0].followed, None,
+            "{name}: the first frame has no step"
+        );
+        (
+            r.per_frame[1..]
+                .iter()
+                .map(|e| e.followed.unwrap())
+                .collect::<Vec<_>>(),
+            r.followed_median.unwrap(),
+        )
+    };
+    for (name, step, offset, want) in [
+        ("truth", 0.01, Vector3::zeros(), 1.0),
+        ("offset", 0.01, Vector3::new(0.02, -0.01, 0.03), 1.0),
+        ("half", 0.005, Vector3::zeros(), 0.5),
+        ("still", 0.0, Vector3::zeros(), 0.0),
+        ("overshoot", 0.015, Vector3::zeros(), 1.5),
+    ] {
+        let (per_frame, median) = followed(name, step, offset);
+        for f in &per_frame {
+            assert!((f - want).abs() < 1e-9, "{name}: {per_frame:?}");
+        }
+        assert!((median - want).abs() < 1e-9, "{name}: median {median}");
+    }
+    // A truth that does not move has nothing to follow.
+    let still_dir = tempfile::tempdir().unwrap();
+    let (still_path, _) = write_scene(still_dir.path());
+    for f in 0..FRAMES {
+        write_obj(&still_dir.path().join(format!("truth/{f:04}.obj")), &mesh()).unwrap();
+    }
+    let still = Scene::load(&still_path).unwrap();
+    let r = evaluate(&still, &read_run(&still_dir.path().join("truth")).unwrap()).unwrap();
+    assert!(r.per_frame.iter().all(|e| e.followed.is_none()));
+    assert_eq!(r.followed_median, None);
+}
+
+#[test]
 fn known_offset_is_measured() {
     let dir = tempfile::tempdir().unwrap();
     let (path, _) = write_scene(dir.path());
@@ -75,6 +135,7 @@ fn known_offset_is_measured() {
         "rms_final_pct",
         "seen_rms_mean_pct",
         "seen_rms_final_pct",
+        "followed_median",
         "scale",
     ] {
         assert!(json.get(key).is_some(), "{key}");

@@ -31,6 +31,11 @@ pub struct FrameError {
     pub seen_rms_pct: f64,
     /// How many vertices that is.
     pub seen: usize,
+    /// How much of the truth's motion since the previous frame the run made, over those
+    /// vertices: `Σ (run's step · truth's step) / Σ |truth's step|²`. 1: all of it; below 1 the
+    /// run lags (and, frame after frame, drifts); above 1 it overshoots. `None` for the first
+    /// frame, and where the truth did not move (its step under 10⁻⁹ of the scale).
+    pub followed: Option<f64>,
 }
 
 /// The score of a run.
@@ -49,6 +54,8 @@ pub struct EvalReport {
     pub seen_rms_final: f64,
     pub seen_rms_mean_pct: f64,
     pub seen_rms_final_pct: f64,
+    /// The median over frames of [`FrameError::followed`] (`None` when no frame has one).
+    pub followed_median: Option<f64>,
     /// The bounding-box diagonal of the scene mesh (frame `first`), the 100 % of the `_pct` values.
     pub scale: f64,
     /// The unit of every length above (the scene's `units`; `null`: scene units). Lengths here
@@ -109,6 +116,22 @@ pub fn evaluate(scene: &Scene, run: &[(u32, Mesh)]) -> Result<EvalReport> {
                 ));
             }
             let seen = seen_vertices(&scene.cameras, frame, &truth);
+            let followed = match frame.checked_sub(1).filter(|p| by_frame.contains_key(p)) {
+                Some(p) => {
+                    let before = scene
+                        .ground_truth(p)
+                        .unwrap_or_else(|| unreachable!("checked above"))?;
+                    followed(
+                        &by_frame[&p].positions,
+                        mesh,
+                        &before.positions,
+                        &truth,
+                        &seen,
+                        scale,
+                    )
+                }
+                None => None,
+            };
             let (mut sum, mut max, mut seen_sum, mut seen_count) = (0.0f64, 0.0f64, 0.0, 0);
             let mut d2s = Vec::with_capacity(mesh.positions.len());
             for ((a, b), &s) in mesh.positions.iter().zip(&truth.positions).zip(&seen) {
@@ -138,6 +161,7 @@ pub fn evaluate(scene: &Scene, run: &[(u32, Mesh)]) -> Result<EvalReport> {
                 seen_rms,
                 seen_rms_pct: pct(seen_rms, scale),
                 seen: seen_count,
+                followed,
             })
         })
         .collect::<Result<Vec<_>>>()?;
@@ -145,6 +169,16 @@ pub fn evaluate(scene: &Scene, run: &[(u32, Mesh)]) -> Result<EvalReport> {
     let rms_final = per_frame.last().map_or(0.0, |e| e.rms);
     let seen_rms_mean = per_frame.iter().map(|e| e.seen_rms).sum::<f64>() / per_frame.len() as f64;
     let seen_rms_final = per_frame.last().map_or(0.0, |e| e.seen_rms);
+    let mut f: Vec<f64> = per_frame.iter().filter_map(|e| e.followed).collect();
+    f.sort_by(f64::total_cmp);
+    let followed_median = (!f.is_empty()).then(|| {
+        let m = f.len() / 2;
+        if f.len() % 2 == 1 {
+            f[m]
+        } else {
+            0.5 * (f[m - 1] + f[m])
+        }
+    });
     Ok(EvalReport {
         frames: per_frame.len(),
         per_frame,
@@ -156,6 +190,7 @@ pub fn evaluate(scene: &Scene, run: &[(u32, Mesh)]) -> Result<EvalReport> {
         seen_rms_final,
         seen_rms_mean_pct: pct(seen_rms_mean, scale),
         seen_rms_final_pct: pct(seen_rms_final, scale),
+        followed_median,
         scale,
         units: scene.units,
     })
@@ -163,6 +198,42 @@ pub fn evaluate(scene: &Scene, run: &[(u32, Mesh)]) -> Result<EvalReport> {
 
 /// Which vertices of `truth` (the mesh at `frame`) some camera sees: those of a triangle that
 /// owns at least one pixel of the camera's z-buffered index buffer.
+/// [`FrameError::followed`] from the run's and the truth's positions at the previous frame and
+/// this one, over the vertices `seen` (all of them when none is); `None` when the truth's step is
+/// under 10⁻⁹ of `scale` (RMS) or a vertex count differs.
+fn followed(
+    run_before: &[nalgebra::Point3<f64>],
+    run: &Mesh,
+    truth_before: &[nalgebra::Point3<f64>],
+    truth: &Mesh,
+    seen: &[bool],
+    scale: f64,
+) -> Option<f64> {
+    let n = truth.positions.len();
+    if [
+        run_before.len(),
+        run.positions.len(),
+        truth_before.len(),
+        seen.len(),
+    ]
+    .iter()
+    .any(|&m| m != n)
+    {
+        return None;
+    }
+    let any = seen.iter().any(|&s| s);
+    let (mut dot, mut norm, mut count) = (0.0f64, 0.0f64, 0usize);
+    for i in (0..n).filter(|&i| !any || seen[i]) {
+        let dt = truth.positions[i] - truth_before[i];
+        let dk = run.positions[i] - run_before[i];
+        dot += dk.dot(&dt);
+        norm += dt.norm_squared();
+        count += 1;
+    }
+    let floor = 1e-9 * scale;
+    (count > 0 && norm > floor * floor * count as f64).then(|| dot / norm)
+}
+
 fn seen_vertices(cameras: &[Camera], frame: u32, truth: &Mesh) -> Vec<bool> {
     let mut seen = vec![false; truth.positions.len()];
     for cam in cameras {
