@@ -99,72 +99,86 @@ pub fn evaluate(scene: &Scene, run: &[(u32, Mesh)]) -> Result<EvalReport> {
     let scale = scene.mesh.bbox_diagonal();
     let by_frame: std::collections::BTreeMap<u32, &Mesh> =
         run.iter().map(|(f, m)| (*f, m)).collect();
-    let per_frame = scene
-        .frames()
-        .collect::<Vec<_>>()
-        .par_iter()
-        .map(|&frame| {
-            let mesh = by_frame[&frame];
-            let truth = scene
-                .ground_truth(frame)
-                .unwrap_or_else(|| unreachable!("checked above"))?;
-            if mesh.positions.len() != truth.positions.len() {
-                return Err(Error::mismatch(
-                    format!("frame {frame}: the run's mesh"),
-                    format!("{} vertices (as the ground truth)", truth.positions.len()),
-                    format!("{} vertices", mesh.positions.len()),
-                ));
+    let frame_error = |frame: u32, truth: &Mesh, before: Option<&Mesh>| -> Result<FrameError> {
+        let mesh = by_frame[&frame];
+        if mesh.positions.len() != truth.positions.len() {
+            return Err(Error::mismatch(
+                format!("frame {frame}: the run's mesh"),
+                format!("{} vertices (as the ground truth)", truth.positions.len()),
+                format!("{} vertices", mesh.positions.len()),
+            ));
+        }
+        let seen = seen_vertices(&scene.cameras, frame, truth);
+        let followed = match (frame.checked_sub(1), before) {
+            (Some(p), Some(before)) => followed(
+                &by_frame[&p].positions,
+                mesh,
+                &before.positions,
+                truth,
+                &seen,
+                scale,
+            ),
+            _ => None,
+        };
+        let (mut sum, mut max, mut seen_sum, mut seen_count) = (0.0f64, 0.0f64, 0.0, 0);
+        let mut d2s = Vec::with_capacity(mesh.positions.len());
+        for ((a, b), &s) in mesh.positions.iter().zip(&truth.positions).zip(&seen) {
+            let d2 = (a - b).norm_squared();
+            d2s.push(d2);
+            sum += d2;
+            max = max.max(d2);
+            if s {
+                seen_sum += d2;
+                seen_count += 1;
             }
-            let seen = seen_vertices(&scene.cameras, frame, &truth);
-            let followed = match frame.checked_sub(1).filter(|p| by_frame.contains_key(p)) {
-                Some(p) => {
-                    let before = scene
-                        .ground_truth(p)
-                        .unwrap_or_else(|| unreachable!("checked above"))?;
-                    followed(
-                        &by_frame[&p].positions,
-                        mesh,
-                        &before.positions,
-                        &truth,
-                        &seen,
-                        scale,
-                    )
-                }
-                None => None,
-            };
-            let (mut sum, mut max, mut seen_sum, mut seen_count) = (0.0f64, 0.0f64, 0.0, 0);
-            let mut d2s = Vec::with_capacity(mesh.positions.len());
-            for ((a, b), &s) in mesh.positions.iter().zip(&truth.positions).zip(&seen) {
-                let d2 = (a - b).norm_squared();
-                d2s.push(d2);
-                sum += d2;
-                max = max.max(d2);
-                if s {
-                    seen_sum += d2;
-                    seen_count += 1;
-                }
-            }
-            let rms = (sum / mesh.positions.len() as f64).sqrt();
-            d2s.sort_by(f64::total_cmp);
-            let quantile = |q: f64| {
-                d2s.get(((d2s.len().max(1) - 1) as f64 * q).round() as usize)
-                    .map_or(0.0, |d2| d2.sqrt())
-            };
-            let seen_rms = (seen_sum / seen_count.max(1) as f64).sqrt();
-            Ok(FrameError {
-                frame,
-                rms,
-                rms_pct: pct(rms, scale),
-                max: max.sqrt(),
-                median: quantile(0.5),
-                p90: quantile(0.9),
-                seen_rms,
-                seen_rms_pct: pct(seen_rms, scale),
-                seen: seen_count,
-                followed,
-            })
+        }
+        let rms = (sum / mesh.positions.len() as f64).sqrt();
+        d2s.sort_by(f64::total_cmp);
+        let quantile = |q: f64| {
+            d2s.get(((d2s.len().max(1) - 1) as f64 * q).round() as usize)
+                .map_or(0.0, |d2| d2.sqrt())
+        };
+        let seen_rms = (seen_sum / seen_count.max(1) as f64).sqrt();
+        Ok(FrameError {
+            frame,
+            rms,
+            rms_pct: pct(rms, scale),
+            max: max.sqrt(),
+            median: quantile(0.5),
+            p90: quantile(0.9),
+            seen_rms,
+            seen_rms_pct: pct(seen_rms, scale),
+            seen: seen_count,
+            followed,
         })
-        .collect::<Result<Vec<_>>>()?;
+    };
+    // Runs of consecutive frames in parallel, each read in order: a frame's ground truth is the
+    // next frame's "before" (for `followed`), so only a run's first frame reads one twice.
+    let load = |f: u32| {
+        scene
+            .ground_truth(f)
+            .unwrap_or_else(|| unreachable!("checked above"))
+    };
+    let frames: Vec<u32> = scene.frames().collect();
+    let per_frame: Vec<FrameError> = frames
+        .par_chunks(EVAL_CHUNK)
+        .map(|chunk| {
+            let mut before: Option<Mesh> = match chunk[0].checked_sub(1) {
+                Some(p) if by_frame.contains_key(&p) => Some(load(p)?),
+                _ => None,
+            };
+            let mut out = Vec::with_capacity(chunk.len());
+            for &frame in chunk {
+                let truth = load(frame)?;
+                out.push(frame_error(frame, &truth, before.as_ref())?);
+                before = Some(truth);
+            }
+            Ok(out)
+        })
+        .collect::<Result<Vec<Vec<FrameError>>>>()?
+        .into_iter()
+        .flatten()
+        .collect();
     let rms_mean = per_frame.iter().map(|e| e.rms).sum::<f64>() / per_frame.len() as f64;
     let rms_final = per_frame.last().map_or(0.0, |e| e.rms);
     let seen_rms_mean = per_frame.iter().map(|e| e.seen_rms).sum::<f64>() / per_frame.len() as f64;
@@ -196,8 +210,6 @@ pub fn evaluate(scene: &Scene, run: &[(u32, Mesh)]) -> Result<EvalReport> {
     })
 }
 
-/// Which vertices of `truth` (the mesh at `frame`) some camera sees: those of a triangle that
-/// owns at least one pixel of the camera's z-buffered index buffer.
 /// [`FrameError::followed`] from the run's and the truth's positions at the previous frame and
 /// this one, over the vertices `seen` (all of them when none is); `None` when the truth's step is
 /// under 10⁻⁹ of `scale` (RMS) or a vertex count differs.
@@ -234,6 +246,11 @@ fn followed(
     (count > 0 && norm > floor * floor * count as f64).then(|| dot / norm)
 }
 
+/// Frames per task of [`evaluate`] (each task reads its frames' ground truth in order).
+const EVAL_CHUNK: usize = 8;
+
+/// Which vertices of `truth` (the mesh at `frame`) some camera sees: those of a triangle that
+/// owns at least one pixel of the camera's z-buffered index buffer.
 fn seen_vertices(cameras: &[Camera], frame: u32, truth: &Mesh) -> Vec<bool> {
     let mut seen = vec![false; truth.positions.len()];
     for cam in cameras {
