@@ -16,6 +16,11 @@ pub struct TrackArgs {
     /// as many as keep the coarsest level's short side at least 80 px (720 p: 4, 480 p: 3); 1 to 12.
     #[arg(long, default_value = "auto", value_parser = parse_levels)]
     pub levels: usize,
+    /// The finest pyramid level solved: 0 = full resolution; 1 = half resolution (a draft or
+    /// proxy track, about twice as fast), 2 = a quarter. With --levels auto the coarsest level
+    /// stays where the image size puts it; with a number it must be below it.
+    #[arg(long, default_value_t = 0)]
+    pub finest_level: usize,
     /// Solve every pyramid level per vertex only, without first solving the coarsest one for one
     /// rigid motion of the whole mesh.
     #[arg(long)]
@@ -151,6 +156,7 @@ impl TrackArgs {
         let d = TrackOptions::default();
         TrackOptions {
             levels: self.levels,
+            finest_level: self.finest_level,
             anchor_weight: self.anchor_weight,
             consensus: self.consensus,
             blur: self.blur,

@@ -50,9 +50,17 @@ fn track_options_out_of_range_are_refused_by_name() {
         ("--min-decrease", "NaN", "[0, 1)"),
         ("--max-iterations", "0", "[1, 10000]"),
         ("--tukey-k", "inf", "(0, 1000]"),
+        ("--finest-level", "12", "[0, 11]"),
     ] {
         refused(&["track"], &[opt, value], &format!("{opt} {value}"), range);
     }
+    // The finest level solved must be one of the pyramid's.
+    refused(
+        &["track"],
+        &["--levels", "2", "--finest-level", "2"],
+        "--finest-level 2",
+        "below --levels 2",
+    );
 }
 
 #[test]

@@ -187,6 +187,41 @@ fn a_cloth_that_folds_is_followed_not_pulled_back_to_its_first_shape() {
 }
 
 #[test]
+fn a_draft_at_half_resolution_follows_the_cloth_from_a_fraction_of_the_pixels() {
+    // `finest_level: 1` stops at the half-resolution level: a proxy track of large footage.
+    // The mesh must still follow the cloth (at half resolution the images hold it less
+    // closely), every frame solved there and none at full resolution.
+    let (opts, syn) = cloth_320x240(13);
+    let diag = syn.mesh.bbox_diagonal();
+    let run = |finest_level: usize| {
+        let options = TrackOptions {
+            finest_level,
+            ..TrackOptions::default()
+        };
+        let mut tr =
+            Tracker::new(&syn.mesh, syn.cameras.clone(), 0, &images(&syn, 0), options).unwrap();
+        let (mut sum, mut pixels) = (0.0, 0);
+        for f in 1..opts.frames {
+            let report = tr.step(f, &images(&syn, f)).unwrap();
+            assert!(!report.stalled, "frame {f} stalled ({:?})", report.stop);
+            sum += 100.0 * rms(tr.positions(), &syn.truth[f as usize]) / diag;
+            pixels += report.pixels;
+        }
+        (sum / (opts.frames - 1) as f64, pixels)
+    };
+    let (full, full_pixels) = run(0);
+    let (draft, draft_pixels) = run(1);
+    eprintln!(
+        "mean error {full:.4} % ({full_pixels} pixels), draft {draft:.4} % ({draft_pixels} pixels)"
+    );
+    assert!(draft < 0.35, "draft's mean error {draft:.4} % of the size");
+    assert!(
+        (draft_pixels as f64) < 0.45 * full_pixels as f64,
+        "the draft compared {draft_pixels} pixels at its finest level, full resolution {full_pixels}"
+    );
+}
+
+#[test]
 fn a_finely_triangulated_mesh_is_compared_at_every_level() {
     // 10 000 vertices on 320×240 footage: at the coarsest level (160×120) a triangle covers about
     // a quarter of a pixel, and a pixel's neighbours belong to triangles rings away on the same

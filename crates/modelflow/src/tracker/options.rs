@@ -17,6 +17,12 @@ pub struct TrackOptions {
     /// Pyramid levels solved, coarse to fine (1 = full resolution only; 0 = chosen from the
     /// image size, see `pyramid::auto_levels`).
     pub levels: usize,
+    /// The finest pyramid level solved (0 = full resolution; 1 = half, 2 = a quarter): a draft
+    /// or proxy track of high-resolution footage, about 2× faster per level left out, the mesh
+    /// then as accurate as the images at that level allow. Counts within `levels`: the coarsest
+    /// level stays where `levels` puts it.
+    #[serde(default)]
+    pub finest_level: usize,
     /// Gaussian smoothing (pixels, at each level's own scale) before gradients are taken.
     pub blur: f64,
     /// Weight of the first-frame template relative to the previous-frame one (0 = thesis only),
@@ -61,6 +67,7 @@ impl Default for TrackOptions {
             solver: SolverOptions::default(),
             regularisation: Regularisation::default(),
             levels: 0,
+            finest_level: 0,
             blur: 1.0,
             anchor_weight: 2.0,
             margin: 1,
@@ -78,10 +85,11 @@ impl Default for TrackOptions {
 pub struct OptionsUsed {
     /// The options after resolution (`levels` at least 1).
     pub options: TrackOptions,
-    /// How the next frame is sampled by each pyramid level's last solve, finest (level 0)
-    /// first: the chosen interpolation at full resolution, bilinear at the coarser levels (they
-    /// only bring the mesh near the solution; the finest level decides it). At full resolution
-    /// a Huber solve that a Tukey refine follows samples bilinearly too: the refine decides.
+    /// How the next frame is sampled by each pyramid level's last solve, level 0 (full
+    /// resolution) first: the chosen interpolation at the finest level solved
+    /// (`finest_level`), bilinear at the others (the coarser ones only bring the mesh near the
+    /// solution; the finest decides it; levels finer than it are not solved). There a Huber
+    /// solve that a Tukey refine follows samples bilinearly too: the refine decides.
     pub interpolation_per_level: Vec<Interpolation>,
     /// The regularisers in the cost, in the order the solver adds them.
     pub regularisers: Vec<String>,
@@ -253,6 +261,13 @@ impl TrackOptions {
                 why: "0 = automatic",
             },
             Range {
+                option: "--finest-level",
+                value: self.finest_level as f64,
+                low: (0.0, true),
+                high: (11.0, true),
+                why: "0 = full resolution",
+            },
+            Range {
                 option: "min_cos",
                 value: self.min_cos,
                 low: (0.0, true),
@@ -267,7 +282,18 @@ impl TrackOptions {
                 why: "pixels",
             },
         ];
-        ranges.iter().try_for_each(Range::check)
+        ranges.iter().try_for_each(Range::check)?;
+        if self.levels > 0 && self.finest_level >= self.levels {
+            return Err(Error::option(
+                "--finest-level",
+                self.finest_level,
+                format!(
+                    "a level below --levels {} (levels are numbered from 0, full resolution)",
+                    self.levels
+                ),
+            ));
+        }
+        Ok(())
     }
 
     /// These options with `levels = 0` (automatic) resolved for images of the given sizes
@@ -278,7 +304,7 @@ impl TrackOptions {
         }
         let short = sizes.into_iter().map(|(w, h)| w.min(h)).min().unwrap_or(0);
         TrackOptions {
-            levels: auto_levels(short),
+            levels: auto_levels(short).max(self.finest_level + 1),
             ..*self
         }
     }
@@ -287,12 +313,12 @@ impl TrackOptions {
     /// [`TrackOptions::resolved_for`]; left at 0 they count as 1).
     pub fn used(&self) -> OptionsUsed {
         let options = TrackOptions {
-            levels: self.levels.max(1),
+            levels: self.levels.max(self.finest_level + 1),
             ..*self
         };
         let interpolation_per_level = (0..options.levels)
             .map(|l| {
-                if l == 0 {
+                if l == options.finest_level {
                     options.solver.interpolation
                 } else {
                     Interpolation::Linear

@@ -387,8 +387,12 @@ impl Tracker {
                 .collect()
         });
         let before = before.as_deref().zip(next.map(|(_, gap)| gap));
-        (0..anchored_levels(self.opts.levels))
+        (0..anchored_levels(self.opts.levels, self.opts.finest_level))
             .map(|l| {
+                if l < self.opts.finest_level {
+                    // Not solved: nothing to compare there.
+                    return PatchSet::default();
+                }
                 self.template_patches(first, before, l, 2.0 * self.opts.anchor_weight as f32, true)
                     .0
             })
@@ -442,7 +446,9 @@ impl Tracker {
         for r in &mut self.regularisers {
             r.begin_frame(&context);
         }
-        for level in (0..levels).rev() {
+        // Levels finer than `finest_level` are not solved (a draft at reduced resolution).
+        let finest = self.opts.finest_level;
+        for level in (finest..levels).rev() {
             let tp = Instant::now();
             let cb = level == 0 && self.opts.checkerboard;
             let weight = if cb { 2.0 } else { 1.0 };
@@ -453,7 +459,7 @@ impl Tracker {
                 )
             });
             let (mut set, dropped) = self.template_patches(&self.prev, before, level, weight, cb);
-            if level == 0 {
+            if level == finest {
                 contradicted = dropped;
             }
             if let Some(anchor) = self.anchor.get(level) {
@@ -482,7 +488,7 @@ impl Tracker {
                 interpolation: self.used.interpolation_per_level[level],
                 ..self.opts.solver
             };
-            let refine = robust.loss != Loss::Huber && level == 0;
+            let refine = robust.loss != Loss::Huber && level == finest;
             // The Huber solves sample bilinearly, also at full resolution when a refine
             // follows: they bring the mesh to within a fraction of a pixel, and the refine,
             // in the chosen interpolation, decides the solution (docs/tracker.md, "Levels").
@@ -529,7 +535,7 @@ impl Tracker {
                     }
                 }
             }
-            if level == 0 {
+            if level == finest {
                 cost_before = problem.cost(&self.prev.positions, &sopts);
             }
             // A cancelled solve ends the step: the tracker stays at the previous frame and
@@ -564,7 +570,7 @@ impl Tracker {
                 lin = refined_lin;
                 summaries.push(std::mem::replace(&mut summary, refined));
             }
-            if level == 0 {
+            if level == finest {
                 cost_after = summary.final_cost;
                 pixels = summary.pixels;
                 stop = summary.stop;
@@ -575,7 +581,11 @@ impl Tracker {
             }
             summaries.push(summary);
             // The confidence is timed apart.
-            let own = if level == 0 { timing.confidence } else { 0.0 };
+            let own = if level == finest {
+                timing.confidence
+            } else {
+                0.0
+            };
             timing.solve += ts.elapsed().as_secs_f64() - own;
         }
         let iterations = summaries.iter().map(|s| s.iterations.len()).sum();
@@ -653,8 +663,10 @@ impl Prepared {
 /// webcam board out of its plane (frames 12–15) under most small changes of the options; from
 /// the next level on, it does what it is for, holding the mesh to the first frame against
 /// drift, with pixel-sized residuals (docs/tracker.md, "The first frame as a second template").
-pub(crate) fn anchored_levels(levels: usize) -> usize {
-    levels.saturating_sub(1).max(1)
+/// With `finest` above 0 the levels below it are not solved, and a single level solved keeps
+/// the anchor.
+pub(crate) fn anchored_levels(levels: usize, finest: usize) -> usize {
+    levels.saturating_sub(1).max(finest + 1)
 }
 
 /// Builds the pyramids the tracker with `opts` needs from one frame's images (one per camera).
