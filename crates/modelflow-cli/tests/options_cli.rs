@@ -51,6 +51,7 @@ fn track_options_out_of_range_are_refused_by_name() {
         ("--max-iterations", "0", "[1, 10000]"),
         ("--tukey-k", "inf", "(0, 1000]"),
         ("--finest-level", "12", "[0, 11]"),
+        ("--stereo", "-1", "[0, 100]"),
     ] {
         refused(&["track"], &[opt, value], &format!("{opt} {value}"), range);
     }

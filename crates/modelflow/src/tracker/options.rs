@@ -51,6 +51,14 @@ pub struct TrackOptions {
     /// cameras (0 = off).
     #[serde(default = "default_consensus")]
     pub consensus: f64,
+    /// Weight of the cameras compared with each other in the frame being solved (0 = off):
+    /// each camera's pixels warped into every other camera that sees the triangle, as `align`
+    /// does, at the two finest levels solved (not at the coarsest, where the motion is
+    /// caught). Each source pixel's comparisons share this weight (the previous frame's pixels
+    /// weigh 1). It fixes where the surface is in every frame, so depth along a narrow
+    /// baseline does not drift (`sequence::stereo_levels`; docs/tracker.md).
+    #[serde(default)]
+    pub stereo: f64,
 }
 
 fn default_consensus() -> f64 {
@@ -76,6 +84,7 @@ impl Default for TrackOptions {
             checkerboard: true,
             rigid_first: true,
             consensus: default_consensus(),
+            stereo: 0.0,
         }
     }
 }
@@ -259,6 +268,13 @@ impl TrackOptions {
                 low: (0.0, true),
                 high: (12.0, true),
                 why: "0 = automatic",
+            },
+            Range {
+                option: "--stereo",
+                value: self.stereo,
+                low: (0.0, true),
+                high: (100.0, true),
+                why: "0 = off",
             },
             Range {
                 option: "--finest-level",

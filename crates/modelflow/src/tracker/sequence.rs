@@ -15,6 +15,7 @@ use crate::base::camera::{Camera, Projection};
 use crate::base::image::RgbImage;
 use crate::base::mesh::Mesh;
 use crate::error::{Error, Result};
+use crate::tracker::align;
 use crate::tracker::consensus::{drop_contradicted, ConsensusOptions};
 use crate::tracker::options::{OptionsUsed, TrackOptions};
 use crate::tracker::patch::{PatchOptions, PatchSet};
@@ -364,6 +365,46 @@ impl Tracker {
         (set, contradicted)
     }
 
+    /// The cameras' pixels at `level` of the frame being solved (`next`'s pyramids), each
+    /// camera's warped into every other camera that sees the triangle (`align::cross_patches`)
+    /// with the mesh at `x`; each source pixel's comparisons share the weight `stereo`.
+    fn stereo_patches(
+        &self,
+        x: &[Point3<f64>],
+        frame: u32,
+        level: usize,
+        next: &[Pyramid],
+    ) -> PatchSet {
+        let images: Vec<&RgbImage> = next.iter().map(|p| &p.levels[level]).collect();
+        let projections: Vec<Projection> = self
+            .cameras
+            .iter()
+            .map(|c| level_projection(c.at(frame), level))
+            .collect();
+        // As in `align`: pixels up to the outline at the coarser levels, where a triangle may
+        // be smaller than a pixel.
+        let popts = PatchOptions {
+            margin: if level == 0 { self.opts.margin } else { 0 },
+            ..self.patch_options()
+        };
+        let mut set = align::cross_patches(x, &self.triangles, &projections, &images, &popts);
+        // Patches of one source pixel range are consecutive, one per other camera.
+        let mut i = 0;
+        while i < set.patches.len() {
+            let (start, end) = (set.patches[i].start, set.patches[i].end);
+            let mut j = i;
+            while j < set.patches.len()
+                && (set.patches[j].start, set.patches[j].end) == (start, end)
+            {
+                j += 1;
+            }
+            let w = (self.opts.stereo / (j - i) as f64) as f32;
+            set.patches[i..j].iter_mut().for_each(|p| p.weight = w);
+            i = j;
+        }
+        set
+    }
+
     /// The anchor's patches, every level it is compared at ([`anchored_levels`]), from the first frame's template `first` (none when
     /// the anchor is off). With `next` (the positions solved `gap` frames later), cameras that
     /// record late or early take them where they saw the surface: moved along the first
@@ -479,6 +520,17 @@ impl Tracker {
                     }
                 }
             }
+            // The cameras compared with each other at the mesh where this level starts.
+            let stereo_x0 = x.clone();
+            let stereo = self.opts.stereo > 0.0
+                && ncam > 1
+                && stereo_levels(levels, finest).contains(&level);
+            if stereo {
+                merge_into(
+                    &mut set,
+                    self.stereo_patches(&stereo_x0, frame, level, &next),
+                );
+            }
             let by_triangle = set.by_triangle();
             timing.patches += tp.elapsed().as_secs_f64();
             let ts = Instant::now();
@@ -515,7 +567,7 @@ impl Tracker {
                 pattern: &self.pattern,
                 regularisers: &self.regularisers,
                 cancel: self.cancel.as_deref(),
-                moving_source: None,
+                moving_source: stereo.then_some(&stereo_x0[..]),
                 gauge_floor: 0.0,
                 // Until a velocity is known the templates are taken as the cameras saw them
                 // too, which for a steady motion is exact on both sides.
@@ -669,6 +721,32 @@ pub(crate) fn anchored_levels(levels: usize, finest: usize) -> usize {
     levels.saturating_sub(1).max(finest + 1)
 }
 
+/// The levels at which the cameras are compared with each other in the frame being solved
+/// (`TrackOptions::stereo`): the two finest solved, never the coarsest (where a frame's motion is
+/// caught, from blurred images at their smallest) unless it is the only level solved. Measured
+/// on 720p webcams, the third finest level made the board's final error worse (0.369 against
+/// 0.322 %).
+pub(crate) fn stereo_levels(levels: usize, finest: usize) -> std::ops::Range<usize> {
+    let end = (finest + 2).min(levels.saturating_sub(1)).max(finest + 1);
+    finest..end
+}
+
+/// `extra`'s patches and pixels appended to `set`'s.
+fn merge_into(set: &mut PatchSet, extra: PatchSet) {
+    let off = set.pixels.len() as u32;
+    set.pixels.extend(extra.pixels);
+    set.patches.extend(
+        extra
+            .patches
+            .into_iter()
+            .map(|p| crate::tracker::patch::Patch {
+                start: p.start + off,
+                end: p.end + off,
+                ..p
+            }),
+    );
+}
+
 /// Builds the pyramids the tracker with `opts` needs from one frame's images (one per camera).
 pub fn prepare(images: &[RgbImage], opts: &TrackOptions) -> Prepared {
     let t = Instant::now();
@@ -702,4 +780,26 @@ fn merge(sets: Vec<PatchSet>) -> PatchSet {
             }));
     }
     out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::{anchored_levels, stereo_levels};
+
+    #[test]
+    fn the_cameras_are_compared_at_the_two_finest_levels_solved_and_never_the_coarsest() {
+        // (levels, finest level solved) → levels compared across cameras.
+        assert_eq!(stereo_levels(3, 0), 0..2);
+        assert_eq!(stereo_levels(4, 0), 0..2);
+        assert_eq!(stereo_levels(2, 0), 0..1);
+        assert_eq!(stereo_levels(4, 1), 1..3);
+        assert_eq!(stereo_levels(3, 1), 1..2);
+        // One level solved: that one, coarsest or not.
+        assert_eq!(stereo_levels(1, 0), 0..1);
+        assert_eq!(stereo_levels(4, 3), 3..4);
+        // The first frame is compared at every level solved but the coarsest, or at the one.
+        assert_eq!(anchored_levels(4, 0), 3);
+        assert_eq!(anchored_levels(4, 3), 4);
+        assert_eq!(anchored_levels(1, 0), 1);
+    }
 }

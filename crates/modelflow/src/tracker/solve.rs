@@ -168,10 +168,12 @@ pub(crate) struct Problem<'a> {
     pub regularisers: &'a [Box<dyn Regulariser>],
     /// Checked before every iteration: when set, the solve stops (`StopReason::Cancelled`).
     pub cancel: Option<&'a AtomicBool>,
-    /// `None` when the patches come from template frames, whose mesh is known and fixed (the
-    /// tracker). `Some(x0)` when they come from the unknowns' own frame (`align`): a patch's
-    /// pixels were taken from camera `source` with the mesh at `x0`, and the surface point each
-    /// pixel sees moves along that camera's ray as the mesh moves. See [`SourceWarp`].
+    /// `None` when every patch comes from a template frame, whose mesh is known and fixed.
+    /// `Some(x0)` when some come from the unknowns' own frame (`align`; the tracker's
+    /// `stereo` term): such a patch (its `source` camera not its `camera`) has its pixels taken
+    /// from camera `source` with the mesh at `x0`, and the surface point each pixel sees moves
+    /// along that camera's ray as the mesh moves. See [`SourceWarp`]. A patch whose `source`
+    /// is its `camera` is a template's either way.
     pub moving_source: Option<&'a [Point3<f64>]>,
     /// With a rigid or similarity motion: whole-mesh motions whose curvature is below this
     /// fraction of the best-fixed one's are left out of every step (0: none are).
@@ -594,7 +596,7 @@ impl Problem<'_> {
             // A moving source (`align`) changes the warp's columns and derivative, and the
             // barycentrics the derivative is weighted by.
             let mut to_current = None;
-            if let Some(x0) = self.moving_source {
+            if let Some(x0) = self.moving_source.filter(|_| patch.source != patch.camera) {
                 let xs0 = tri.map(|v| x0[v as usize]);
                 let src = &self.projections[patch.source as usize];
                 let Some(sw) = SourceWarp::new(&xs, &xs0, src, proj) else {
