@@ -33,7 +33,7 @@ pub struct TrackArgs {
     pub consensus: f64,
     /// Weight of the cameras compared with each other in the frame being solved, at the two
     /// finest levels (0 = off; 0 to 100): holds the surface where all cameras agree it is, so
-    /// depth does not drift with few cameras or a narrow baseline; slower (about +50 % time).
+    /// depth does not drift with few cameras or a narrow baseline; slower (about +28 % time).
     #[arg(long, default_value_t = TrackOptions::default().stereo)]
     pub stereo: f64,
     /// Spring constant k of the cubic edge springs (Eq. 5.16) on the edges' strain, each edge

@@ -227,7 +227,7 @@ fn comparing_the_cameras_with_each_other_stops_depth_drifting_on_a_narrow_baseli
     // previous frame fixes the motion across its rays well and along them poorly, and the depth
     // error accumulates. `stereo` also compares the two cameras in the frame being solved,
     // which fixes where the surface is (320×240, frames 1–24: mean 0.226 % without,
-    // 0.151 % with weight 1; the 640×480 bench clip 0.131 → 0.094 %).
+    // 0.151 % with weight 1; the 640×480 bench clip 0.131 → 0.093 %).
     let (opts, syn) = cloth_320x240(25);
     let diag = syn.mesh.bbox_diagonal();
     let run = |stereo: f64| {

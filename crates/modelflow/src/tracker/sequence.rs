@@ -367,7 +367,8 @@ impl Tracker {
 
     /// The cameras' pixels at `level` of the frame being solved (`next`'s pyramids), each
     /// camera's warped into every other camera that sees the triangle (`align::cross_patches`)
-    /// with the mesh at `x`; each source pixel's comparisons share the weight `stereo`.
+    /// with the mesh at `x`; each source pixel's comparisons share the weight `stereo` (twice
+    /// that on the full-resolution checkerboard).
     fn stereo_patches(
         &self,
         x: &[Point3<f64>],
@@ -385,8 +386,12 @@ impl Tracker {
         // be smaller than a pixel.
         let popts = PatchOptions {
             margin: if level == 0 { self.opts.margin } else { 0 },
+            // At full resolution every other pixel at twice the weight, as the templates: the
+            // same accuracy for half the work (docs/speed.md, 2026-11-26).
+            checkerboard: level == 0 && self.opts.checkerboard,
             ..self.patch_options()
         };
+        let cbw = if popts.checkerboard { 2.0 } else { 1.0 };
         let mut set = align::cross_patches(x, &self.triangles, &projections, &images, &popts);
         // Patches of one source pixel range are consecutive, one per other camera.
         let mut i = 0;
@@ -398,7 +403,7 @@ impl Tracker {
             {
                 j += 1;
             }
-            let w = (self.opts.stereo / (j - i) as f64) as f32;
+            let w = (cbw * self.opts.stereo / (j - i) as f64) as f32;
             set.patches[i..j].iter_mut().for_each(|p| p.weight = w);
             i = j;
         }
