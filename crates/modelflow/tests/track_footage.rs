@@ -34,6 +34,22 @@ fn start(syn: &Synthetic) -> Tracker {
     .unwrap()
 }
 
+/// Tracks `syn` over `frames` frames with `options`, asserting that no frame stalls: the mean
+/// error over frames 1.. (% of the first mesh's size) and the pixels compared at the finest
+/// level solved, summed.
+fn track_mean(syn: &Synthetic, frames: u32, options: TrackOptions) -> (f64, usize) {
+    let diag = syn.mesh.bbox_diagonal();
+    let mut tr = Tracker::new(&syn.mesh, syn.cameras.clone(), 0, &images(syn, 0), options).unwrap();
+    let (mut sum, mut pixels) = (0.0, 0);
+    for f in 1..frames {
+        let report = tr.step(f, &images(syn, f)).unwrap();
+        assert!(!report.stalled, "frame {f} stalled ({:?})", report.stop);
+        sum += 100.0 * rms(tr.positions(), &syn.truth[f as usize]) / diag;
+        pixels += report.pixels;
+    }
+    (sum / (frames - 1) as f64, pixels)
+}
+
 /// The default cloth at 320×240, `frames` frames.
 fn cloth_320x240(frames: u32) -> (SynthOptions, Synthetic) {
     let opts = SynthOptions {
@@ -192,22 +208,12 @@ fn a_draft_at_half_resolution_follows_the_cloth_from_a_fraction_of_the_pixels() 
     // The mesh must still follow the cloth (at half resolution the images hold it less
     // closely), every frame solved there and none at full resolution.
     let (opts, syn) = cloth_320x240(13);
-    let diag = syn.mesh.bbox_diagonal();
     let run = |finest_level: usize| {
         let options = TrackOptions {
             finest_level,
             ..TrackOptions::default()
         };
-        let mut tr =
-            Tracker::new(&syn.mesh, syn.cameras.clone(), 0, &images(&syn, 0), options).unwrap();
-        let (mut sum, mut pixels) = (0.0, 0);
-        for f in 1..opts.frames {
-            let report = tr.step(f, &images(&syn, f)).unwrap();
-            assert!(!report.stalled, "frame {f} stalled ({:?})", report.stop);
-            sum += 100.0 * rms(tr.positions(), &syn.truth[f as usize]) / diag;
-            pixels += report.pixels;
-        }
-        (sum / (opts.frames - 1) as f64, pixels)
+        track_mean(&syn, opts.frames, options)
     };
     let (full, full_pixels) = run(0);
     let (draft, draft_pixels) = run(1);
@@ -229,21 +235,12 @@ fn comparing_the_cameras_with_each_other_stops_depth_drifting_on_a_narrow_baseli
     // which fixes where the surface is (320×240, frames 1–24: mean 0.226 % without,
     // 0.151 % with weight 1; the 640×480 bench clip 0.131 → 0.093 %).
     let (opts, syn) = cloth_320x240(25);
-    let diag = syn.mesh.bbox_diagonal();
     let run = |stereo: f64| {
         let options = TrackOptions {
             stereo,
             ..TrackOptions::default()
         };
-        let mut tr =
-            Tracker::new(&syn.mesh, syn.cameras.clone(), 0, &images(&syn, 0), options).unwrap();
-        let mut sum = 0.0;
-        for f in 1..opts.frames {
-            let report = tr.step(f, &images(&syn, f)).unwrap();
-            assert!(!report.stalled, "frame {f} stalled ({:?})", report.stop);
-            sum += 100.0 * rms(tr.positions(), &syn.truth[f as usize]) / diag;
-        }
-        sum / (opts.frames - 1) as f64
+        track_mean(&syn, opts.frames, options).0
     };
     let (without, with) = (run(0.0), run(1.0));
     eprintln!("mean error {without:.4} % without, {with:.4} % with the cameras compared");

@@ -526,10 +526,10 @@ impl Tracker {
                 }
             }
             // The cameras compared with each other at the mesh where this level starts.
-            let stereo_x0 = x.clone();
             let stereo = self.opts.stereo > 0.0
                 && ncam > 1
                 && stereo_levels(levels, finest).contains(&level);
+            let stereo_x0 = if stereo { x.clone() } else { Vec::new() };
             if stereo {
                 merge_into(
                     &mut set,
@@ -775,14 +775,7 @@ fn build_pyramids(images: &[RgbImage], levels: usize, blur: f64) -> Vec<Pyramid>
 fn merge(sets: Vec<PatchSet>) -> PatchSet {
     let mut out = PatchSet::default();
     for s in sets {
-        let off = out.pixels.len() as u32;
-        out.pixels.extend(s.pixels);
-        out.patches
-            .extend(s.patches.into_iter().map(|p| crate::tracker::patch::Patch {
-                start: p.start + off,
-                end: p.end + off,
-                ..p
-            }));
+        merge_into(&mut out, s);
     }
     out
 }
