@@ -231,6 +231,10 @@ pub struct Args {
 /// Height over longest edge below which `track` warns of a sliver triangle.
 const SLIVER_RATIO: f64 = 1e-3;
 
+/// Share of the seen surface seen by one camera only above which `track` warns (the rig's
+/// views barely overlap: depth there is the regularisers' guess).
+const ONE_CAMERA_WARN: f64 = 0.5;
+
 pub fn run(args: Args, invocation: &Invocation) -> anyhow::Result<()> {
     args.track.options().validate()?;
     let scene = args.select.apply(Scene::load(&args.scene)?)?;
@@ -244,6 +248,21 @@ pub fn run(args: Args, invocation: &Invocation) -> anyhow::Result<()> {
             (1.0 / SLIVER_RATIO) as u32,
             first + 1,
             r
+        );
+    }
+    let opts = args.track.options();
+    let cover = modelflow::tracker::coverage(&scene.mesh, &scene.cameras, scene.first, &opts);
+    eprintln!(
+        "at frame {}: {:.0} % of the mesh's surface is seen by two or more cameras, {:.0} % by one only, {:.0} % by none",
+        scene.first,
+        100.0 * cover.two_or_more,
+        100.0 * cover.one,
+        100.0 * cover.none
+    );
+    if cover.one_camera_share() > ONE_CAMERA_WARN {
+        eprintln!(
+            "warning: most of the surface the cameras see ({:.0} %) is seen by one camera only; there its depth comes from the regularisers alone and drifts over the shot (docs/tracker.md, \"Where depth comes from\"). Add a camera whose view overlaps, or check the cameras' calibration.",
+            100.0 * cover.one_camera_share()
         );
     }
     let run = run_options(args.out.mode(args.resume), invocation);

@@ -172,3 +172,53 @@ fn track_keeps_the_input_meshes_uvs_and_normals() {
     assert_eq!(o.status.code(), Some(1));
     assert!(String::from_utf8_lossy(&o.stderr).contains(".usda, .glb, .pc2 or .mdd"));
 }
+
+/// `track` on synthetic footage of `preset` seen by `cameras` cameras (two frames): its stderr.
+fn track_stderr(preset: modelflow::synth::Preset, cameras: usize) -> String {
+    let dir = tempfile::tempdir().unwrap();
+    let opts = SynthOptions {
+        preset,
+        cameras: Some(cameras),
+        width: 320,
+        height: 240,
+        frames: 2,
+        supersample: 1,
+        ..SynthOptions::default()
+    };
+    let scene = write_dataset(&opts, &dir.path().join("footage"), &|_, _| {}).unwrap();
+    let out = Command::new(env!("CARGO_BIN_EXE_modelflow"))
+        .arg("track")
+        .arg("--scene")
+        .arg(&scene)
+        .arg("--out")
+        .arg(dir.path().join("run"))
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&out.stderr).to_string();
+    assert!(out.status.success(), "{err}");
+    err
+}
+
+#[test]
+fn a_rig_whose_views_do_not_overlap_is_named_before_tracking() {
+    use modelflow::synth::Preset;
+    // Two cameras on opposite sides of the closed blob: each sees its own half.
+    let err = track_stderr(Preset::Blob, 2);
+    assert!(
+        err.contains("at frame 0: 1 % of the mesh's surface is seen by two or more cameras")
+            || err.contains("at frame 0: 0 % of the mesh's surface is seen by two or more cameras"),
+        "{err}"
+    );
+    assert!(
+        err.contains("warning: most of the surface the cameras see (")
+            && err.contains("is seen by one camera only"),
+        "{err}"
+    );
+    // Two cameras in front of the cloth see all of it together: no warning.
+    let err = track_stderr(Preset::Cloth, 2);
+    assert!(
+        err.contains("at frame 0: 100 % of the mesh's surface is seen by two or more cameras, 0 % by one only, 0 % by none"),
+        "{err}"
+    );
+    assert!(!err.contains("seen by one camera only"), "{err}");
+}

@@ -9,6 +9,7 @@
 
 pub(crate) mod align;
 pub(crate) mod consensus;
+mod coverage;
 mod options;
 pub(crate) mod outline;
 pub(crate) mod patch;
@@ -27,6 +28,7 @@ pub use align::{
     align, perturb, AlignLevel, AlignOptions, Alignment, LooseMotion, MotionKind, OutlineSummary,
     LOOSE,
 };
+pub use coverage::{coverage, Coverage};
 pub use options::{OptionsUsed, TrackOptions};
 pub use regularise::Regularisation;
 pub use sequence::{prepare, FrameReport, Prepared, StepTiming, Tracker};
