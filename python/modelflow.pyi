@@ -78,6 +78,10 @@ def export(run: _Path, out: _Path, fps: float = 24.0) -> List[str]:
 def read_run(run: _Path) -> Dict[int, npt.NDArray[np.float64]]:
     """A run folder's frame meshes: {frame: (V, 3) positions}."""
 
+def coverage(scene: Scene, options: Optional[Dict[str, Any]] = None) -> Dict[str, float]:
+    """How much of the mesh's surface (by area, at the first frame) is seen by two or more
+    cameras ("two_or_more"), by one only ("one"), by none ("none")."""
+
 def align(
     scene: Scene,
     positions: Optional[npt.NDArray[np.float64]] = None,

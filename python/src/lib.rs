@@ -434,6 +434,24 @@ fn align<'py>(
     Ok(d)
 }
 
+/// How much of the mesh's surface the cameras see at the scene's first frame, by area, as a
+/// dict: "two_or_more" (depth from the images), "one" (depth from the regularisers alone),
+/// "none". `options` as for `Tracker` (its "min_cos" and "margin" decide what counts as seen).
+#[pyfunction]
+#[pyo3(signature = (scene, options=None))]
+fn coverage<'py>(
+    py: Python<'py>,
+    scene: &Scene,
+    options: Option<&Bound<'py, PyDict>>,
+) -> PyResult<Bound<'py, PyAny>> {
+    let opts = track_options(py, options)?;
+    let s = &scene.inner;
+    to_py(
+        py,
+        &mf::tracker::coverage(&s.mesh, &s.cameras, s.first, &opts),
+    )
+}
+
 /// Reads a run folder's frame meshes: {frame: (V, 3) float64 positions}.
 #[pyfunction]
 fn read_run<'py>(py: Python<'py>, run: PathBuf) -> PyResult<Bound<'py, PyDict>> {
@@ -455,6 +473,7 @@ fn modelflow_py(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(evaluate, m)?)?;
     m.add_function(wrap_pyfunction!(export, m)?)?;
     m.add_function(wrap_pyfunction!(read_run, m)?)?;
+    m.add_function(wrap_pyfunction!(coverage, m)?)?;
     m.add_function(wrap_pyfunction!(align, m)?)?;
     Ok(())
 }

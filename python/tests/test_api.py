@@ -138,3 +138,15 @@ def test_align_brings_a_tilted_sheet_back_into_its_plane():
     assert fit["outline"]["contrast_after"] > fit["outline"]["contrast_before"]
     with pytest.raises(modelflow.ModelflowError, match="positions: expected shape"):
         modelflow.align(s, p[:10])
+
+
+def test_coverage_says_how_much_of_the_surface_two_cameras_see():
+    # The Blender cloth sample: two cameras in front of the sheet see all of it together.
+    c = modelflow.coverage(modelflow.Scene.load(SCENE))
+    assert set(c) == {"two_or_more", "one", "none"}
+    assert c["two_or_more"] > 0.99
+    assert abs(c["two_or_more"] + c["one"] + c["none"] - 1.0) < 1e-12
+    # The options decide what counts as seen: facing a camera by a cosine of 0.999 or more,
+    # hardly any of the sheet is seen by both (6 % is, by one).
+    strict = modelflow.coverage(modelflow.Scene.load(SCENE), {"min_cos": 0.999})
+    assert strict["two_or_more"] < 0.01 and strict["none"] > 0.9
