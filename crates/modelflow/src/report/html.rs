@@ -5,9 +5,10 @@ use super::page::{fmt_sig, ReportOptions, ResidualRow, RunSummary};
 use crate::base::units::Length;
 use crate::input::scene::Scene;
 use crate::report::plot::xml_escape as esc;
+use crate::tracker::Coverage;
 use std::fmt::Write;
 
-/// Captioned image files of each section, in order.
+/// Captioned image files of each section, in order, and the scene's coverage.
 #[derive(Default)]
 pub(super) struct Figures {
     pub overlays: Vec<(String, String)>,
@@ -18,6 +19,8 @@ pub(super) struct Figures {
     pub residual: Option<(u32, String, Vec<ResidualRow>)>,
     /// Frames of the flipbook (`flipbook/fNNNN.jpg`); empty: none.
     pub flipbook: Vec<u32>,
+    /// How much of the surface the cameras see at the first frame (`tracker::coverage`).
+    pub coverage: Coverage,
 }
 
 const STYLE: &str = "body{font-family:system-ui,-apple-system,'Segoe UI',Roboto,'DejaVu Sans',sans-serif;\
@@ -159,8 +162,17 @@ pub(super) fn page(
     );
     let _ = writeln!(
         o,
-        "<tr><th>cameras</th><td>{}</td></tr>\n</table>",
+        "<tr><th>cameras</th><td>{}</td></tr>",
         scene.cameras.len()
+    );
+    let c = &figs.coverage;
+    let _ = writeln!(
+        o,
+        "<tr><th>surface seen at frame {}</th><td>by two or more cameras {:.0} %, by one only {:.0} %, by none {:.0} % (of its area; where one camera alone sees it, depth comes from the regularisers alone)</td></tr>\n</table>",
+        scene.first,
+        100.0 * c.two_or_more,
+        100.0 * c.one,
+        100.0 * c.none
     );
     let _ = writeln!(
         o,

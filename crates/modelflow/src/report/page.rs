@@ -342,7 +342,15 @@ pub fn write_report(
             .and_then(|t| t.iter().find(|(g, _)| *g == f).map(|(_, m)| m))
     };
 
-    let mut figures = html::Figures::default();
+    let mut figures = html::Figures {
+        coverage: crate::tracker::coverage(
+            &scene.mesh,
+            &scene.cameras,
+            scene.first,
+            &crate::tracker::TrackOptions::default(),
+        ),
+        ..html::Figures::default()
+    };
     for &f in &frames {
         let images = scene.load_images(f)?;
         for (c, (cam, img)) in scene.cameras.iter().zip(&images).enumerate() {

@@ -161,6 +161,11 @@ fn report_with_ground_truth_shows_errors_overlays_and_only_local_decodable_files
 
     // The title names the scene by its folder and file, not "scene.json".
     assert!(html.contains("<h1>modelflow report — blender-cloth-sample / scene</h1>"));
+    // Both cameras see the whole sheet: its depth comes from the images everywhere.
+    assert!(
+        html.contains("<th>surface seen at frame 0</th><td>by two or more cameras 100 %, by one only 0 %, by none 0 %"),
+        "{html}"
+    );
     // The flipbook: one JPEG per frame with every camera, scrubbed by a slider.
     let book: Vec<u32> = (0..12).collect();
     assert!(
