@@ -33,16 +33,7 @@ fn a_sliver_triangle_is_tracked_and_named_in_a_warning() {
     }
     text += &format!("f {} {} {}\n", n + 1, n + 2, n + 3);
     std::fs::write(&obj, text).unwrap();
-    let out = Command::new(env!("CARGO_BIN_EXE_modelflow"))
-        .arg("track")
-        .arg("--scene")
-        .arg(&scene)
-        .arg("--out")
-        .arg(dir.path().join("run"))
-        .output()
-        .unwrap();
-    let err = String::from_utf8_lossy(&out.stderr);
-    assert!(out.status.success(), "{err}");
+    let err = track_ok(&scene, &dir.path().join("run"));
     let want = format!(
         "1 sliver triangle(s), thinner than 1/1000 of their longest edge; the first is triangle {} (vertices {} {} {}",
         mesh.triangles.len() + 1,
@@ -186,16 +177,21 @@ fn track_stderr(preset: modelflow::synth::Preset, cameras: usize) -> String {
         ..SynthOptions::default()
     };
     let scene = write_dataset(&opts, &dir.path().join("footage"), &|_, _| {}).unwrap();
-    let out = Command::new(env!("CARGO_BIN_EXE_modelflow"))
+    track_ok(&scene, &dir.path().join("run"))
+}
+
+/// `modelflow track --scene scene --out out`, which must succeed: its stderr.
+fn track_ok(scene: &std::path::Path, out: &std::path::Path) -> String {
+    let o = Command::new(env!("CARGO_BIN_EXE_modelflow"))
         .arg("track")
         .arg("--scene")
-        .arg(&scene)
+        .arg(scene)
         .arg("--out")
-        .arg(dir.path().join("run"))
+        .arg(out)
         .output()
         .unwrap();
-    let err = String::from_utf8_lossy(&out.stderr).to_string();
-    assert!(out.status.success(), "{err}");
+    let err = String::from_utf8_lossy(&o.stderr).to_string();
+    assert!(o.status.success(), "{err}");
     err
 }
 
