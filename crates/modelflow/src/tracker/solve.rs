@@ -348,6 +348,8 @@ struct TriAccum {
     pixels: u32,
     /// Σ of the pixels' weights (the patches' `weight`).
     weight: f64,
+    /// Pixels the robust loss rejected (Tukey: a residual past its threshold; Huber: none).
+    rejected: u32,
     h: [Matrix3<f64>; 6],
     g: [Vector3<f64>; 3],
 }
@@ -560,6 +562,7 @@ impl Problem<'_> {
             cost: 0.0,
             pixels: 0,
             weight: 0.0,
+            rejected: 0,
             h: [Matrix3::zeros(); 6],
             g: [Vector3::zeros(); 3],
         };
@@ -758,6 +761,7 @@ impl Problem<'_> {
                         let d2 = hub2 + tol2 * g2;
                         pd2 += d2;
                         if e2 >= d2 {
+                            acc.rejected += 1;
                             (d2 / 3.0, 0.0)
                         } else {
                             let t = 1.0 - e2 / d2;
@@ -1048,6 +1052,19 @@ impl Problem<'_> {
 
     /// Per vertex, how well the images constrain it at the positions `lin` was made at (what a
     /// solve returned: its result), summed per vertex in triangle order (deterministic).
+    /// The share of the pixels compared at `lin` that its robust loss rejected (0 without
+    /// any pixel, and always 0 with the Huber loss, which rejects none).
+    pub fn rejected_share(&self, lin: &Linearised) -> f64 {
+        let (rejected, pixels) = lin.parts.iter().fold((0u64, 0u64), |(r, p), a| {
+            (r + u64::from(a.rejected), p + u64::from(a.pixels))
+        });
+        if pixels == 0 {
+            0.0
+        } else {
+            rejected as f64 / pixels as f64
+        }
+    }
+
     pub fn confidence(&self, lin: &Linearised) -> Vec<VertexConfidence> {
         self.confidence_from(&lin.parts, lin.b.len())
     }
@@ -1218,6 +1235,11 @@ impl Problem<'_> {
         let mut a_new = cur.a.clone();
         let mut b_new = vec![Vector3::zeros(); nv];
         let mut trial = x.clone();
+        // The mesh's distance from each camera where the stage starts (its centroid's depth).
+        let start_depth: Vec<f64> = {
+            let c = centroid(start);
+            self.projections.iter().map(|p| p.depth(&c)).collect()
+        };
         for it in 0..opts.max_iterations {
             if self.cancel.is_some_and(|c| c.load(Ordering::Relaxed)) {
                 stop = StopReason::Cancelled;
@@ -1282,7 +1304,19 @@ impl Problem<'_> {
                 self.evaluate_with(&trial, opts, Some((&mut a_new, &mut b_new)), collect_median);
             pixel_evaluations += new_pixels as u64;
             let change = new_cost - cur.cost;
-            let accepted = new_cost < cur.cost;
+            // A step that takes the mesh more than twice as far from a camera, or brings it
+            // within half the distance, is refused whatever the cost says: no frame of real
+            // footage moves a surface that far along the rays, and the cost can be fooled there
+            // (beyond the capture range a rigid step once carried a cloth 40 times as far away,
+            // where every template pixel, squeezed into a few blurred ones, fitted about as
+            // well as the misaligned surface did).
+            let near_start = {
+                let c = centroid(&trial);
+                self.projections.iter().zip(&start_depth).all(|(p, &d0)| {
+                    d0.is_nan() || d0 <= 0.0 || (0.5 * d0..=2.0 * d0).contains(&p.depth(&c))
+                })
+            };
+            let accepted = new_cost < cur.cost && near_start;
             let prev_cost = cur.cost;
             if accepted {
                 std::mem::swap(&mut x, &mut trial);
