@@ -278,8 +278,15 @@ pub fn run(args: Args, invocation: &Invocation) -> anyhow::Result<()> {
             list_frames(&summary.stalled_frames)
         ),
     };
+    let suspect = match summary.suspect_frames.len() {
+        0 => String::new(),
+        n => format!(
+            ", {n} SUSPECT (the cameras disagreed about the surface): frames {}",
+            list_frames(&summary.suspect_frames)
+        ),
+    };
     eprintln!(
-        "tracked frames {}..={} ({} solved now{resumed}{stalled}) in {:.1} s ({:.0} ms per frame, median; {} iterations per frame, median) -> {}",
+        "tracked frames {}..={} ({} solved now{resumed}{stalled}{suspect}) in {:.1} s ({:.0} ms per frame, median; {} iterations per frame, median) -> {}",
         scene.first,
         scene.last,
         summary.solved,
@@ -323,6 +330,14 @@ pub fn run_scene(
     let progress = Progress::new("track", total);
     let result = track_scene(scene, opts, out, run, &mut |f| {
         let r = f.model_flow();
+        if let Some(r) = r.filter(|r| r.suspect) {
+            progress.println(&format!(
+                "warning: frame {}: the other cameras contradicted {:.0} % of where the previous frame left the surface (more than {:.0} %): the mesh may have slipped off it (motion beyond the capture range) or a large occluder covers it; check this frame's overlay",
+                f.frame,
+                100.0 * r.contradicted_share,
+                100.0 * modelflow::tracker::SUSPECT_SHARE
+            ));
+        }
         if let Some(r) = r.filter(|r| r.stalled) {
             let why = if r.pixels == 0 {
                 "no pixel of the mesh was compared at full resolution (it is out of every camera's view, or hidden)"

@@ -31,7 +31,7 @@ pub use align::{
 pub use coverage::{coverage, Coverage};
 pub use options::{OptionsUsed, TrackOptions};
 pub use regularise::Regularisation;
-pub use sequence::{prepare, FrameReport, Prepared, StepTiming, Tracker};
+pub use sequence::{prepare, FrameReport, Prepared, StepTiming, Tracker, SUSPECT_SHARE};
 pub use shot::{median, track_scene, TrackSummary};
 pub use solve::{
     GainModel, Interpolation, IterationSummary, Loss, SolveSummary, SolverOptions, StopReason,

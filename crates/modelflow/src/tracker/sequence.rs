@@ -32,6 +32,14 @@ use std::sync::atomic::AtomicBool;
 use std::sync::Arc;
 use std::time::Instant;
 
+/// The share of the previous frame's finest template that the other cameras may contradict
+/// before a frame is reported as suspect (`FrameReport::suspect`). On footage that tracks well
+/// it stays below 0.11 (the Blender hard sample, whose rod sweeps in front of the surface:
+/// 0.103 at most; the real board held in two hands: 0.026); cloths tracked past their capture
+/// range reached 0.19 to 0.37 in the frame after they slipped (docs/tracker.md, "Suspect
+/// frames").
+pub const SUSPECT_SHARE: f64 = 0.15;
+
 /// What happened in one frame (the frame and its timing are the caller's: see
 /// `run::FrameLog`).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -49,6 +57,19 @@ pub struct FrameReport {
     /// (`TrackOptions::consensus`).
     #[serde(default)]
     pub contradicted: usize,
+    /// `contradicted` as a share of the pixels that template took (0 to 1).
+    #[serde(default)]
+    pub contradicted_share: f64,
+    /// More than [`SUSPECT_SHARE`] of that template was contradicted: the cameras disagree
+    /// about where the previous frame left the surface, so the mesh may have slipped off it
+    /// (motion beyond the capture range) or a large occluder covers it. The frame is solved as
+    /// any other; reported as a warning.
+    #[serde(default)]
+    pub suspect: bool,
+    /// The share of the pixels compared at the solution, finest level, that the robust loss
+    /// rejected as unexplained (0 to 1; 0 with `--loss huber`).
+    #[serde(default)]
+    pub rejected_share: f64,
     /// Why the finest level stopped.
     pub stop: StopReason,
     /// Whether the constant-velocity prediction was used as the start.
@@ -469,6 +490,8 @@ impl Tracker {
         let mut cost_after = 0.0;
         let mut pixels = 0;
         let mut contradicted = 0;
+        let mut contradicted_share = 0.0;
+        let mut rejected_share = 0.0;
         let mut stop = StopReason::NoData;
         let mut confidence = Vec::new();
         let offsets: Vec<f64> = self.cameras.iter().map(|c| c.time_offset).collect();
@@ -507,6 +530,12 @@ impl Tracker {
             let (mut set, dropped) = self.template_patches(&self.prev, before, level, weight, cb);
             if level == finest {
                 contradicted = dropped;
+                let taken = set.pixels.len() + dropped;
+                contradicted_share = if taken > 0 {
+                    dropped as f64 / taken as f64
+                } else {
+                    0.0
+                };
             }
             if let Some(anchor) = self.anchor.get(level) {
                 // Anchor patches only where the triangle is seen in the previous frame too
@@ -634,6 +663,7 @@ impl Tracker {
                 let tc = Instant::now();
                 // Read from the last solve's linearisation, made at `x` with `robust`.
                 confidence = problem.confidence(&lin);
+                rejected_share = problem.rejected_share(&lin);
                 timing.confidence = tc.elapsed().as_secs_f64();
             }
             summaries.push(summary);
@@ -684,6 +714,9 @@ impl Tracker {
             cost_after,
             pixels,
             contradicted,
+            contradicted_share,
+            suspect: contradicted_share > SUSPECT_SHARE,
+            rejected_share,
             stop,
             predicted,
             stalled,

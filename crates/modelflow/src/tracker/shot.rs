@@ -29,6 +29,9 @@ pub struct TrackSummary {
     /// Frames solved by this call in which the solver could not lower the cost at all (see
     /// `FrameReport::stalled`), in order.
     pub stalled_frames: Vec<u32>,
+    /// Frames solved by this call whose previous frame the cameras disagreed about (see
+    /// `FrameReport::suspect`), in order.
+    pub suspect_frames: Vec<u32>,
 }
 
 /// Tracks a whole scene into the run folder `out_dir` (see `run` for the layout and the rules
@@ -101,6 +104,7 @@ fn track_into(
     let mut walls = Vec::new();
     let mut iters = Vec::new();
     let mut stalled_frames = Vec::new();
+    let mut suspect_frames = Vec::new();
     // Reads a frame's images and builds their pyramids; runs while the previous frame is solved.
     let load = |frame: u32| {
         let t = Instant::now();
@@ -137,6 +141,9 @@ fn track_into(
         if report.stalled {
             stalled_frames.push(frame);
         }
+        if report.suspect {
+            suspect_frames.push(frame);
+        }
         if !report.confidence.is_empty() {
             folder.write_confidence(frame, &report.confidence)?;
         }
@@ -166,6 +173,7 @@ fn track_into(
         median_frame_seconds: median(&walls),
         median_iterations: median(&iters),
         stalled_frames,
+        suspect_frames,
     })
 }
 
