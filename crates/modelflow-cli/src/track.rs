@@ -266,7 +266,7 @@ pub fn run(args: Args, invocation: &Invocation) -> anyhow::Result<()> {
         );
     }
     let run = run_options(args.out.mode(args.resume), invocation);
-    let summary = run_scene(&scene, &args.track.options(), &args.out.out, &run)?;
+    let summary = run_scene(&scene, &opts, &args.out.out, &run)?;
     let resumed = match summary.resumed_from {
         Some(f) => format!(", resumed after frame {f}"),
         None => String::new(),
