@@ -58,8 +58,9 @@ class Tracker:
         from the scene). `options`: tracker options by their JSON names, over the defaults."""
     def step(self, frame: int, images: Sequence[_Image]) -> Dict[str, Any]:
         """Solves `frame` from its images (one per camera, in the scene's order). Returns the
-        frame's report, with the per-vertex confidence as arrays "information", "residual",
-        "sigma"."""
+        frame's report (the fields of a `log.jsonl` line: "stalled", "suspect",
+        "contradicted_share", ...), with the per-vertex confidence as arrays "information",
+        "residual", "sigma"."""
     @property
     def positions(self) -> npt.NDArray[np.float64]:
         """The current vertex positions, (V, 3)."""
@@ -67,7 +68,10 @@ class Tracker:
 def track_scene(
     scene: Scene, out: _Path, options: Optional[Dict[str, Any]] = None, force: bool = False
 ) -> Dict[str, Any]:
-    """Tracks the whole scene into the run folder `out`, as `modelflow track` does."""
+    """Tracks the whole scene into the run folder `out`, as `modelflow track` does. Returns the
+    summary: "frames", "solved", "resumed_from", "total_seconds", "median_frame_seconds",
+    "median_iterations", "stalled_frames" (the mesh could not move) and "suspect_frames" (the
+    cameras disagreed about where the previous frame left the surface)."""
 
 def evaluate(scene: Scene, run: _Path) -> Dict[str, Any]:
     """Scores a run folder against the scene's ground truth (per-frame and mean RMS error)."""
