@@ -6,12 +6,13 @@
 //!
 //! A triangle counts as seen by a camera when it owns a pixel the tracker could compare there:
 //! the same z-buffered index buffer, facing test and margin as the tracker's templates
-//! (`base::raster`), from geometry alone (no images are read).
+//! (`patch::trackable_pixels`), from geometry alone (no images are read).
 
 use crate::base::camera::Camera;
 use crate::base::mesh::Mesh;
-use crate::base::raster::{rasterize, trackable_mask, usable_triangles};
+use crate::tracker::patch::{trackable_pixels, PatchOptions};
 use crate::tracker::TrackOptions;
+use rayon::prelude::*;
 use serde::Serialize;
 
 /// Fractions of the mesh's surface area (at the frame's positions) by how many cameras see it.
@@ -41,29 +42,36 @@ impl Coverage {
 /// The coverage of `mesh` (its positions as they are at `frame`) by `cameras` at `frame`, with
 /// the tracker's facing test and margin from `opts` (`min_cos`, `margin`).
 pub fn coverage(mesh: &Mesh, cameras: &[Camera], frame: u32, opts: &TrackOptions) -> Coverage {
-    let positions = &mesh.positions;
     let triangles = &mesh.triangles;
-    let two_sided = !mesh.is_closed();
-    let mut count = vec![0u32; triangles.len()];
-    for cam in cameras {
-        let proj = cam.at(frame);
-        let (w, h) = (cam.width as usize, cam.height as usize);
-        let ib = rasterize(positions, triangles, proj, w, h);
-        let usable = usable_triangles(positions, triangles, proj, two_sided, opts.min_cos);
-        let mask = trackable_mask(&ib, triangles, &usable, opts.margin, false);
-        let mut seen = vec![false; triangles.len()];
-        for (i, &m) in mask.iter().enumerate() {
-            if m {
-                seen[ib.owner[i] as usize] = true;
+    let popts = PatchOptions {
+        margin: opts.margin,
+        min_cos: opts.min_cos,
+        two_sided: !mesh.is_closed(),
+        checkerboard: false,
+    };
+    // Per camera (in parallel), which triangles own a comparable pixel; then how many cameras.
+    let seen: Vec<Vec<bool>> = cameras
+        .par_iter()
+        .map(|cam| {
+            let size = (cam.width as usize, cam.height as usize);
+            let (ib, mask) =
+                trackable_pixels(&mesh.positions, triangles, cam.at(frame), size, &popts);
+            let mut seen = vec![false; triangles.len()];
+            for (&owner, _) in ib.owner.iter().zip(&mask).filter(|(_, m)| **m) {
+                seen[owner as usize] = true;
             }
-        }
-        for (c, s) in count.iter_mut().zip(seen) {
-            *c += u32::from(s);
+            seen
+        })
+        .collect();
+    let mut count = vec![0usize; triangles.len()];
+    for s in &seen {
+        for (c, &v) in count.iter_mut().zip(s) {
+            *c += usize::from(v);
         }
     }
     let mut area = [0.0f64; 3];
     for (i, &c) in count.iter().enumerate() {
-        area[(c as usize).min(2)] += 0.5 * mesh.triangle_normal(i).norm();
+        area[c.min(2)] += 0.5 * mesh.triangle_normal(i).norm();
     }
     let total: f64 = area.iter().sum();
     if total <= 0.0 || !total.is_finite() {

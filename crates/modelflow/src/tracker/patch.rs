@@ -8,7 +8,7 @@
 
 use crate::base::camera::Projection;
 use crate::base::image::RgbImage;
-use crate::base::raster::{rasterize, trackable_mask, usable_triangles, NONE};
+use crate::base::raster::{rasterize, trackable_mask, usable_triangles, IndexBuffer, NONE};
 use crate::tracker::warp::{barycentric, source_matrix};
 use nalgebra::Point3;
 
@@ -49,6 +49,21 @@ pub struct PatchOptions {
     pub checkerboard: bool,
 }
 
+/// The index buffer of `positions` seen through `proj` in a `w`×`h` image, and which of its
+/// pixels may be compared (`opts`): what every template, and the rig's coverage, start from.
+pub(crate) fn trackable_pixels(
+    positions: &[Point3<f64>],
+    triangles: &[[u32; 3]],
+    proj: &Projection,
+    (w, h): (usize, usize),
+    opts: &PatchOptions,
+) -> (IndexBuffer, Vec<bool>) {
+    let ib = rasterize(positions, triangles, proj, w, h);
+    let usable = usable_triangles(positions, triangles, proj, opts.two_sided, opts.min_cos);
+    let mask = trackable_mask(&ib, triangles, &usable, opts.margin, opts.checkerboard);
+    (ib, mask)
+}
+
 /// All patches of a problem, ordered by triangle, with their pixels.
 #[derive(Clone, Debug, Default)]
 pub struct PatchSet {
@@ -71,9 +86,7 @@ impl PatchSet {
         only: Option<&dyn Fn(u32) -> bool>,
     ) {
         let (w, h) = (image.width(), image.height());
-        let ib = rasterize(positions, triangles, proj, w, h);
-        let usable = usable_triangles(positions, triangles, proj, opts.two_sided, opts.min_cos);
-        let mask = trackable_mask(&ib, triangles, &usable, opts.margin, opts.checkerboard);
+        let (ib, mask) = trackable_pixels(positions, triangles, proj, (w, h), opts);
         // Counting sort of the kept pixels by owner triangle.
         let mut count = vec![0u32; triangles.len() + 1];
         for (i, &m) in mask.iter().enumerate() {
