@@ -50,30 +50,30 @@ fn table(r: &EvalReport) -> String {
     );
     for e in &r.per_frame {
         s += &format!(
-            "{:>6}  {:>14.6}  {:>8.4}  {:>14.6}  {:>8.4}  {:>6}  {:>8}\n",
+            "{:>6}  {:>14}  {:>8.4}  {:>14}  {:>8.4}  {:>6}  {:>8}\n",
             e.frame,
-            len.value(e.rms),
+            len.show(e.rms),
             e.rms_pct,
-            len.value(e.max),
+            len.show(e.max),
             e.seen_rms_pct,
             e.seen,
             e.followed.map_or("-".to_string(), |f| format!("{f:.3}"))
         );
     }
     s += &format!(
-        "{} frames, scale (bbox diagonal) {:.6} {u}\nrms mean  {:.6} {u} ({:.4} %)\nrms final {:.6} {u} ({:.4} %)\n",
+        "{} frames, scale (bbox diagonal) {} {u}\nrms mean  {} {u} ({:.4} %)\nrms final {} {u} ({:.4} %)\n",
         r.frames,
-        len.value(r.scale),
-        len.value(r.rms_mean),
+        len.show(r.scale),
+        len.show(r.rms_mean),
         r.rms_mean_pct,
-        len.value(r.rms_final),
+        len.show(r.rms_final),
         r.rms_final_pct
     );
     s += &format!(
-        "seen vertices (by some camera, in the truth): rms mean {:.6} {u} ({:.4} %), final {:.6} {u} ({:.4} %)\n",
-        len.value(r.seen_rms_mean),
+        "seen vertices (by some camera, in the truth): rms mean {} {u} ({:.4} %), final {} {u} ({:.4} %)\n",
+        len.show(r.seen_rms_mean),
         r.seen_rms_mean_pct,
-        len.value(r.seen_rms_final),
+        len.show(r.seen_rms_final),
         r.seen_rms_final_pct
     );
     if let Some(f) = r.followed_median {

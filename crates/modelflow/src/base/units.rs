@@ -76,15 +76,54 @@ impl Length {
         self.factor * scene_units
     }
 
+    /// A length in scene units, in the shown unit, written with [`significant`] digits.
+    pub fn show(&self, scene_units: f64) -> String {
+        significant(self.value(scene_units))
+    }
+
     /// The shown unit: `mm` or `scene units`.
     pub fn unit(&self) -> &'static str {
         self.unit
     }
 }
 
+/// `v` with at least three significant digits and no more decimals than that takes (at most
+/// nine): 1749, 13.6, 0.0102, 0.00000140. A length in a scene of any unit reads the same way.
+pub fn significant(v: f64) -> String {
+    if v == 0.0 || !v.is_finite() {
+        return format!("{v}");
+    }
+    let exponent = v.abs().log10().floor() as i32;
+    let digits = (2 - exponent).clamp(0, 9) as usize;
+    let shown = format!("{v:.digits$}");
+    // 0.0099999 rounds up to 0.01000: one decimal fewer, as 0.0100 would be written.
+    let rounded_up = shown
+        .parse::<f64>()
+        .is_ok_and(|r| r.abs() >= 10f64.powi(exponent + 1));
+    if rounded_up && digits > 0 {
+        let digits = digits - 1;
+        format!("{v:.digits$}")
+    } else {
+        shown
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn numbers_show_three_significant_digits_whatever_their_size() {
+        assert_eq!(significant(1748.5125), "1749");
+        assert_eq!(significant(13.631962), "13.6");
+        assert_eq!(significant(0.010000), "0.0100");
+        assert_eq!(significant(0.000014), "0.0000140");
+        assert_eq!(significant(-2.5), "-2.50");
+        assert_eq!(significant(0.0), "0");
+        // Rounding up past a power of ten keeps three digits, not four.
+        assert_eq!(significant(0.009_999_999), "0.0100");
+        assert_eq!(significant(99.96), "100");
+    }
 
     #[test]
     fn lengths_show_in_millimetres_when_the_unit_is_known() {

@@ -1018,13 +1018,7 @@ fn residual_sheet(
 }
 
 /// A number with about 3 significant digits, for labels.
-pub(crate) fn fmt_sig(v: f64) -> String {
-    if v == 0.0 || !v.is_finite() {
-        return format!("{v}");
-    }
-    let digits = (2 - v.abs().log10().floor() as i32).clamp(0, 9) as usize;
-    format!("{v:.digits$}")
-}
+pub(crate) use crate::base::units::significant as fmt_sig;
 
 #[cfg(test)]
 #[path = "tests.rs"]
