@@ -57,6 +57,8 @@ pub struct Args {
     /// Cost model: mesh vertex counts, comma-separated (rounded to a square grid).
     #[arg(long, value_delimiter = ',', default_value = "1681,10000,40000")]
     scale_vertices: Vec<usize>,
+    #[command(flatten)]
+    device: crate::device::DeviceArgs,
 }
 
 /// The figures `bench` reports.
@@ -65,6 +67,8 @@ struct BenchReport {
     scene: PathBuf,
     frames: usize,
     threads: usize,
+    /// Where the solver's per-pixel work ran: `cpu`, or the GPU's name.
+    device: String,
     /// Median wall time per frame, image loading included (loading overlaps the previous solve).
     ms_per_frame: f64,
     /// Median time to read one frame's images (all cameras); overlaps the previous solve.
@@ -98,6 +102,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             sizes: args.scale_sizes,
             vertices: args.scale_vertices,
             frames: args.frames.unwrap_or(3),
+            gpu: args.device.open()?,
         })?;
         if args.json {
             println!("{}", serde_json::to_string(&report)?);
@@ -159,8 +164,13 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     // The run folder is the benchmark's own: each run replaces the last.
     let run = RunOptions {
         mode: OpenMode::Force,
+        gpu: args.device.open()?,
         ..RunOptions::default()
     };
+    let device = run
+        .gpu
+        .as_ref()
+        .map_or_else(|| "cpu".to_string(), |g| g.name().to_string());
     track_scene(&scene, &TrackOptions::default(), &out, &run, &mut |f| {
         p.tick(&format!("frame {} {:.0} ms", f.frame, f.wall_seconds * 1e3));
         logs.push(f.clone());
@@ -186,6 +196,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         scene: scene_path,
         frames: rows.len(),
         threads: rayon::current_num_threads(),
+        device,
         ms_per_frame: per(&|(l, _)| l.wall_seconds) * 1e3,
         ms_load: per(&|(l, _)| l.load_seconds) * 1e3,
         ms_pyramids: per(&|(_, r)| r.timing.pyramids) * 1e3,
@@ -207,8 +218,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     } else {
         println!("scene                {}", report.scene.display());
         println!(
-            "frames solved        {} ({} threads)",
-            report.frames, report.threads
+            "frames solved        {} ({} threads, per-pixel work on {})",
+            report.frames, report.threads, report.device
         );
         println!(
             "per frame, end to end {:8.1} ms  (median; image loading included)",

@@ -9,6 +9,7 @@ mod baseline;
 mod bench;
 mod capture;
 mod demo;
+mod device;
 mod eval;
 mod export;
 mod import;

@@ -72,6 +72,7 @@ pub fn run_options(mode: OpenMode, invocation: &Invocation) -> RunOptions {
         command: std::env::args().collect(),
         given: given_options(invocation.command, invocation.matches),
         cancel: Some(ctrl_c()),
+        gpu: None,
     }
 }
 

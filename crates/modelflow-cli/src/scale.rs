@@ -18,6 +18,8 @@ pub struct ScaleOptions {
     pub vertices: Vec<usize>,
     /// Frames per point (the first is the start, so `frames − 1` are solved).
     pub frames: u32,
+    /// Where the solver's per-pixel work runs (`None`: the CPU).
+    pub gpu: Option<std::sync::Arc<modelflow::tracker::Gpu>>,
 }
 
 /// One grid point.
@@ -50,6 +52,8 @@ pub struct Fit {
 #[derive(Serialize)]
 pub struct ScaleReport {
     pub threads: usize,
+    /// Where the solver's per-pixel work ran: `cpu`, or the GPU's name.
+    pub device: String,
     pub frames_per_point: u32,
     pub rows: Vec<ScaleRow>,
     /// `None` with fewer than three points or without variation in both pixels and vertices.
@@ -123,6 +127,7 @@ pub fn measure(o: &ScaleOptions) -> anyhow::Result<ScaleReport> {
             &first,
             TrackOptions::default(),
         )?;
+        tracker.set_gpu(o.gpu.clone());
         drop(first);
         let (mut ms, mut its) = (Vec::new(), Vec::new());
         for f in 1..o.frames {
@@ -153,6 +158,10 @@ pub fn measure(o: &ScaleOptions) -> anyhow::Result<ScaleReport> {
     let fit = fit(&rows);
     Ok(ScaleReport {
         threads: rayon::current_num_threads(),
+        device: o
+            .gpu
+            .as_ref()
+            .map_or_else(|| "cpu".to_string(), |g| g.name().to_string()),
         frames_per_point: o.frames,
         rows,
         fit,
@@ -185,10 +194,11 @@ fn fit(rows: &[ScaleRow]) -> Option<Fit> {
 
 pub fn print(r: &ScaleReport) {
     println!(
-        "cost model: synthetic cloth, default options, {} frames per point ({} solved), {} threads",
+        "cost model: synthetic cloth, default options, {} frames per point ({} solved), {} threads, per-pixel work on {}",
         r.frames_per_point,
         r.frames_per_point - 1,
-        r.threads
+        r.threads,
+        r.device
     );
     println!("  cameras   image       vertices   Mpx/frame   ms/frame   iterations   peak MiB");
     for row in &r.rows {

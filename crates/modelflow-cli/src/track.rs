@@ -226,6 +226,8 @@ pub struct Args {
     strict: bool,
     #[command(flatten)]
     track: TrackArgs,
+    #[command(flatten)]
+    device: crate::device::DeviceArgs,
 }
 
 /// Height over longest edge below which `track` warns of a sliver triangle.
@@ -239,6 +241,8 @@ pub fn run(args: Args, invocation: &Invocation) -> anyhow::Result<()> {
     args.track.options().validate()?;
     let scene = args.select.apply(Scene::load(&args.scene)?)?;
     args.memory.check(&scene)?;
+    // Before anything is printed: a GPU asked for and missing ends the command here.
+    let gpu = args.device.open()?;
     let slivers = scene.mesh.slivers(SLIVER_RATIO);
     if let Some(&(first, r)) = slivers.first() {
         let [a, b, c] = scene.mesh.triangles[first].map(|v| v + 1);
@@ -265,7 +269,8 @@ pub fn run(args: Args, invocation: &Invocation) -> anyhow::Result<()> {
             100.0 * cover.one_camera_share()
         );
     }
-    let run = run_options(args.out.mode(args.resume), invocation);
+    let mut run = run_options(args.out.mode(args.resume), invocation);
+    run.gpu = gpu;
     let summary = run_scene(&scene, &opts, &args.out.out, &run)?;
     let resumed = match summary.resumed_from {
         Some(f) => format!(", resumed after frame {f}"),

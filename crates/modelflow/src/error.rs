@@ -57,6 +57,11 @@ pub enum Error {
     /// complete (a run folder holding them can be resumed).
     #[error("interrupted on request; every frame up to {last_complete} is complete")]
     Interrupted { last_complete: u32 },
+    /// The GPU path (`--device gpu`) could not be used: no CUDA driver or NVRTC library, no
+    /// device, a kernel that did not compile, or a call on the device that failed. The message
+    /// says which and what to do.
+    #[error("GPU: {0}")]
+    Gpu(String),
 }
 
 impl Error {

@@ -51,6 +51,8 @@ pub struct RunOptions {
     /// When set (e.g. by a Ctrl-C handler), the run stops within one solver iteration; the
     /// frame being solved is abandoned and the folder stays resumable.
     pub cancel: Option<Arc<AtomicBool>>,
+    /// When set, the tracker's per-pixel work runs on this GPU (`--device gpu`).
+    pub gpu: Option<Arc<crate::tracker::Gpu>>,
 }
 
 impl RunOptions {

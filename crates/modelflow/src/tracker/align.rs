@@ -544,6 +544,7 @@ pub fn align(
                 pattern: &pattern,
                 regularisers: &[],
                 cancel: None,
+                gpu: None,
                 moving_source: Some(&x0),
                 gauge_floor: opts.gauge_floor,
                 lag: None,

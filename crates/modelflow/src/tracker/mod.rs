@@ -10,6 +10,7 @@
 pub(crate) mod align;
 pub(crate) mod consensus;
 mod coverage;
+mod gpu;
 mod options;
 pub(crate) mod outline;
 pub(crate) mod patch;
@@ -29,6 +30,7 @@ pub use align::{
     LOOSE,
 };
 pub use coverage::{coverage, Coverage};
+pub use gpu::Gpu;
 pub use options::{OptionsUsed, TrackOptions};
 pub use regularise::Regularisation;
 pub use sequence::{prepare, FrameReport, Prepared, StepTiming, Tracker, SUSPECT_SHARE};

@@ -17,6 +17,7 @@ use crate::base::mesh::Mesh;
 use crate::error::{Error, Result};
 use crate::tracker::align;
 use crate::tracker::consensus::{drop_contradicted, ConsensusOptions};
+use crate::tracker::gpu::Gpu;
 use crate::tracker::options::{OptionsUsed, TrackOptions};
 use crate::tracker::patch::{PatchOptions, PatchSet};
 use crate::tracker::pyramid::Pyramid;
@@ -122,6 +123,8 @@ pub struct Tracker {
     regularisers: Vec<Box<dyn Regulariser>>,
     two_sided: bool,
     cancel: Option<Arc<AtomicBool>>,
+    /// When set, the solver's per-pixel work runs on this GPU.
+    gpu: Option<Arc<Gpu>>,
     /// Anchor patches per level (built from the first frame; again once its velocity is known,
     /// when cameras record late or early).
     anchor: Vec<PatchSet>,
@@ -189,6 +192,7 @@ impl Tracker {
             regularisers: regularise::build(mesh, &edges, &opts.regularisation),
             two_sided: !mesh.is_closed(),
             cancel: None,
+            gpu: None,
             anchor: Vec::new(),
             anchor_frame: frame,
             prev: Template {
@@ -252,6 +256,13 @@ impl Tracker {
     /// within one solver iteration with `Error::Interrupted`, leaving the tracker as it was.
     pub fn set_cancel(&mut self, cancel: Arc<AtomicBool>) {
         self.cancel = Some(cancel);
+    }
+
+    /// Runs the solver's per-pixel work (warp, sample, loss, normal equations) on `gpu` from
+    /// the next frame on; `None`: on the CPU. The meshes agree with the CPU's to rounding
+    /// (docs/gpu.md).
+    pub fn set_gpu(&mut self, gpu: Option<Arc<Gpu>>) {
+        self.gpu = gpu;
     }
 
     /// The options as used: the given ones resolved, with what they imply.
@@ -587,7 +598,7 @@ impl Tracker {
                 },
                 ..robust
             };
-            let problem = Problem {
+            let mut problem = Problem {
                 triangles: &self.triangles,
                 patches: &set.patches,
                 pixels: &set.pixels,
@@ -601,6 +612,7 @@ impl Tracker {
                 pattern: &self.pattern,
                 regularisers: &self.regularisers,
                 cancel: self.cancel.as_deref(),
+                gpu: None,
                 moving_source: stereo.then_some(&stereo_x0[..]),
                 gauge_floor: 0.0,
                 // Until a velocity is known the templates are taken as the cameras saw them
@@ -611,6 +623,13 @@ impl Tracker {
                     gap: frame.saturating_sub(self.prev.frame).max(1) as f64,
                 }),
             };
+            // On the GPU: this level's patches, pixels and images go up once, and every
+            // evaluation of the solves below runs there.
+            let uploaded = match &self.gpu {
+                Some(g) => Some(g.upload(&problem)?),
+                None => None,
+            };
+            problem.gpu = uploaded.as_ref();
             if level == levels - 1 && self.opts.predict {
                 if let Some(pp) = &self.before_prev {
                     let guess: Vec<Point3<f64>> =
@@ -674,6 +693,11 @@ impl Tracker {
                 0.0
             };
             timing.solve += ts.elapsed().as_secs_f64() - own;
+            // A failure on the device was answered by the CPU within the solve; the frame is
+            // still refused, so that a broken GPU path is never silent.
+            if let Some(e) = uploaded.as_ref().and_then(|u| u.failure()) {
+                return Err(e);
+            }
         }
         let iterations = summaries.iter().map(|s| s.iterations.len()).sum();
         // No pixel compared at full resolution (the mesh left every camera's view, or every

@@ -78,6 +78,7 @@ fn track_into(
     if let Some(c) = &run.cancel {
         tracker.set_cancel(c.clone());
     }
+    tracker.set_gpu(run.gpu.clone());
     let start = match resumed {
         None => {
             folder.write_first(&scene.mesh)?;

@@ -21,6 +21,7 @@
 use crate::base::camera::Projection;
 use crate::base::image::RgbImage;
 use crate::base::mesh::{centroid, rms_radius};
+use crate::tracker::gpu::Uploaded;
 use crate::tracker::patch::{Patch, PixelSample};
 use crate::tracker::regularise::Regulariser;
 use crate::tracker::sparse::{solve_pcg, BlockSparse};
@@ -153,6 +154,7 @@ impl Default for SolverOptions {
 }
 
 /// What the solver needs about one frame pair at one pyramid level.
+#[derive(Clone)]
 pub(crate) struct Problem<'a> {
     pub triangles: &'a [[u32; 3]],
     /// Patches ordered by triangle (see `PatchSet::by_triangle`) and their pixels.
@@ -168,6 +170,9 @@ pub(crate) struct Problem<'a> {
     pub regularisers: &'a [Box<dyn Regulariser>],
     /// Checked before every iteration: when set, the solve stops (`StopReason::Cancelled`).
     pub cancel: Option<&'a AtomicBool>,
+    /// When set, the photometric sums are evaluated on the GPU (this problem's inputs already
+    /// there); `None`: on the CPU.
+    pub gpu: Option<&'a Uploaded>,
     /// `None` when every patch comes from a template frame, whose mesh is known and fixed.
     /// `Some(x0)` when some come from the unknowns' own frame (`align`; the tracker's
     /// `stereo` term): such a patch (its `source` camera not its `camera`) has its pixels taken
@@ -342,16 +347,18 @@ pub struct SolveSummary {
     pub iterations: Vec<IterationSummary>,
 }
 
+/// One triangle's photometric sums over its patches: cost, pixels, and its share of the normal
+/// equations (the `PAIRS` blocks and the gradient's three vectors).
 #[derive(Clone, Copy)]
-struct TriAccum {
-    cost: f64,
-    pixels: u32,
+pub(crate) struct TriAccum {
+    pub cost: f64,
+    pub pixels: u32,
     /// Σ of the pixels' weights (the patches' `weight`).
-    weight: f64,
+    pub weight: f64,
     /// Pixels the robust loss rejected (Tukey: a residual past its threshold; Huber: none).
-    rejected: u32,
-    h: [Matrix3<f64>; 6],
-    g: [Vector3<f64>; 3],
+    pub rejected: u32,
+    pub h: [Matrix3<f64>; 6],
+    pub g: [Vector3<f64>; 3],
 }
 
 /// Which brightness gains a patch's fit left free (see [`gain_schur`]).
@@ -430,6 +437,14 @@ pub(crate) struct ResidualHistogram {
     bins: Vec<u64>,
 }
 
+/// Bins of the residual histogram (the GPU path fills one of this size).
+pub(crate) const HISTOGRAM_BINS: usize = ResidualHistogram::BINS;
+
+/// The squared norms at which the histogram's bins 1, 2, ... begin (the GPU path bins with them).
+pub(crate) fn histogram_edges() -> &'static [f64] {
+    ResidualHistogram::edges()
+}
+
 impl ResidualHistogram {
     const BINS: usize = 160;
     /// Norms from 1e-4 to 10^(−4 + BINS/STEPS) (past the largest RGB difference, √3).
@@ -466,6 +481,11 @@ impl ResidualHistogram {
         self.bins[Self::bin(e2)] += (weight * 1024.0).round().max(1.0) as u64;
     }
 
+    fn from_bins(bins: Vec<u64>) -> Self {
+        debug_assert_eq!(bins.len(), Self::BINS);
+        ResidualHistogram { bins }
+    }
+
     fn merge(mut self, other: Self) -> Self {
         for (a, b) in self.bins.iter_mut().zip(other.bins) {
             *a += b;
@@ -496,6 +516,9 @@ impl ResidualHistogram {
 impl Problem<'_> {
     /// The weighted median RGB residual norm at `x` (`None` when no pixel compares).
     pub fn median_residual(&self, x: &[Point3<f64>], opts: &SolverOptions) -> Option<f64> {
+        if let Some(bins) = self.gpu.and_then(|g| g.histogram(x, opts)) {
+            return ResidualHistogram::from_bins(bins).median();
+        }
         self.by_triangle
             .par_iter()
             .with_min_len(16)
@@ -943,7 +966,17 @@ impl Problem<'_> {
         median: bool,
     ) -> (f64, usize, Vec<TriAccum>, Option<f64>) {
         let want = system.is_some();
-        let (parts, median) = if median {
+        let on_gpu = self.gpu.and_then(|g| {
+            if median {
+                g.evaluate_with_histogram(x, opts, want)
+                    .map(|(p, h)| (p, ResidualHistogram::from_bins(h).median()))
+            } else {
+                g.evaluate(x, opts, want, false).map(|p| (p, None))
+            }
+        });
+        let (parts, median) = if let Some(done) = on_gpu {
+            done
+        } else if median {
             // Each worker's histogram is summed in integers, so the median does not depend on
             // how the triangles were split; the parts are put back in triangle order.
             let folded: Vec<_> = self

@@ -1,0 +1,722 @@
+//! The GPU path (`--device gpu`): the solver's per-pixel work — warp, Catmull–Rom sample with
+//! its exact derivatives, the per-(triangle, camera) gain fit, the robust loss and the normal
+//! equations' 3×3 vertex-pair blocks — on an NVIDIA GPU. Everything else (templates, the
+//! regularisers, the linear solve, the step control) stays on the CPU: the solver sees the
+//! GPU only through [`Problem::evaluate`](crate::tracker::solve), which gets the same
+//! per-triangle sums from it as from its own loop.
+//!
+//! CUDA through `cudarc`, which loads `libcuda.so` and `libnvrtc.so` at run time: the same
+//! binary builds and runs without the CUDA toolkit or a GPU (CI), and [`Gpu::open`] says why
+//! when there is none. The kernels (`kernel.cu`, CUDA C written by hand: it is the product's
+//! inner loop) are compiled by NVRTC when a [`Gpu`] is opened, with floating-point
+//! contraction off so that each pixel's arithmetic is the CPU's operation for operation; only
+//! the order in which a patch's pixels are summed differs (a fixed tree, no atomics), so runs
+//! repeat to the bit and agree with the CPU to rounding (docs/gpu.md).
+//!
+//! Invariant: no I/O, no printing; a failure on the device becomes [`Error::Gpu`].
+
+use crate::base::image::RgbImage;
+use crate::error::{Error, Result};
+use crate::tracker::solve::{GainModel, Interpolation, Loss, Problem, SolverOptions, TriAccum};
+use nalgebra::{Matrix3, Point3, Vector3};
+use std::sync::{Arc, Mutex};
+
+/// The kernels' source.
+const KERNEL: &str = include_str!("kernel.cu");
+
+/// Doubles per patch record and per triangle's blocks (see `kernel.cu`).
+const REC: usize = 67;
+const BLOCKS: usize = REC - 4;
+/// Patches per thread block (one warp each).
+const PATCHES_PER_BLOCK: u32 = 4;
+
+const FLAG_TUKEY: i32 = 1;
+const FLAG_CUBIC: i32 = 2;
+const FLAG_SYSTEM: i32 = 4;
+const FLAG_HIST: i32 = 8;
+const FLAG_MOVING: i32 = 16;
+const FLAG_LAG: i32 = 32;
+const GAIN_SHIFT: i32 = 8;
+
+/// An open GPU: its context, stream and compiled kernels. Open one per run and hand it to the
+/// tracker ([`Tracker::set_gpu`](crate::tracker::Tracker::set_gpu)).
+pub struct Gpu {
+    backend: Backend,
+    name: String,
+}
+
+impl std::fmt::Debug for Gpu {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Gpu").field("name", &self.name).finish()
+    }
+}
+
+enum Backend {
+    Cuda(cuda::Cuda),
+    /// The kernels compiled as C++ and run on the CPU, one patch at a time (tests only): the
+    /// host side and the kernels' arithmetic checked without a GPU.
+    #[cfg(test)]
+    Emulated,
+}
+
+impl Gpu {
+    /// Opens the first CUDA device and compiles the kernels. Fails with a message that says
+    /// what is missing: the driver library, the NVRTC library, a device, or the compile.
+    pub fn open() -> Result<Gpu> {
+        let (backend, name) = cuda::Cuda::open()?;
+        Ok(Gpu {
+            backend: Backend::Cuda(backend),
+            name,
+        })
+    }
+
+    /// The device's name, as the driver gives it (e.g. `NVIDIA H100 80GB HBM3`).
+    pub fn name(&self) -> &str {
+        &self.name
+    }
+
+    #[cfg(test)]
+    pub(crate) fn emulated() -> Gpu {
+        Gpu {
+            backend: Backend::Emulated,
+            name: "emulated on the CPU".into(),
+        }
+    }
+
+    /// Uploads what a problem's evaluations share (its patches and pixels, the next frame's
+    /// images, the cameras).
+    pub(crate) fn upload(self: &Arc<Self>, p: &Problem<'_>) -> Result<Uploaded> {
+        let ncam = p.projections.len();
+        let tris: Vec<u32> = p.triangles.iter().flatten().copied().collect();
+        let mut patches = Vec::with_capacity(p.patches.len() * 4);
+        let mut weights = Vec::with_capacity(p.patches.len());
+        for q in p.patches {
+            patches.extend_from_slice(&[
+                q.triangle,
+                u32::from(q.camera) | (u32::from(q.source) << 16),
+                q.start,
+                q.end,
+            ]);
+            weights.push(q.weight);
+        }
+        let mut pixels = Vec::with_capacity(p.pixels.len() * 6);
+        for s in p.pixels {
+            pixels.extend_from_slice(&s.lambda);
+            pixels.extend_from_slice(&s.color);
+        }
+        let mut images = Vec::new();
+        let mut img_off = Vec::with_capacity(ncam);
+        let mut img_size = Vec::with_capacity(2 * ncam);
+        for img in &p.targets {
+            img_off.push((images.len() / 3) as u64);
+            img_size.extend_from_slice(&[img.width() as i32, img.height() as i32]);
+            images.extend(RgbImage::pixels(img).iter().flatten());
+        }
+        let proj: Vec<f64> = p
+            .projections
+            .iter()
+            .flat_map(|q| {
+                let m = q.matrix();
+                (0..3)
+                    .flat_map(move |r| (0..4).map(move |c| m[(r, c)]))
+                    .collect::<Vec<_>>()
+            })
+            .collect();
+        let flat =
+            |x: &[Point3<f64>]| -> Vec<f64> { x.iter().flat_map(|v| [v.x, v.y, v.z]).collect() };
+        let (lag, prev, gap) = match &p.lag {
+            Some(l) => {
+                let mut off = l.offsets.to_vec();
+                off.resize(ncam, 0.0);
+                (off, flat(l.previous), l.gap)
+            }
+            None => (vec![0.0; ncam], Vec::new(), 1.0),
+        };
+        let x0 = p.moving_source.map(flat).unwrap_or_default();
+        let mut ranges = Vec::with_capacity(p.by_triangle.len() * 2);
+        for (_, r) in p.by_triangle {
+            ranges.extend_from_slice(&[r.start as u32, r.end as u32]);
+        }
+        let host = HostInputs {
+            tris,
+            patches,
+            weights,
+            pixels,
+            images,
+            img_off,
+            img_size,
+            proj,
+            lag,
+            prev,
+            gap,
+            x0,
+            ranges,
+            edges: crate::tracker::solve::histogram_edges().to_vec(),
+            npatches: p.patches.len(),
+            ntri: p.by_triangle.len(),
+            has_lag: p.lag.is_some(),
+            moving: p.moving_source.is_some(),
+        };
+        let device = match &self.backend {
+            Backend::Cuda(c) => Device::Cuda(Box::new(c.upload(&host)?)),
+            #[cfg(test)]
+            Backend::Emulated => Device::Emulated,
+        };
+        Ok(Uploaded {
+            gpu: Arc::clone(self),
+            host,
+            device: Mutex::new(device),
+            failure: Mutex::new(None),
+        })
+    }
+}
+
+/// What a problem's evaluations read, flattened for the kernels (see `kernel.cu`).
+pub(crate) struct HostInputs {
+    tris: Vec<u32>,
+    patches: Vec<u32>,
+    weights: Vec<f32>,
+    pixels: Vec<f32>,
+    images: Vec<f32>,
+    img_off: Vec<u64>,
+    img_size: Vec<i32>,
+    proj: Vec<f64>,
+    lag: Vec<f64>,
+    prev: Vec<f64>,
+    gap: f64,
+    x0: Vec<f64>,
+    ranges: Vec<u32>,
+    edges: Vec<f64>,
+    npatches: usize,
+    ntri: usize,
+    has_lag: bool,
+    moving: bool,
+}
+
+enum Device {
+    Cuda(Box<cuda::Buffers>),
+    #[cfg(test)]
+    Emulated,
+}
+
+/// One problem's inputs on the device; [`Uploaded::evaluate`] runs the kernels on them.
+pub(crate) struct Uploaded {
+    gpu: Arc<Gpu>,
+    host: HostInputs,
+    device: Mutex<Device>,
+    /// The first failure on the device, if any: the solve goes on on the CPU, and the tracker
+    /// reports it after the frame ([`Uploaded::failure`]).
+    failure: Mutex<Option<Error>>,
+}
+
+/// The per-triangle sums of one evaluation, as the kernels return them.
+pub(crate) struct Sums {
+    /// Per `by_triangle` entry: cost, pixels, weight, rejected.
+    scalars: Vec<f64>,
+    /// Per entry, when the normal equations were asked for: six 3×3 blocks and three vectors.
+    blocks: Vec<f64>,
+    /// The residual histogram's bins, when asked for.
+    pub hist: Option<Vec<u64>>,
+}
+
+impl Uploaded {
+    /// The photometric sums at `x`, or `None` after a failure on the device (kept for
+    /// [`Uploaded::failure`]), when the caller evaluates on the CPU instead.
+    pub(crate) fn evaluate(
+        &self,
+        x: &[Point3<f64>],
+        opts: &SolverOptions,
+        system: bool,
+        hist: bool,
+    ) -> Option<Vec<TriAccum>> {
+        self.evaluate_sums(x, opts, system, hist)
+            .map(|s| self.accums(&s, system))
+    }
+
+    /// The residual histogram's bins at `x` (for the weighted median), `None` after a failure.
+    pub(crate) fn histogram(&self, x: &[Point3<f64>], opts: &SolverOptions) -> Option<Vec<u64>> {
+        self.evaluate_sums(x, opts, false, true)
+            .and_then(|s| s.hist)
+    }
+
+    /// [`Uploaded::evaluate`] and the histogram from the same pass.
+    pub(crate) fn evaluate_with_histogram(
+        &self,
+        x: &[Point3<f64>],
+        opts: &SolverOptions,
+        system: bool,
+    ) -> Option<(Vec<TriAccum>, Vec<u64>)> {
+        let s = self.evaluate_sums(x, opts, system, true)?;
+        let acc = self.accums(&s, system);
+        Some((acc, s.hist.unwrap_or_default()))
+    }
+
+    /// The first failure on the device since the upload, taken (so it is reported once).
+    pub(crate) fn failure(&self) -> Option<Error> {
+        self.failure.lock().ok().and_then(|mut f| f.take())
+    }
+
+    fn evaluate_sums(
+        &self,
+        x: &[Point3<f64>],
+        opts: &SolverOptions,
+        system: bool,
+        hist: bool,
+    ) -> Option<Sums> {
+        if self.failure.lock().map(|f| f.is_some()).unwrap_or(true) {
+            return None;
+        }
+        let h = &self.host;
+        let xs: Vec<f64> = x.iter().flat_map(|v| [v.x, v.y, v.z]).collect();
+        let mut flags = 0;
+        if opts.loss == Loss::Tukey {
+            flags |= FLAG_TUKEY;
+        }
+        if opts.interpolation == Interpolation::Cubic {
+            flags |= FLAG_CUBIC;
+        }
+        if system {
+            flags |= FLAG_SYSTEM;
+        }
+        if hist {
+            flags |= FLAG_HIST;
+        }
+        if h.moving {
+            flags |= FLAG_MOVING;
+        }
+        if h.has_lag {
+            flags |= FLAG_LAG;
+        }
+        let gain = match opts.gain {
+            GainModel::Off => 0,
+            GainModel::Constant => 1,
+            GainModel::Linear => 2,
+        };
+        flags |= gain << GAIN_SHIFT;
+        let scalars = KernelScalars {
+            huber: opts.huber,
+            tukey_px: opts.tukey_px,
+            patch_scale: opts.patch_scale,
+            flags,
+            system,
+        };
+        let result = match (&self.gpu.backend, &mut *self.device.lock().ok()?) {
+            (Backend::Cuda(c), Device::Cuda(b)) => c.evaluate(b, h, &xs, &scalars),
+            #[cfg(test)]
+            (Backend::Emulated, Device::Emulated) => Ok(emulated::evaluate(h, &xs, &scalars)),
+            #[cfg(test)]
+            _ => unreachable!("a problem uploaded to one backend evaluated on another"),
+        };
+        match result {
+            Ok(s) => Some(s),
+            Err(e) => {
+                if let Ok(mut f) = self.failure.lock() {
+                    f.get_or_insert(e);
+                }
+                None
+            }
+        }
+    }
+
+    fn accums(&self, s: &Sums, system: bool) -> Vec<TriAccum> {
+        (0..self.host.ntri)
+            .map(|t| {
+                let c = &s.scalars[4 * t..4 * t + 4];
+                let mut acc = TriAccum {
+                    cost: c[0],
+                    pixels: c[1] as u32,
+                    weight: c[2],
+                    rejected: c[3] as u32,
+                    h: [Matrix3::zeros(); 6],
+                    g: [Vector3::zeros(); 3],
+                };
+                if system {
+                    let b = &s.blocks[BLOCKS * t..BLOCKS * (t + 1)];
+                    for k in 0..6 {
+                        acc.h[k] = Matrix3::from_row_slice(&b[9 * k..9 * k + 9]);
+                    }
+                    for i in 0..3 {
+                        acc.g[i] = Vector3::from_row_slice(&b[54 + 3 * i..54 + 3 * i + 3]);
+                    }
+                }
+                acc
+            })
+            .collect()
+    }
+}
+
+/// The per-evaluation scalars the kernel takes.
+struct KernelScalars {
+    huber: f64,
+    tukey_px: f64,
+    patch_scale: f64,
+    flags: i32,
+    system: bool,
+}
+
+/// The CUDA backend (cudarc, driver and NVRTC loaded at run time).
+mod cuda {
+    use super::{HostInputs, KernelScalars, Sums, BLOCKS, KERNEL, PATCHES_PER_BLOCK, REC};
+    use crate::error::{Error, Result};
+    use cudarc::driver::{
+        CudaContext, CudaFunction, CudaSlice, CudaStream, DeviceRepr, LaunchConfig, PushKernelArg,
+        ValidAsZeroBits,
+    };
+    use std::sync::Arc;
+
+    pub(super) struct Cuda {
+        stream: Arc<CudaStream>,
+        evaluate: CudaFunction,
+        sum: CudaFunction,
+    }
+
+    pub(super) struct Buffers {
+        tris: CudaSlice<u32>,
+        patches: CudaSlice<u32>,
+        weights: CudaSlice<f32>,
+        pixels: CudaSlice<f32>,
+        images: CudaSlice<f32>,
+        img_off: CudaSlice<u64>,
+        img_size: CudaSlice<i32>,
+        proj: CudaSlice<f64>,
+        lag: CudaSlice<f64>,
+        prev: CudaSlice<f64>,
+        x0: CudaSlice<f64>,
+        ranges: CudaSlice<u32>,
+        edges: CudaSlice<f64>,
+        x: CudaSlice<f64>,
+        recs: CudaSlice<f64>,
+        scalars: CudaSlice<f64>,
+        blocks: CudaSlice<f64>,
+        hist: CudaSlice<u64>,
+    }
+
+    fn gpu_err(what: &str) -> impl Fn(cudarc::driver::DriverError) -> Error + '_ {
+        move |e| Error::Gpu(format!("{what}: {e}"))
+    }
+
+    /// The macros that make `kernel.cu` CUDA (`emulate.cpp` makes it C++).
+    const PRELUDE: &str = "#define DEV static __device__ __forceinline__\n\
+        #define KERNEL extern \"C\" __global__\n\
+        #define LDG(p) __ldg(p)\n\
+        #define BLOCK_X blockIdx.x\n\
+        #define THREAD_X threadIdx.x\n\
+        #define THREAD_Y threadIdx.y\n\
+        #define BLOCK_DIM_X blockDim.x\n";
+
+    /// The kernels compiled by NVRTC for compute capability `major.minor` (needs the NVRTC
+    /// library, not a device).
+    pub(super) fn compile(major: i32, minor: i32) -> Result<cudarc::nvrtc::Ptx> {
+        // SAFETY: only tries to load the library.
+        if !unsafe { cudarc::nvrtc::sys::is_culib_present() } {
+            return Err(Error::Gpu(
+                "NVRTC (libnvrtc.so, CUDA's runtime compiler, part of the CUDA toolkit or the \
+                 nvidia-cuda-nvrtc package) could not be loaded; put its folder on \
+                 LD_LIBRARY_PATH"
+                    .into(),
+            ));
+        }
+        let arch: &'static str = Box::leak(format!("compute_{major}{minor}").into_boxed_str());
+        cudarc::nvrtc::compile_ptx_with_opts(
+            format!("{PRELUDE}{KERNEL}"),
+            cudarc::nvrtc::CompileOptions {
+                // Each pixel's arithmetic as the CPU does it (no fused multiply-add).
+                fmad: Some(false),
+                arch: Some(arch),
+                name: Some("modelflow.cu".into()),
+                ..Default::default()
+            },
+        )
+        .map_err(|e| Error::Gpu(format!("compiling the kernels with NVRTC: {e}")))
+    }
+
+    impl Cuda {
+        pub(super) fn open() -> Result<(Cuda, String)> {
+            // cudarc panics when a library is missing: ask first, so the answer is an error.
+            // SAFETY: only tries to load the libraries.
+            if !unsafe { cudarc::driver::sys::is_culib_present() } {
+                return Err(Error::Gpu(
+                    "no CUDA driver found (libcuda.so could not be loaded); install NVIDIA's \
+                     driver, or run with --device cpu"
+                        .into(),
+                ));
+            }
+            let n = CudaContext::device_count().map_err(gpu_err("counting CUDA devices"))?;
+            if n < 1 {
+                return Err(Error::Gpu("the CUDA driver sees no device".into()));
+            }
+            let ctx = CudaContext::new(0).map_err(gpu_err("opening CUDA device 0"))?;
+            let name = ctx.name().map_err(gpu_err("reading the device's name"))?;
+            let (major, minor) = ctx
+                .compute_capability()
+                .map_err(gpu_err("reading the device's compute capability"))?;
+            let ptx = compile(major, minor)?;
+            let module = ctx
+                .load_module(ptx)
+                .map_err(gpu_err("loading the kernels"))?;
+            let evaluate = module
+                .load_function("evaluate_patches")
+                .map_err(gpu_err("loading evaluate_patches"))?;
+            let sum = module
+                .load_function("sum_triangles")
+                .map_err(gpu_err("loading sum_triangles"))?;
+            let stream = ctx.default_stream();
+            Ok((
+                Cuda {
+                    stream,
+                    evaluate,
+                    sum,
+                },
+                name,
+            ))
+        }
+
+        fn up<T: DeviceRepr>(&self, v: &[T], what: &str) -> Result<CudaSlice<T>> {
+            if v.is_empty() {
+                // A zero-length allocation is refused by some drivers: one element instead.
+                // SAFETY: never read (the kernel reads it only when its flag says it holds data).
+                return unsafe { self.stream.alloc::<T>(1) }.map_err(gpu_err(what));
+            }
+            self.stream.clone_htod(v).map_err(gpu_err(what))
+        }
+
+        fn zeros<T: DeviceRepr + ValidAsZeroBits>(
+            &self,
+            n: usize,
+            what: &str,
+        ) -> Result<CudaSlice<T>> {
+            self.stream
+                .alloc_zeros::<T>(n.max(1))
+                .map_err(gpu_err(what))
+        }
+
+        pub(super) fn upload(&self, h: &HostInputs) -> Result<Buffers> {
+            Ok(Buffers {
+                tris: self.up(&h.tris, "uploading the triangles")?,
+                patches: self.up(&h.patches, "uploading the patches")?,
+                weights: self.up(&h.weights, "uploading the patches' weights")?,
+                pixels: self.up(&h.pixels, "uploading the template pixels")?,
+                images: self.up(&h.images, "uploading the next frame's images")?,
+                img_off: self.up(&h.img_off, "uploading the images' offsets")?,
+                img_size: self.up(&h.img_size, "uploading the images' sizes")?,
+                proj: self.up(&h.proj, "uploading the cameras")?,
+                lag: self.up(&h.lag, "uploading the cameras' time offsets")?,
+                prev: self.up(&h.prev, "uploading the previous positions")?,
+                x0: self.up(&h.x0, "uploading the source positions")?,
+                ranges: self.up(&h.ranges, "uploading the triangles' patch ranges")?,
+                edges: self.up(&h.edges, "uploading the histogram's edges")?,
+                x: self.zeros(3, "allocating the positions")?,
+                recs: self.zeros(REC * h.npatches, "allocating the patch records")?,
+                scalars: self.zeros(4 * h.ntri, "allocating the triangle sums")?,
+                blocks: self.zeros(BLOCKS * h.ntri, "allocating the triangle blocks")?,
+                hist: self.zeros(
+                    super::super::solve::HISTOGRAM_BINS,
+                    "allocating the histogram",
+                )?,
+            })
+        }
+
+        pub(super) fn evaluate(
+            &self,
+            b: &mut Buffers,
+            h: &HostInputs,
+            xs: &[f64],
+            k: &KernelScalars,
+        ) -> Result<Sums> {
+            if b.x.len() < xs.len() {
+                b.x = self.zeros(xs.len(), "allocating the positions")?;
+            }
+            self.stream
+                .memcpy_htod(xs, &mut b.x)
+                .map_err(gpu_err("uploading the positions"))?;
+            let want_hist = k.flags & super::FLAG_HIST != 0;
+            if want_hist {
+                self.stream
+                    .memset_zeros(&mut b.hist)
+                    .map_err(gpu_err("clearing the histogram"))?;
+            }
+            let npatches = h.npatches as i32;
+            let ntri = h.ntri as i32;
+            if h.npatches > 0 {
+                let blocks = (h.npatches as u32).div_ceil(PATCHES_PER_BLOCK);
+                let cfg = LaunchConfig {
+                    grid_dim: (blocks, 1, 1),
+                    block_dim: (32, PATCHES_PER_BLOCK, 1),
+                    shared_mem_bytes: 0,
+                };
+                let mut l = self.stream.launch_builder(&self.evaluate);
+                l.arg(&b.x)
+                    .arg(&b.x0)
+                    .arg(&b.prev)
+                    .arg(&b.proj)
+                    .arg(&b.lag)
+                    .arg(&h.gap)
+                    .arg(&b.tris)
+                    .arg(&b.patches)
+                    .arg(&b.weights)
+                    .arg(&b.pixels)
+                    .arg(&b.images)
+                    .arg(&b.img_off)
+                    .arg(&b.img_size)
+                    .arg(&npatches)
+                    .arg(&k.huber)
+                    .arg(&k.tukey_px)
+                    .arg(&k.patch_scale)
+                    .arg(&k.flags)
+                    .arg(&b.edges)
+                    .arg(&mut b.recs)
+                    .arg(&mut b.hist);
+                // SAFETY: the arguments match `evaluate_patches`' signature, and every buffer
+                // holds what the kernel reads (sizes set at upload from the same inputs).
+                unsafe { l.launch(cfg) }.map_err(gpu_err("running evaluate_patches"))?;
+            }
+            if h.ntri > 0 {
+                let system = i32::from(k.system);
+                let cfg = LaunchConfig::for_num_elems(h.ntri as u32);
+                let mut l = self.stream.launch_builder(&self.sum);
+                l.arg(&b.recs)
+                    .arg(&b.ranges)
+                    .arg(&ntri)
+                    .arg(&system)
+                    .arg(&mut b.scalars)
+                    .arg(&mut b.blocks);
+                // SAFETY: as above, for `sum_triangles`.
+                unsafe { l.launch(cfg) }.map_err(gpu_err("running sum_triangles"))?;
+            }
+            let scalars = self
+                .stream
+                .clone_dtoh(&b.scalars)
+                .map_err(gpu_err("reading the triangle sums"))?;
+            let blocks = if k.system {
+                self.stream
+                    .clone_dtoh(&b.blocks)
+                    .map_err(gpu_err("reading the triangle blocks"))?
+            } else {
+                Vec::new()
+            };
+            let hist = if want_hist {
+                Some(
+                    self.stream
+                        .clone_dtoh(&b.hist)
+                        .map_err(gpu_err("reading the histogram"))?,
+                )
+            } else {
+                None
+            };
+            Ok(Sums {
+                scalars,
+                blocks,
+                hist,
+            })
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    /// Wherever NVRTC is installed (no GPU needed), the kernels compile for the GPUs the path
+    /// targets (Turing to Hopper); elsewhere (CI) the test is skipped and says why.
+    #[test]
+    fn the_kernels_compile_with_nvrtc() {
+        for (major, minor) in [(7, 5), (8, 0), (9, 0)] {
+            match super::cuda::compile(major, minor) {
+                Ok(ptx) => assert!(
+                    ptx.to_src().contains("evaluate_patches"),
+                    "compute_{major}{minor}: no kernel in the PTX"
+                ),
+                Err(e) if e.to_string().contains("could not be loaded") => {
+                    eprintln!("SKIPPED (no NVRTC here): {e}");
+                    return;
+                }
+                Err(e) => panic!("compute_{major}{minor}: {e}"),
+            }
+        }
+    }
+}
+
+/// The kernels compiled as C++ (`emulate.cpp`, one lane per warp), for the tests.
+#[cfg(test)]
+mod emulated {
+    use super::{HostInputs, KernelScalars, Sums, BLOCKS, REC};
+
+    unsafe extern "C" {
+        fn modelflow_emu_evaluate_patches(
+            x: *const f64,
+            x0: *const f64,
+            prev: *const f64,
+            proj: *const f64,
+            lag: *const f64,
+            gap: f64,
+            tris: *const u32,
+            patches: *const u32,
+            weights: *const f32,
+            pixels: *const f32,
+            images: *const f32,
+            img_off: *const u64,
+            img_size: *const i32,
+            npatches: i32,
+            huber: f64,
+            tukey_px: f64,
+            patch_scale: f64,
+            flags: i32,
+            edges: *const f64,
+            out: *mut f64,
+            hist: *mut u64,
+        );
+        fn modelflow_emu_sum_triangles(
+            recs: *const f64,
+            ranges: *const u32,
+            ntri: i32,
+            system: i32,
+            scalars: *mut f64,
+            blocks: *mut f64,
+        );
+    }
+
+    pub(super) fn evaluate(h: &HostInputs, xs: &[f64], k: &KernelScalars) -> Sums {
+        let mut recs = vec![0.0f64; REC * h.npatches];
+        let mut hist = vec![0u64; crate::tracker::solve::HISTOGRAM_BINS];
+        let mut scalars = vec![0.0f64; 4 * h.ntri];
+        let mut blocks = vec![0.0f64; BLOCKS * h.ntri];
+        // SAFETY: the slices hold what the C++ functions read and write (sizes as above and as
+        // at upload), and the pointers live across the calls.
+        unsafe {
+            modelflow_emu_evaluate_patches(
+                xs.as_ptr(),
+                h.x0.as_ptr(),
+                h.prev.as_ptr(),
+                h.proj.as_ptr(),
+                h.lag.as_ptr(),
+                h.gap,
+                h.tris.as_ptr(),
+                h.patches.as_ptr(),
+                h.weights.as_ptr(),
+                h.pixels.as_ptr(),
+                h.images.as_ptr(),
+                h.img_off.as_ptr(),
+                h.img_size.as_ptr(),
+                h.npatches as i32,
+                k.huber,
+                k.tukey_px,
+                k.patch_scale,
+                k.flags,
+                h.edges.as_ptr(),
+                recs.as_mut_ptr(),
+                hist.as_mut_ptr(),
+            );
+            modelflow_emu_sum_triangles(
+                recs.as_ptr(),
+                h.ranges.as_ptr(),
+                h.ntri as i32,
+                i32::from(k.system),
+                scalars.as_mut_ptr(),
+                blocks.as_mut_ptr(),
+            );
+        }
+        Sums {
+            scalars,
+            blocks: if k.system { blocks } else { Vec::new() },
+            hist: (k.flags & super::FLAG_HIST != 0).then_some(hist),
+        }
+    }
+}
