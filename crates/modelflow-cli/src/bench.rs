@@ -77,8 +77,16 @@ struct BenchReport {
     ms_pyramids: f64,
     /// Median solve time per frame (template patches and Gauss–Newton).
     ms_solve: f64,
+    /// Of the solve: building the template patches.
+    ms_patches: f64,
+    /// Of the solve: evaluating the cost and its normal equations (the per-pixel work).
+    ms_evaluation: f64,
+    /// Of the solve: solving the normal equations (PCG, rigid steps).
+    ms_linear_solver: f64,
     /// Median time per Gauss–Newton iteration (all levels).
     ms_per_iteration: f64,
+    /// With `--device gpu`: where the GPU path's time went, over the whole run.
+    gpu: Option<modelflow::tracker::GpuStats>,
     /// Median iterations per frame.
     iterations: f64,
     /// RGB residuals evaluated per second inside the solver (3 per pixel comparison).
@@ -201,6 +209,11 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         ms_load: per(&|(l, _)| l.load_seconds) * 1e3,
         ms_pyramids: per(&|(_, r)| r.timing.pyramids) * 1e3,
         ms_solve: per(&|(_, r)| r.timing.patches + r.timing.solve) * 1e3,
+        ms_patches: per(&|(_, r)| r.timing.patches) * 1e3,
+        ms_evaluation: per(&|(_, r)| r.levels.iter().map(|s| s.evaluation_seconds).sum()) * 1e3,
+        ms_linear_solver: per(&|(_, r)| {
+            r.levels.iter().map(|s| s.linear_solver_seconds).sum()
+        }) * 1e3,
         ms_per_iteration: per(&|(_, r)| {
             let it = r
                 .levels
@@ -211,6 +224,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             r.levels.iter().map(|s| s.seconds).sum::<f64>() / it as f64
         }) * 1e3,
         iterations: per(&|(_, r)| r.iterations as f64),
+        gpu: run.gpu.as_ref().map(|g| g.stats()),
         residuals_per_second: 3.0 * evaluations as f64 / solve_secs.max(1e-12),
     };
     if args.json {
@@ -238,6 +252,18 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             report.ms_solve
         );
         println!(
+            "    template patches  {:8.1} ms  (median)",
+            report.ms_patches
+        );
+        println!(
+            "    evaluations       {:8.1} ms  (median; cost and normal equations, on {})",
+            report.ms_evaluation, report.device
+        );
+        println!(
+            "    linear solves     {:8.1} ms  (median; PCG and rigid steps, on the CPU)",
+            report.ms_linear_solver
+        );
+        println!(
             "per solver iteration  {:8.2} ms  (median; {} iterations per frame)",
             report.ms_per_iteration, report.iterations
         );
@@ -245,6 +271,18 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             "residuals per second  {:8.1} M",
             report.residuals_per_second / 1e6
         );
+        if let Some(g) = &report.gpu {
+            let per_frame = |s: f64| s * 1e3 / report.frames.max(1) as f64;
+            println!(
+                "on the GPU, per frame (mean): kernels {:.1} ms in {:.1} evaluations, positions up and sums back {:.1} ms, uploads {:.1} ms host + {:.1} ms copy ({:.1} per frame)",
+                per_frame(g.kernel_seconds),
+                g.evaluations as f64 / report.frames.max(1) as f64,
+                per_frame(g.transfer_seconds),
+                per_frame(g.upload_host_seconds),
+                per_frame(g.upload_copy_seconds),
+                g.uploads as f64 / report.frames.max(1) as f64
+            );
+        }
     }
     Ok(())
 }

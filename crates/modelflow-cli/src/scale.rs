@@ -36,6 +36,16 @@ pub struct ScaleRow {
     pub ms_per_frame: f64,
     /// Median Gauss–Newton iterations per frame.
     pub iterations: f64,
+    /// Of `ms_per_frame` (medians): the image pyramids, the template patches, the evaluations
+    /// of the cost and its normal equations, and the linear solves.
+    pub ms_pyramids: f64,
+    pub ms_patches: f64,
+    pub ms_evaluation: f64,
+    pub ms_linear_solver: f64,
+    /// With a GPU: of the evaluations, the kernels' time per frame (mean), ms.
+    pub ms_gpu_kernels: Option<f64>,
+    /// With a GPU: copying positions up, sums back and each level's inputs up, per frame, ms.
+    pub ms_gpu_transfers: Option<f64>,
     /// Peak resident memory of the process while the point ran (its images included), MiB;
     /// `None` where the system does not say (not Linux).
     pub peak_mib: Option<f64>,
@@ -130,12 +140,23 @@ pub fn measure(o: &ScaleOptions) -> anyhow::Result<ScaleReport> {
         tracker.set_gpu(o.gpu.clone());
         drop(first);
         let (mut ms, mut its) = (Vec::new(), Vec::new());
+        let mut parts: [Vec<f64>; 4] = Default::default();
+        let gpu_before = o.gpu.as_ref().map(|g| g.stats());
         for f in 1..o.frames {
             let imgs = render(f);
             let t0 = std::time::Instant::now();
             let report = tracker.step(f, &imgs)?;
             ms.push(t0.elapsed().as_secs_f64() * 1e3);
             its.push(report.iterations as f64);
+            let split = [
+                report.timing.pyramids,
+                report.timing.patches,
+                report.levels.iter().map(|s| s.evaluation_seconds).sum(),
+                report.levels.iter().map(|s| s.linear_solver_seconds).sum(),
+            ];
+            for (p, v) in parts.iter_mut().zip(split) {
+                p.push(v * 1e3);
+            }
             bar.tick(&format!(
                 "{cameras} x {width}x{height}, {} vertices: frame {f} {:.0} ms",
                 side * side,
@@ -143,6 +164,12 @@ pub fn measure(o: &ScaleOptions) -> anyhow::Result<ScaleReport> {
             ));
         }
         let peak = if has_peak { peak_mib() } else { None };
+        let solved = (o.frames - 1).max(1) as f64;
+        let gpu_used = o
+            .gpu
+            .as_ref()
+            .zip(gpu_before)
+            .map(|(g, b)| g.stats().since(&b));
         rows.push(ScaleRow {
             cameras,
             width,
@@ -151,6 +178,14 @@ pub fn measure(o: &ScaleOptions) -> anyhow::Result<ScaleReport> {
             megapixels: cameras as f64 * width as f64 * height as f64 / 1e6,
             ms_per_frame: median(&ms),
             iterations: median(&its),
+            ms_pyramids: median(&parts[0]),
+            ms_patches: median(&parts[1]),
+            ms_evaluation: median(&parts[2]),
+            ms_linear_solver: median(&parts[3]),
+            ms_gpu_kernels: gpu_used.map(|g| g.kernel_seconds * 1e3 / solved),
+            ms_gpu_transfers: gpu_used.map(|g| {
+                (g.transfer_seconds + g.upload_copy_seconds + g.upload_host_seconds) * 1e3 / solved
+            }),
             peak_mib: peak,
         });
     }
@@ -200,17 +235,34 @@ pub fn print(r: &ScaleReport) {
         r.threads,
         r.device
     );
-    println!("  cameras   image       vertices   Mpx/frame   ms/frame   iterations   peak MiB");
+    println!(
+        "  cameras   image       vertices   Mpx/frame   ms/frame   iterations   peak MiB   | of which ms: pyramids  patches  evaluations  linear solves"
+    );
     for row in &r.rows {
         println!(
-            "  {:>7}   {:>9}   {:>8}   {:>9.2}   {:>8.0}   {:>10.0}   {:>8}",
+            "  {:>7}   {:>9}   {:>8}   {:>9.2}   {:>8.0}   {:>10.0}   {:>8}   | {:>21.0}  {:>7.0}  {:>11.0}  {:>13.0}",
             row.cameras,
             format!("{}x{}", row.width, row.height),
             row.vertices,
             row.megapixels,
             row.ms_per_frame,
             row.iterations,
-            row.peak_mib.map_or("-".into(), |m| format!("{m:.0}"))
+            row.peak_mib.map_or("-".into(), |m| format!("{m:.0}")),
+            row.ms_pyramids,
+            row.ms_patches,
+            row.ms_evaluation,
+            row.ms_linear_solver
+        );
+    }
+    for row in r.rows.iter().filter(|r| r.ms_gpu_kernels.is_some()) {
+        println!(
+            "  on the GPU, {} x {}x{}, {} vertices: kernels {:.0} ms per frame, transfers and uploads {:.0} ms",
+            row.cameras,
+            row.width,
+            row.height,
+            row.vertices,
+            row.ms_gpu_kernels.unwrap_or(0.0),
+            row.ms_gpu_transfers.unwrap_or(0.0)
         );
     }
     match &r.fit {

@@ -30,7 +30,7 @@ pub use align::{
     LOOSE,
 };
 pub use coverage::{coverage, Coverage};
-pub use gpu::Gpu;
+pub use gpu::{Gpu, GpuStats};
 pub use options::{OptionsUsed, TrackOptions};
 pub use regularise::Regularisation;
 pub use sequence::{prepare, FrameReport, Prepared, StepTiming, Tracker, SUSPECT_SHARE};

@@ -343,6 +343,14 @@ pub struct SolveSummary {
     pub pixel_evaluations: u64,
     /// Wall time of the solve, seconds.
     pub seconds: f64,
+    /// Of which evaluating the photometric cost and its normal equations (the per-pixel work,
+    /// on the GPU with `--device gpu`) and the regularisers, seconds. Absent (0) in logs
+    /// written before it was recorded.
+    #[serde(default)]
+    pub evaluation_seconds: f64,
+    /// Of which solving the normal equations for the steps (PCG, or the rigid step), seconds.
+    #[serde(default)]
+    pub linear_solver_seconds: f64,
     pub stop: StopReason,
     pub iterations: Vec<IterationSummary>,
 }
@@ -1205,13 +1213,17 @@ impl Problem<'_> {
         let t_solve = Instant::now();
         // The normal equations, cost and per-triangle sums at `x`, kept current as steps are
         // accepted; the solve returns them.
+        let mut evaluation_seconds = 0.0;
+        let mut linear_solver_seconds = 0.0;
         let (mut cur, mut pixel_evaluations) = match at_start {
             Some(l) => (l, 0u64),
             None => {
+                let te = Instant::now();
                 let mut a = BlockSparse::new(nv, self.pattern);
                 let mut b = vec![Vector3::zeros(); nv];
                 let (cost, pixels, parts, median) =
                     self.evaluate_with(&x, opts, Some((&mut a, &mut b)), collect_median);
+                evaluation_seconds += te.elapsed().as_secs_f64();
                 (
                     Linearised {
                         a,
@@ -1227,7 +1239,7 @@ impl Problem<'_> {
         };
         let initial_cost = cur.cost;
         let mut iterations = Vec::new();
-        let summary = |x, cur: Linearised, pixel_evaluations, stop, iterations| {
+        let summary = |x, cur: Linearised, pixel_evaluations, stop, iterations, (ev, ls)| {
             (
                 x,
                 SolveSummary {
@@ -1238,6 +1250,8 @@ impl Problem<'_> {
                     pixels: cur.pixels,
                     pixel_evaluations,
                     seconds: t_solve.elapsed().as_secs_f64(),
+                    evaluation_seconds: ev,
+                    linear_solver_seconds: ls,
                     stop,
                     iterations,
                 },
@@ -1250,7 +1264,14 @@ impl Problem<'_> {
             } else {
                 StopReason::NonFinite
             };
-            return summary(x, cur, pixel_evaluations, stop, iterations);
+            return summary(
+                x,
+                cur,
+                pixel_evaluations,
+                stop,
+                iterations,
+                (evaluation_seconds, 0.0),
+            );
         }
         let mut lm = opts.damping;
         let mut shrink = 1.0f64;
@@ -1279,6 +1300,7 @@ impl Problem<'_> {
                 break;
             }
             let t0 = Instant::now();
+            let tl = Instant::now();
             // The step (linearised, per vertex) and the trial positions.
             let (delta, cg_iterations) = match motion {
                 Motion::Free => {
@@ -1301,6 +1323,7 @@ impl Problem<'_> {
                     (delta, 0)
                 }
             };
+            linear_solver_seconds += tl.elapsed().as_secs_f64();
             let step = delta.iter().map(|d| d.norm()).fold(0.0, f64::max);
             // Decrease predicted by the Gauss–Newton model: 2·δᵀ(−Jᵀr) − δᵀ·JᵀJ·δ.
             cur.a.mul(&delta, &mut ad);
@@ -1333,8 +1356,10 @@ impl Problem<'_> {
                 };
                 break;
             }
+            let te = Instant::now();
             let (new_cost, new_pixels, new_parts, new_median) =
                 self.evaluate_with(&trial, opts, Some((&mut a_new, &mut b_new)), collect_median);
+            evaluation_seconds += te.elapsed().as_secs_f64();
             pixel_evaluations += new_pixels as u64;
             let change = new_cost - cur.cost;
             // A step that takes the mesh more than twice as far from a camera, or brings it
@@ -1387,7 +1412,14 @@ impl Problem<'_> {
                 break;
             }
         }
-        summary(x, cur, pixel_evaluations, stop, iterations)
+        summary(
+            x,
+            cur,
+            pixel_evaluations,
+            stop,
+            iterations,
+            (evaluation_seconds, linear_solver_seconds),
+        )
     }
 }
 

@@ -43,6 +43,39 @@ const GAIN_SHIFT: i32 = 8;
 pub struct Gpu {
     backend: Backend,
     name: String,
+    stats: Mutex<GpuStats>,
+}
+
+/// Where the GPU path's time went since the [`Gpu`] was opened (wall time, seconds): what a
+/// benchmark reports to say whether the device, the bus or the host is the bottleneck.
+#[derive(Clone, Copy, Debug, Default, PartialEq, serde::Serialize)]
+pub struct GpuStats {
+    /// Problems uploaded (one per frame and pyramid level).
+    pub uploads: u64,
+    /// Preparing (flattening) the uploads on the host.
+    pub upload_host_seconds: f64,
+    /// Copying them to the device.
+    pub upload_copy_seconds: f64,
+    /// Evaluations run.
+    pub evaluations: u64,
+    /// The kernels, launch to completion.
+    pub kernel_seconds: f64,
+    /// Copying the positions up and the sums back.
+    pub transfer_seconds: f64,
+}
+
+impl GpuStats {
+    /// What happened between `earlier` and `self`.
+    pub fn since(&self, earlier: &GpuStats) -> GpuStats {
+        GpuStats {
+            uploads: self.uploads - earlier.uploads,
+            upload_host_seconds: self.upload_host_seconds - earlier.upload_host_seconds,
+            upload_copy_seconds: self.upload_copy_seconds - earlier.upload_copy_seconds,
+            evaluations: self.evaluations - earlier.evaluations,
+            kernel_seconds: self.kernel_seconds - earlier.kernel_seconds,
+            transfer_seconds: self.transfer_seconds - earlier.transfer_seconds,
+        }
+    }
 }
 
 impl std::fmt::Debug for Gpu {
@@ -67,6 +100,7 @@ impl Gpu {
         Ok(Gpu {
             backend: Backend::Cuda(backend),
             name,
+            stats: Mutex::new(GpuStats::default()),
         })
     }
 
@@ -75,17 +109,30 @@ impl Gpu {
         &self.name
     }
 
+    /// Where the time went since the GPU was opened.
+    pub fn stats(&self) -> GpuStats {
+        self.stats.lock().map(|s| *s).unwrap_or_default()
+    }
+
+    fn record(&self, f: impl FnOnce(&mut GpuStats)) {
+        if let Ok(mut s) = self.stats.lock() {
+            f(&mut s);
+        }
+    }
+
     #[cfg(test)]
     pub(crate) fn emulated() -> Gpu {
         Gpu {
             backend: Backend::Emulated,
             name: "emulated on the CPU".into(),
+            stats: Mutex::new(GpuStats::default()),
         }
     }
 
     /// Uploads what a problem's evaluations share (its patches and pixels, the next frame's
     /// images, the cameras).
     pub(crate) fn upload(self: &Arc<Self>, p: &Problem<'_>) -> Result<Uploaded> {
+        let t0 = std::time::Instant::now();
         let ncam = p.projections.len();
         let tris: Vec<u32> = p.triangles.iter().flatten().copied().collect();
         let mut patches = Vec::with_capacity(p.patches.len() * 4);
@@ -157,11 +204,18 @@ impl Gpu {
             has_lag: p.lag.is_some(),
             moving: p.moving_source.is_some(),
         };
+        let t1 = std::time::Instant::now();
         let device = match &self.backend {
             Backend::Cuda(c) => Device::Cuda(Box::new(c.upload(&host)?)),
             #[cfg(test)]
             Backend::Emulated => Device::Emulated,
         };
+        let (host_s, copy_s) = ((t1 - t0).as_secs_f64(), t1.elapsed().as_secs_f64());
+        self.record(|s| {
+            s.uploads += 1;
+            s.upload_host_seconds += host_s;
+            s.upload_copy_seconds += copy_s;
+        });
         Ok(Uploaded {
             gpu: Arc::clone(self),
             host,
@@ -301,7 +355,14 @@ impl Uploaded {
             system,
         };
         let result = match (&self.gpu.backend, &mut *self.device.lock().ok()?) {
-            (Backend::Cuda(c), Device::Cuda(b)) => c.evaluate(b, h, &xs, &scalars),
+            (Backend::Cuda(c), Device::Cuda(b)) => c.evaluate(b, h, &xs, &scalars).map(|(s, k, t)| {
+                self.gpu.record(|st| {
+                    st.evaluations += 1;
+                    st.kernel_seconds += k;
+                    st.transfer_seconds += t;
+                });
+                s
+            }),
             #[cfg(test)]
             (Backend::Emulated, Device::Emulated) => Ok(emulated::evaluate(h, &xs, &scalars)),
             #[cfg(test)]
@@ -446,6 +507,10 @@ mod cuda {
                 return Err(Error::Gpu("the CUDA driver sees no device".into()));
             }
             let ctx = CudaContext::new(0).map_err(gpu_err("opening CUDA device 0"))?;
+            // SAFETY: every buffer is used on the one stream below only, so the per-use
+            // events cudarc records for cross-stream safety (two per buffer and launch) are
+            // not needed.
+            unsafe { ctx.disable_event_tracking() };
             let name = ctx.name().map_err(gpu_err("reading the device's name"))?;
             let (major, minor) = ctx
                 .compute_capability()
@@ -522,7 +587,8 @@ mod cuda {
             h: &HostInputs,
             xs: &[f64],
             k: &KernelScalars,
-        ) -> Result<Sums> {
+        ) -> Result<(Sums, f64, f64)> {
+            let t0 = std::time::Instant::now();
             if b.x.len() < xs.len() {
                 b.x = self.zeros(xs.len(), "allocating the positions")?;
             }
@@ -535,6 +601,10 @@ mod cuda {
                     .memset_zeros(&mut b.hist)
                     .map_err(gpu_err("clearing the histogram"))?;
             }
+            self.stream
+                .synchronize()
+                .map_err(gpu_err("uploading the positions"))?;
+            let t1 = std::time::Instant::now();
             let npatches = h.npatches as i32;
             let ntri = h.ntri as i32;
             if h.npatches > 0 {
@@ -583,6 +653,10 @@ mod cuda {
                 // SAFETY: as above, for `sum_triangles`.
                 unsafe { l.launch(cfg) }.map_err(gpu_err("running sum_triangles"))?;
             }
+            self.stream
+                .synchronize()
+                .map_err(gpu_err("running the kernels"))?;
+            let t2 = std::time::Instant::now();
             let scalars = self
                 .stream
                 .clone_dtoh(&b.scalars)
@@ -603,11 +677,17 @@ mod cuda {
             } else {
                 None
             };
-            Ok(Sums {
-                scalars,
-                blocks,
-                hist,
-            })
+            let kernel = (t2 - t1).as_secs_f64();
+            let transfer = (t1 - t0).as_secs_f64() + t2.elapsed().as_secs_f64();
+            Ok((
+                Sums {
+                    scalars,
+                    blocks,
+                    hist,
+                },
+                kernel,
+                transfer,
+            ))
         }
     }
 }
