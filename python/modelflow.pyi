@@ -66,9 +66,15 @@ class Tracker:
         """The current vertex positions, (V, 3)."""
 
 def track_scene(
-    scene: Scene, out: _Path, options: Optional[Dict[str, Any]] = None, force: bool = False
+    scene: Scene,
+    out: _Path,
+    options: Optional[Dict[str, Any]] = None,
+    force: bool = False,
+    device: str = "cpu",
 ) -> Dict[str, Any]:
-    """Tracks the whole scene into the run folder `out`, as `modelflow track` does. Returns the
+    """Tracks the whole scene into the run folder `out`, as `modelflow track` does. `device`:
+    "cpu", or "gpu" for the solver's per-pixel work on an NVIDIA GPU (raises ModelflowError
+    saying what is missing where there is none). Returns the
     summary: "frames", "solved", "resumed_from", "total_seconds", "median_frame_seconds",
     "median_iterations", "stalled_frames" (the mesh could not move) and "suspect_frames" (the
     cameras disagreed about where the previous frame left the surface)."""

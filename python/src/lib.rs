@@ -317,23 +317,35 @@ impl Tracker {
 
 /// Tracks the whole scene into the run folder `out` (as `modelflow track` does: one OBJ and one
 /// confidence file per frame, `log.jsonl`, `run.json`). `options` as for `Tracker`. `force`
-/// replaces an earlier run's files there. Returns the summary as a dict.
+/// replaces an earlier run's files there. `device` is "cpu" or "gpu" (the solver's per-pixel
+/// work on an NVIDIA GPU, as `--device gpu`). Returns the summary as a dict.
 #[pyfunction]
-#[pyo3(signature = (scene, out, options=None, force=false))]
+#[pyo3(signature = (scene, out, options=None, force=false, device="cpu"))]
 fn track_scene<'py>(
     py: Python<'py>,
     scene: &Scene,
     out: PathBuf,
     options: Option<&Bound<'py, PyDict>>,
     force: bool,
+    device: &str,
 ) -> PyResult<Bound<'py, PyAny>> {
     let opts = track_options(py, options)?;
+    let gpu = match device {
+        "cpu" => None,
+        "gpu" => Some(std::sync::Arc::new(mf::tracker::Gpu::open().map_err(err)?)),
+        other => {
+            return Err(ModelflowError::new_err(format!(
+                "device {other:?}: expected \"cpu\" or \"gpu\""
+            )))
+        }
+    };
     let run = mf::RunOptions {
         mode: if force {
             mf::OpenMode::Force
         } else {
             mf::OpenMode::New
         },
+        gpu,
         ..mf::RunOptions::default()
     };
     let summary = mf::track_scene(&scene.inner, &opts, &out, &run, &mut |_| {}).map_err(err)?;

@@ -108,6 +108,26 @@ def test_bad_input_raises_modelflow_error():
         t.step(1, [np.zeros((240, 320, 3), np.float64)] * 2)
 
 
+def test_track_scene_on_the_gpu_runs_or_says_what_is_missing(cli_run, tmp_path):
+    s = modelflow.Scene.load(SCENE)
+    with pytest.raises(modelflow.ModelflowError, match=r'device "tpu": expected "cpu" or "gpu"'):
+        modelflow.track_scene(s, tmp_path / "tpu", device="tpu")
+    assert not (tmp_path / "tpu").exists()
+    try:
+        summary = modelflow.track_scene(s, tmp_path / "gpu", device="gpu")
+    except modelflow.ModelflowError as e:
+        # No GPU here (CI): the message names what is missing, and nothing was written.
+        assert "GPU:" in str(e) and ("CUDA" in str(e) or "NVRTC" in str(e)), str(e)
+        assert not (tmp_path / "gpu").exists()
+        return
+    # With one: the CLI's (CPU) meshes to rounding.
+    assert summary["stalled_frames"] == []
+    ours, cpu = modelflow.read_run(tmp_path / "gpu"), modelflow.read_run(cli_run)
+    size = np.linalg.norm(np.ptp(cpu[0], axis=0))
+    for f, p in cpu.items():
+        assert np.abs(ours[f] - p).max() <= 1e-5 * size, f
+
+
 def test_align_brings_a_tilted_sheet_back_into_its_plane():
     s = modelflow.Scene.load(SCENE)
     p = s.positions

@@ -211,9 +211,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         ms_solve: per(&|(_, r)| r.timing.patches + r.timing.solve) * 1e3,
         ms_patches: per(&|(_, r)| r.timing.patches) * 1e3,
         ms_evaluation: per(&|(_, r)| r.levels.iter().map(|s| s.evaluation_seconds).sum()) * 1e3,
-        ms_linear_solver: per(&|(_, r)| {
-            r.levels.iter().map(|s| s.linear_solver_seconds).sum()
-        }) * 1e3,
+        ms_linear_solver: per(&|(_, r)| r.levels.iter().map(|s| s.linear_solver_seconds).sum())
+            * 1e3,
         ms_per_iteration: per(&|(_, r)| {
             let it = r
                 .levels

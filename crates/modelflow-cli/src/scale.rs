@@ -287,6 +287,12 @@ mod tests {
             megapixels: mpx,
             ms_per_frame: ms,
             iterations: 20.0,
+            ms_pyramids: 0.0,
+            ms_patches: 0.0,
+            ms_evaluation: 0.0,
+            ms_linear_solver: 0.0,
+            ms_gpu_kernels: None,
+            ms_gpu_transfers: None,
             peak_mib: None,
         }
     }

@@ -337,10 +337,11 @@ pub fn run_scene(
         let r = f.model_flow();
         if let Some(r) = r.filter(|r| r.suspect) {
             progress.println(&format!(
-                "warning: frame {}: the other cameras contradicted {:.0} % of where the previous frame left the surface (more than {:.0} %): the mesh may have slipped off it (motion beyond the capture range) or a large occluder covers it; check this frame's overlay",
+                "warning: frame {}: the other cameras contradicted {:.0} % of where the previous frame left the surface, against {:.0} % at the first frame (a rise of more than {:.0} points): the mesh may have slipped off it (motion beyond the capture range) or a large occluder covers it; check this frame's overlay",
                 f.frame,
                 100.0 * r.contradicted_share,
-                100.0 * modelflow::tracker::SUSPECT_SHARE
+                100.0 * r.contradicted_at_first,
+                100.0 * modelflow::tracker::SUSPECT_RISE
             ));
         }
         if let Some(r) = r.filter(|r| r.stalled) {

@@ -1152,7 +1152,7 @@ fn the_pixels_an_occluder_covers_are_the_ones_dropped() {
     assert!(all1 as f64 > 0.99 * all0 as f64, "{all1} of {all0} kept");
 }
 
-/// The GPU kernels, run on the CPU as C++ (`gpu::Gpu::emulated`), give the CPU loop's sums:
+/// The GPU kernels, run on the CPU as C (`gpu::Gpu::emulated`), give the CPU loop's sums:
 /// cost, normal equations, gradient, median residual and per-vertex confidence, for every loss,
 /// interpolation and gain model, with cameras that record late, and for `align`'s moving
 /// source. (One lane per warp sums the pixels in the CPU's order, so the agreement is to a few

@@ -5,7 +5,7 @@
 // to rounding. Reductions go to lane 0 in a fixed order (no atomics on floating point), so every
 // run gives the same bytes.
 //
-// The same source compiles as plain C++ (`emulate.cpp`, WARP 1) so that the CPU tests run this
+// The same source compiles as plain C99 (`emulate.c`, WARP 1) so that the CPU tests run this
 // arithmetic against the CPU path without a GPU.
 
 #ifndef WARP

@@ -86,7 +86,7 @@ impl std::fmt::Debug for Gpu {
 
 enum Backend {
     Cuda(cuda::Cuda),
-    /// The kernels compiled as C++ and run on the CPU, one patch at a time (tests only): the
+    /// The kernels compiled as C and run on the CPU, one patch at a time (tests only): the
     /// host side and the kernels' arithmetic checked without a GPU.
     #[cfg(test)]
     Emulated,
@@ -355,14 +355,16 @@ impl Uploaded {
             system,
         };
         let result = match (&self.gpu.backend, &mut *self.device.lock().ok()?) {
-            (Backend::Cuda(c), Device::Cuda(b)) => c.evaluate(b, h, &xs, &scalars).map(|(s, k, t)| {
-                self.gpu.record(|st| {
-                    st.evaluations += 1;
-                    st.kernel_seconds += k;
-                    st.transfer_seconds += t;
-                });
-                s
-            }),
+            (Backend::Cuda(c), Device::Cuda(b)) => {
+                c.evaluate(b, h, &xs, &scalars).map(|(s, k, t)| {
+                    self.gpu.record(|st| {
+                        st.evaluations += 1;
+                        st.kernel_seconds += k;
+                        st.transfer_seconds += t;
+                    });
+                    s
+                })
+            }
             #[cfg(test)]
             (Backend::Emulated, Device::Emulated) => Ok(emulated::evaluate(h, &xs, &scalars)),
             #[cfg(test)]
@@ -456,7 +458,7 @@ mod cuda {
         move |e| Error::Gpu(format!("{what}: {e}"))
     }
 
-    /// The macros that make `kernel.cu` CUDA (`emulate.cpp` makes it C++).
+    /// The macros that make `kernel.cu` CUDA (`emulate.c` makes it C).
     const PRELUDE: &str = "#define DEV static __device__ __forceinline__\n\
         #define KERNEL extern \"C\" __global__\n\
         #define LDG(p) __ldg(p)\n\
@@ -714,7 +716,7 @@ mod tests {
     }
 }
 
-/// The kernels compiled as C++ (`emulate.cpp`, one lane per warp), for the tests.
+/// The kernels compiled as C (`emulate.c`, one lane per warp), for the tests.
 #[cfg(test)]
 mod emulated {
     use super::{HostInputs, KernelScalars, Sums, BLOCKS, REC};
@@ -758,7 +760,7 @@ mod emulated {
         let mut hist = vec![0u64; crate::tracker::solve::HISTOGRAM_BINS];
         let mut scalars = vec![0.0f64; 4 * h.ntri];
         let mut blocks = vec![0.0f64; BLOCKS * h.ntri];
-        // SAFETY: the slices hold what the C++ functions read and write (sizes as above and as
+        // SAFETY: the slices hold what the C functions read and write (sizes as above and as
         // at upload), and the pointers live across the calls.
         unsafe {
             modelflow_emu_evaluate_patches(

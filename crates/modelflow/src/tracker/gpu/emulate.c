@@ -1,11 +1,8 @@
-// `kernel.cu` compiled as plain C++ for the tests (one lane per warp, one patch per block, run
+// `kernel.cu` compiled as plain C for the tests (one lane per warp, one patch per block, run
 // one after the other): the host side of the GPU path and the kernels' arithmetic are checked
 // against the CPU path on machines without a GPU (CI). Not used outside the tests.
-#include <cmath>
-using std::isfinite;
-using std::log1p;
-using std::round;
-using std::sqrt;
+#include <math.h>
+#include <stdbool.h>
 
 #define WARP 1
 #define PATCHES_PER_BLOCK 1
@@ -21,7 +18,7 @@ static inline void atomicAdd(unsigned long long* a, unsigned long long v) { *a +
 
 #include "kernel.cu"
 
-extern "C" void modelflow_emu_evaluate_patches(
+void modelflow_emu_evaluate_patches(
     const double* x, const double* x0, const double* prev, const double* proj, const double* lag,
     double gap, const unsigned* tris, const unsigned* patches, const float* weights,
     const float* pixels, const float* images, const unsigned long long* img_off,
@@ -35,7 +32,7 @@ extern "C" void modelflow_emu_evaluate_patches(
     }
 }
 
-extern "C" void modelflow_emu_sum_triangles(const double* recs, const unsigned* ranges, int ntri,
+void modelflow_emu_sum_triangles(const double* recs, const unsigned* ranges, int ntri,
                                             int system, double* scalars, double* blocks) {
     for (int t = 0; t < ntri; t++) {
         emu_block = t;
