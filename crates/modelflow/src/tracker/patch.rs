@@ -12,8 +12,10 @@ use crate::base::raster::{rasterize, trackable_mask, usable_triangles, IndexBuff
 use crate::tracker::warp::{barycentric, source_matrix};
 use nalgebra::Point3;
 
-/// One source pixel: barycentric coordinates on its triangle and its RGB value.
+/// One source pixel: barycentric coordinates on its triangle and its RGB value. Laid out as six
+/// `f32` (the GPU path uploads the slice as it is).
 #[derive(Clone, Copy, Debug, PartialEq)]
+#[repr(C)]
 pub struct PixelSample {
     pub lambda: [f32; 3],
     pub color: [f32; 3],

@@ -15,7 +15,6 @@
 //!
 //! Invariant: no I/O, no printing; a failure on the device becomes [`Error::Gpu`].
 
-use crate::base::image::RgbImage;
 use crate::error::{Error, Result};
 use crate::tracker::solve::{GainModel, Interpolation, Loss, Problem, SolverOptions, TriAccum};
 use nalgebra::{Matrix3, Point3, Vector3};
@@ -146,18 +145,13 @@ impl Gpu {
             ]);
             weights.push(q.weight);
         }
-        let mut pixels = Vec::with_capacity(p.pixels.len() * 6);
-        for s in p.pixels {
-            pixels.extend_from_slice(&s.lambda);
-            pixels.extend_from_slice(&s.color);
-        }
-        let mut images = Vec::new();
         let mut img_off = Vec::with_capacity(ncam);
         let mut img_size = Vec::with_capacity(2 * ncam);
+        let mut total = 0u64;
         for img in &p.targets {
-            img_off.push((images.len() / 3) as u64);
+            img_off.push(total);
             img_size.extend_from_slice(&[img.width() as i32, img.height() as i32]);
-            images.extend(RgbImage::pixels(img).iter().flatten());
+            total += (img.width() * img.height()) as u64;
         }
         let proj: Vec<f64> = p
             .projections
@@ -188,8 +182,6 @@ impl Gpu {
             tris,
             patches,
             weights,
-            pixels,
-            images,
             img_off,
             img_size,
             proj,
@@ -205,10 +197,19 @@ impl Gpu {
             moving: p.moving_source.is_some(),
         };
         let t1 = std::time::Instant::now();
+        // The template pixels and the images go up straight from the problem's memory.
         let device = match &self.backend {
-            Backend::Cuda(c) => Device::Cuda(Box::new(c.upload(&host)?)),
+            Backend::Cuda(c) => Device::Cuda(Box::new(c.upload(&host, p)?)),
             #[cfg(test)]
-            Backend::Emulated => Device::Emulated,
+            Backend::Emulated => Device::Emulated {
+                pixels: pixel_floats(p.pixels).to_vec(),
+                images: p
+                    .targets
+                    .iter()
+                    .flat_map(|i| crate::base::image::RgbImage::pixels(i).as_flattened())
+                    .copied()
+                    .collect(),
+            },
         };
         let (host_s, copy_s) = ((t1 - t0).as_secs_f64(), t1.elapsed().as_secs_f64());
         self.record(|s| {
@@ -230,8 +231,6 @@ pub(crate) struct HostInputs {
     tris: Vec<u32>,
     patches: Vec<u32>,
     weights: Vec<f32>,
-    pixels: Vec<f32>,
-    images: Vec<f32>,
     img_off: Vec<u64>,
     img_size: Vec<i32>,
     proj: Vec<f64>,
@@ -249,8 +248,20 @@ pub(crate) struct HostInputs {
 
 enum Device {
     Cuda(Box<cuda::Buffers>),
+    /// The pixels and images the emulated kernels read (on the GPU, in `Buffers`).
     #[cfg(test)]
-    Emulated,
+    Emulated {
+        pixels: Vec<f32>,
+        images: Vec<f32>,
+    },
+}
+
+/// The template pixels as the kernels read them: six `f32` each (`PixelSample` is `repr(C)`).
+fn pixel_floats(p: &[crate::tracker::patch::PixelSample]) -> &[f32] {
+    const _: () = assert!(std::mem::size_of::<crate::tracker::patch::PixelSample>() == 24);
+    // SAFETY: `PixelSample` is `repr(C)` of two `[f32; 3]`: 24 bytes, `f32`-aligned, no
+    // padding (asserted above), so the slice is `6·len` initialised `f32`s.
+    unsafe { std::slice::from_raw_parts(p.as_ptr().cast::<f32>(), p.len() * 6) }
 }
 
 /// One problem's inputs on the device; [`Uploaded::evaluate`] runs the kernels on them.
@@ -366,7 +377,9 @@ impl Uploaded {
                 })
             }
             #[cfg(test)]
-            (Backend::Emulated, Device::Emulated) => Ok(emulated::evaluate(h, &xs, &scalars)),
+            (Backend::Emulated, Device::Emulated { pixels, images }) => {
+                Ok(emulated::evaluate(h, pixels, images, &xs, &scalars))
+            }
             #[cfg(test)]
             _ => unreachable!("a problem uploaded to one backend evaluated on another"),
         };
@@ -420,7 +433,9 @@ struct KernelScalars {
 /// The CUDA backend (cudarc, driver and NVRTC loaded at run time).
 mod cuda {
     use super::{HostInputs, KernelScalars, Sums, BLOCKS, KERNEL, PATCHES_PER_BLOCK, REC};
+    use crate::base::image::RgbImage;
     use crate::error::{Error, Result};
+    use crate::tracker::solve::Problem;
     use cudarc::driver::{
         CudaContext, CudaFunction, CudaSlice, CudaStream, DeviceRepr, LaunchConfig, PushKernelArg,
         ValidAsZeroBits,
@@ -557,13 +572,26 @@ mod cuda {
                 .map_err(gpu_err(what))
         }
 
-        pub(super) fn upload(&self, h: &HostInputs) -> Result<Buffers> {
+        pub(super) fn upload(&self, h: &HostInputs, p: &Problem<'_>) -> Result<Buffers> {
+            let total: usize = p.targets.iter().map(|i| i.width() * i.height() * 3).sum();
+            let mut images = self.zeros::<f32>(total, "allocating the next frame's images")?;
+            for (img, &off) in p.targets.iter().zip(&h.img_off) {
+                let src = RgbImage::pixels(img).as_flattened();
+                let start = 3 * off as usize;
+                let mut view = images.slice_mut(start..start + src.len());
+                self.stream
+                    .memcpy_htod(src, &mut view)
+                    .map_err(gpu_err("uploading the next frame's images"))?;
+            }
             Ok(Buffers {
                 tris: self.up(&h.tris, "uploading the triangles")?,
                 patches: self.up(&h.patches, "uploading the patches")?,
                 weights: self.up(&h.weights, "uploading the patches' weights")?,
-                pixels: self.up(&h.pixels, "uploading the template pixels")?,
-                images: self.up(&h.images, "uploading the next frame's images")?,
+                pixels: self.up(
+                    super::pixel_floats(p.pixels),
+                    "uploading the template pixels",
+                )?,
+                images,
                 img_off: self.up(&h.img_off, "uploading the images' offsets")?,
                 img_size: self.up(&h.img_size, "uploading the images' sizes")?,
                 proj: self.up(&h.proj, "uploading the cameras")?,
@@ -755,7 +783,13 @@ mod emulated {
         );
     }
 
-    pub(super) fn evaluate(h: &HostInputs, xs: &[f64], k: &KernelScalars) -> Sums {
+    pub(super) fn evaluate(
+        h: &HostInputs,
+        pixels: &[f32],
+        images: &[f32],
+        xs: &[f64],
+        k: &KernelScalars,
+    ) -> Sums {
         let mut recs = vec![0.0f64; REC * h.npatches];
         let mut hist = vec![0u64; crate::tracker::solve::HISTOGRAM_BINS];
         let mut scalars = vec![0.0f64; 4 * h.ntri];
@@ -773,8 +807,8 @@ mod emulated {
                 h.tris.as_ptr(),
                 h.patches.as_ptr(),
                 h.weights.as_ptr(),
-                h.pixels.as_ptr(),
-                h.images.as_ptr(),
+                pixels.as_ptr(),
+                images.as_ptr(),
                 h.img_off.as_ptr(),
                 h.img_size.as_ptr(),
                 h.npatches as i32,
