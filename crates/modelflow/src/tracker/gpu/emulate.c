@@ -14,6 +14,9 @@ static int emu_block = 0;
 #define THREAD_X 0
 #define THREAD_Y 0
 #define BLOCK_DIM_X 1
+#define SHARED
+#define SYNCWARP()
+#define LAUNCH_BOUNDS
 static inline void atomicAdd(unsigned long long* a, unsigned long long v) { *a += v; }
 
 #include "kernel.cu"

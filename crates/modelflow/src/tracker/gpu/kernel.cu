@@ -1,9 +1,15 @@
 // The photometric evaluation of `solve::Problem::triangle` on the GPU: one warp per patch
-// (triangle, camera), its lanes over the patch's pixels. Written by hand: it is the product's
-// inner loop (warp, Catmull-Rom sample with exact derivatives, per-patch gain fit, robust loss,
-// the normal equations' 3x3 vertex-pair blocks), line by line the CPU's, so that the two agree
-// to rounding. Reductions go to lane 0 in a fixed order (no atomics on floating point), so every
-// run gives the same bytes.
+// (triangle, camera). Written by hand: it is the product's inner loop (warp, Catmull-Rom sample
+// with exact derivatives, per-patch gain fit, robust loss, the normal equations' 3x3 vertex-pair
+// blocks), line by line the CPU's.
+//
+// The sums are transposed: the warp takes the patch's pixels 32 at a time, each lane computes
+// one pixel's intermediate values into shared memory, and then each lane owns a few of the
+// patch's sums (the 60 entries of the six pair blocks with their gain couplings, the gradient,
+// the cost...) and adds the chunk's pixels to them in pixel order. Every sum is thus formed in
+// the CPU's order, operation for operation (no fused multiply-add), so the two paths agree to
+// the bit but for `log1p`; each lane holds four accumulators instead of a hundred (registers,
+// occupancy); and there are no atomics on floating point, so runs repeat to the bit.
 //
 // The same source compiles as plain C99 (`emulate.c`, WARP 1) so that the CPU tests run this
 // arithmetic against the CPU path without a GPU.
@@ -17,6 +23,13 @@
 
 #define REC 67
 #define HIST_BINS 160
+// Per-pixel intermediate values in shared memory (pass 2; pass 1 uses the first six).
+#define NV 27
+// The patch's sums: pass 1 (the gain fit) and pass 2 (at most; see out2).
+#define NOUT1 10
+#define NOUT2 109
+#define OWN1 ((NOUT1 + WARP - 1) / WARP)
+#define OWN2 ((NOUT2 + WARP - 1) / WARP)
 
 #define FLAG_TUKEY 1
 #define FLAG_CUBIC 2
@@ -34,58 +47,48 @@
 #define FIT_CONSTANT 1
 #define FIT_LINEAR 2
 
-DEV double reduce_sum(double v) {
-#if WARP > 1
-    for (int off = WARP / 2; off > 0; off >>= 1) v += __shfl_down_sync(0xffffffffu, v, off);
-    return __shfl_sync(0xffffffffu, v, 0);
-#else
-    return v;
-#endif
-}
-
-DEV unsigned reduce_sum_u(unsigned v) {
-#if WARP > 1
-    for (int off = WARP / 2; off > 0; off >>= 1) v += __shfl_down_sync(0xffffffffu, v, off);
-    return __shfl_sync(0xffffffffu, v, 0);
-#else
-    return v;
-#endif
-}
-
-// Lane 0 gets the sum (the others a partial one): for the sums only lane 0 writes.
-DEV double reduce_to_lane0(double v) {
-#if WARP > 1
-    for (int off = WARP / 2; off > 0; off >>= 1) v += __shfl_down_sync(0xffffffffu, v, off);
-#endif
-    return v;
-}
-
 DEV void project_h(const double* P, const double* p, double* out) {
     for (int r = 0; r < 3; r++) {
         out[r] = P[4 * r] * p[0] + P[4 * r + 1] * p[1] + P[4 * r + 2] * p[2] + P[4 * r + 3];
     }
 }
 
-// 3x3 row-major inverse by cofactors; false when singular or not finite.
+// 3x3 row-major inverse, with nalgebra's formulas in nalgebra's order (`try_inverse`), so that
+// the GPU's result is the CPU's to the bit; false only when the determinant is zero (the callers
+// check finiteness, as the CPU's do).
 DEV bool inverse3(const double* a, double* o) {
-    double c00 = a[4] * a[8] - a[5] * a[7];
-    double c01 = a[5] * a[6] - a[3] * a[8];
-    double c02 = a[3] * a[7] - a[4] * a[6];
-    double det = a[0] * c00 + a[1] * c01 + a[2] * c02;
-    if (det == 0.0 || !(det == det)) return false;
-    double id = 1.0 / det;
-    o[0] = c00 * id;
-    o[1] = (a[2] * a[7] - a[1] * a[8]) * id;
-    o[2] = (a[1] * a[5] - a[2] * a[4]) * id;
-    o[3] = c01 * id;
-    o[4] = (a[0] * a[8] - a[2] * a[6]) * id;
-    o[5] = (a[2] * a[3] - a[0] * a[5]) * id;
-    o[6] = c02 * id;
-    o[7] = (a[1] * a[6] - a[0] * a[7]) * id;
-    o[8] = (a[0] * a[4] - a[1] * a[3]) * id;
-    for (int i = 0; i < 9; i++)
-        if (!isfinite(o[i])) return false;
+    double m11 = a[0], m12 = a[1], m13 = a[2];
+    double m21 = a[3], m22 = a[4], m23 = a[5];
+    double m31 = a[6], m32 = a[7], m33 = a[8];
+    double minor_m12_m23 = m22 * m33 - m32 * m23;
+    double minor_m11_m23 = m21 * m33 - m31 * m23;
+    double minor_m11_m22 = m21 * m32 - m31 * m22;
+    double det = m11 * minor_m12_m23 - m12 * minor_m11_m23 + m13 * minor_m11_m22;
+    if (det == 0.0) return false;
+    o[0] = minor_m12_m23 / det;
+    o[1] = (m13 * m32 - m33 * m12) / det;
+    o[2] = (m12 * m23 - m22 * m13) / det;
+    o[3] = -minor_m11_m23 / det;
+    o[4] = (m11 * m33 - m31 * m13) / det;
+    o[5] = (m13 * m21 - m23 * m11) / det;
+    o[6] = minor_m11_m22 / det;
+    o[7] = (m12 * m31 - m32 * m11) / det;
+    o[8] = (m11 * m22 - m21 * m12) / det;
     return true;
+}
+
+DEV bool all_finite9(const double* a) {
+    for (int i = 0; i < 9; i++)
+        if (!isfinite(a[i])) return false;
+    return true;
+}
+
+// nalgebra's `sum()` of a 3x3 matrix: column by column.
+DEV double sum9_colmajor(const double* a) {
+    double s = 0.0;
+    for (int c = 0; c < 3; c++)
+        for (int r = 0; r < 3; r++) s += a[3 * r + c];
+    return s;
 }
 
 DEV void mul3(const double* a, const double* b, double* o) {
@@ -182,18 +185,100 @@ DEV int hist_bin(const double* edges, double e2) {
     return lo;
 }
 
-// One record of REC doubles per patch: cost (weighted, after the patch loss), pixels, weight,
-// rejected, the six vertex-pair blocks (PAIRS order, row-major 3x3, weighted), the three
-// vertices' gradient vectors (weighted).
-KERNEL void evaluate_patches(
+
+// Pass 1's sums: gm's six distinct entries (a <= b), gr, the count, each as
+// (V[ia] * V[ib]) * V[ic] over the valid pixels, V = {1, l0, l1, l2, |c|^2, s.c}.
+DEV void out1(int o, int* ia, int* ib, int* ic) {
+    const int A[6] = {0, 0, 0, 1, 1, 2};
+    const int B[6] = {0, 1, 2, 1, 2, 2};
+    if (o < 6) {
+        *ia = 1 + A[o];
+        *ib = 1 + B[o];
+        *ic = 4;
+    } else if (o < 9) {
+        *ia = 1 + (o - 6);
+        *ib = 5;
+        *ic = 0;
+    } else {
+        *ia = 0;
+        *ib = 0;
+        *ic = 0;
+    }
+}
+
+// Pass 2's sums, each (V[ia] * V[ib]) * V[ic] over the valid pixels, with V = {1, rho, d2,
+// rejected, wl[3], l[3], gt[10], r3[3], mu[3], w.|c|^2}: the CPU's products in its order.
+//   0 cost, 1 Tukey's thresholds, 2 pixels, 3 rejected,
+//   4.. 63 hp[k][e] = (wl[i] * l[j]) * gt[e]     (k: the pair (i, j))
+//  64.. 72 gp[a][k] = (wl[a] * r3[k]) * 1
+//  73.. 99 coupling[a][b][e] = (wl[a] * mu[b]) * t[e]   (a free gain not on the template)
+// 100..108 gram[a][b] = ((w |c|^2) * mu[a]) * mu[b]
+DEV void out2(int o, int* ia, int* ib, int* ic) {
+    const int PI[6] = {0, 1, 2, 0, 0, 1};
+    const int PJ[6] = {0, 1, 2, 1, 2, 2};
+    if (o < 4) {
+        *ia = o == 0 ? 1 : (o == 1 ? 2 : (o == 2 ? 0 : 3));
+        *ib = 0;
+        *ic = 0;
+    } else if (o < 64) {
+        int k = (o - 4) / 10, e = (o - 4) % 10;
+        *ia = 4 + PI[k];
+        *ib = 7 + PJ[k];
+        *ic = 10 + e;
+    } else if (o < 73) {
+        *ia = 4 + (o - 64) / 3;
+        *ib = 20 + (o - 64) % 3;
+        *ic = 0;
+    } else if (o < 100) {
+        int q = o - 73;
+        *ia = 4 + q / 9;
+        *ib = 23 + (q / 3) % 3;
+        *ic = 16 + q % 3;
+    } else {
+        int q = o - 100;
+        *ia = 26;
+        *ib = 23 + q / 3;
+        *ic = 23 + q % 3;
+    }
+}
+
+// The patch's warp: where its pixel with stored barycentrics l lands (u, v, 1/h_z); false when
+// behind the camera.
+DEV bool warp_pixel(const double* y, const double* l, double* u, double* v, double* inv) {
+    double hx = y[0] * l[0] + y[3] * l[1] + y[6] * l[2];
+    double hy = y[1] * l[0] + y[4] * l[1] + y[7] * l[2];
+    double hz = y[2] * l[0] + y[5] * l[1] + y[8] * l[2];
+    if (!(hz > 0.0)) return false;
+    *inv = 1.0 / hz;
+    *u = hx * *inv;
+    *v = hy * *inv;
+    return true;
+}
+
+// One record of REC doubles per patch: cost (weighted, after the patch loss), pixels, the
+// patch's weight per pixel (or, with rejected = -1, its whole weight at once: an edge-on
+// source), rejected, the six vertex-pair blocks (PAIRS order, row-major 3x3, weighted), the
+// three vertices' gradient vectors (weighted).
+DEV void evaluate_patch(
     const double* x, const double* x0, const double* prev, const double* proj,
     const double* lag, double gap, const unsigned* tris, const unsigned* patches,
     const float* weights, const float* pixels, const float* images, const unsigned long long* img_off,
     const int* img_size, int npatches, double huber, double tukey_px, double patch_scale,
     int flags, const double* edges, double* out, unsigned long long* hist) {
+    SHARED double sv[PATCHES_PER_BLOCK][WARP][NV];
+    SHARED int svalid[PATCHES_PER_BLOCK][WARP];
+    SHARED double sout[PATCHES_PER_BLOCK][NOUT2];
+    // The patch's warp, the same for every lane: y (where barycentric e_k lands, homogeneous;
+    // y[k][r] at 3k + r), the derivative's matrix m (row-major, at 9) and a moving source's
+    // stored-to-current barycentrics (at 18).
+    SHARED double shead[PATCHES_PER_BLOCK][27];
     int p = BLOCK_X * PATCHES_PER_BLOCK + THREAD_Y;
     int lane = THREAD_X;
     if (p >= npatches) return;
+    double (*V)[NV] = sv[THREAD_Y];
+    int* valid = svalid[THREAD_Y];
+    double* so = sout[THREAD_Y];
+    double* H = shead[THREAD_Y];
     const int pairs_i[6] = {0, 1, 2, 0, 0, 1};
     const int pairs_j[6] = {0, 1, 2, 1, 2, 2};
     const bool tukey = (flags & FLAG_TUKEY) != 0;
@@ -213,78 +298,90 @@ KERNEL void evaluate_patches(
     double xs[3][3];
     for (int k = 0; k < 3; k++)
         for (int a = 0; a < 3; a++) xs[k][a] = x[3 * (unsigned long long)vs[k] + a];
-    const double* P = proj + 12 * cam;
-    double m[9];
-    for (int r = 0; r < 3; r++)
-        for (int c = 0; c < 3; c++) m[3 * r + c] = P[4 * r + c];
-    double y[3][3];  // y[k]: where barycentric e_k lands (homogeneous)
-    double d = (flags & FLAG_LAG) ? lag[cam] : 0.0;
-    if (d != 0.0) {
-        double s = 1.0 + d / gap;
-        for (int i = 0; i < 9; i++) m[i] *= s;
-        for (int k = 0; k < 3; k++) {
-            double q[3];
-            for (int a = 0; a < 3; a++) {
-                double pa = xs[k][a];
-                double qa = prev[3 * (unsigned long long)vs[k] + a];
-                q[a] = pa + (pa - qa) * (d / gap);
-            }
-            project_h(P, q, y[k]);
-        }
-    } else {
-        for (int k = 0; k < 3; k++) project_h(P, xs[k], y[k]);
-    }
-    // A moving source (`align`, the stereo term): `SourceWarp`.
     bool moving = (flags & FLAG_MOVING) != 0 && src != cam;
-    double tcur[9];
-    if (moving) {
-        const double* Ps = proj + 12 * src;
-        double si[9], sj[9], s0[9], si_inv[9], hm[9], t[9], am[9];
-        for (int k = 0; k < 3; k++) {
-            double a[3], b[3], c[3], q0[3];
-            for (int e = 0; e < 3; e++) q0[e] = x0[3 * (unsigned long long)vs[k] + e];
-            project_h(Ps, xs[k], a);
-            project_h(P, xs[k], b);
-            project_h(Ps, q0, c);
-            for (int r = 0; r < 3; r++) {
-                si[3 * r + k] = a[r];
-                sj[3 * r + k] = b[r];
-                s0[3 * r + k] = c[r];
-            }
-        }
-        bool ok = inverse3(si, si_inv);
-        if (ok) {
-            mul3(sj, si_inv, hm);
-            mul3(si_inv, s0, t);
-            mul3(hm, s0, am);
-            double mi[9], mj[9], hmi[9];
-            for (int r = 0; r < 3; r++)
-                for (int c = 0; c < 3; c++) {
-                    mi[3 * r + c] = Ps[4 * r + c];
-                    mj[3 * r + c] = P[4 * r + c];
+    {
+        const double* P = proj + 12 * cam;
+        double m[9];
+        for (int r = 0; r < 3; r++)
+            for (int c = 0; c < 3; c++) m[3 * r + c] = P[4 * r + c];
+        double y[3][3];  // y[k]: where barycentric e_k lands (homogeneous)
+        double d = (flags & FLAG_LAG) ? lag[cam] : 0.0;
+        if (d != 0.0) {
+            double s = 1.0 + d / gap;
+            for (int i = 0; i < 9; i++) m[i] *= s;
+            for (int k = 0; k < 3; k++) {
+                double q[3];
+                for (int a = 0; a < 3; a++) {
+                    double pa = xs[k][a];
+                    double qa = prev[3 * (unsigned long long)vs[k] + a];
+                    q[a] = pa + (pa - qa) * (d / gap);
                 }
-            mul3(hm, mi, hmi);
-            for (int i = 0; i < 9; i++) {
-                m[i] = mj[i] - hmi[i];
-                tcur[i] = t[i];
-                if (!isfinite(m[i]) || !isfinite(t[i])) ok = false;
+                project_h(P, q, y[k]);
             }
+        } else {
+            for (int k = 0; k < 3; k++) project_h(P, xs[k], y[k]);
+        }
+        // A moving source (`align`, the stereo term): `SourceWarp`.
+        double tcur[9] = {0, 0, 0, 0, 0, 0, 0, 0, 0};
+        if (moving) {
+            const double* Ps = proj + 12 * src;
+            double si[9], sj[9], s0[9], si_inv[9], hm[9], t[9], am[9];
+            for (int k = 0; k < 3; k++) {
+                double a[3], b[3], c[3], q0[3];
+                for (int e = 0; e < 3; e++) q0[e] = x0[3 * (unsigned long long)vs[k] + e];
+                project_h(Ps, xs[k], a);
+                project_h(P, xs[k], b);
+                project_h(Ps, q0, c);
+                for (int r = 0; r < 3; r++) {
+                    si[3 * r + k] = a[r];
+                    sj[3 * r + k] = b[r];
+                    s0[3 * r + k] = c[r];
+                }
+            }
+            bool ok = inverse3(si, si_inv);
+            if (ok) {
+                mul3(sj, si_inv, hm);
+                mul3(si_inv, s0, t);
+                mul3(hm, s0, am);
+                double mi[9], mj[9], hmi[9];
+                for (int r = 0; r < 3; r++)
+                    for (int c = 0; c < 3; c++) {
+                        mi[3 * r + c] = Ps[4 * r + c];
+                        mj[3 * r + c] = P[4 * r + c];
+                    }
+                mul3(hm, mi, hmi);
+                for (int i = 0; i < 9; i++) {
+                    m[i] = mj[i] - hmi[i];
+                    tcur[i] = t[i];
+                }
+                ok = all_finite9(m) && all_finite9(tcur);
+                for (int k = 0; k < 3; k++)
+                    for (int r = 0; r < 3; r++) y[k][r] = am[3 * r + k];
+            }
+            if (!ok) {
+                // Edge-on source triangle: its pixels count at the loss's cap.
+                if (lane == 0) {
+                    double n = (double)(end - start);
+                    double hub2 = huber * huber;
+                    double cap = tukey ? hub2 / 3.0 : hub2;
+                    for (int i = 0; i < REC; i++) rec[i] = 0.0;
+                    rec[0] = pw * n * cap;
+                    rec[1] = n;
+                    rec[2] = pw * n;
+                    rec[3] = -1.0;
+                }
+                return;
+            }
+        }
+        if (lane == 0) {
             for (int k = 0; k < 3; k++)
-                for (int r = 0; r < 3; r++) y[k][r] = am[3 * r + k];
-        }
-        if (!ok) {
-            // Edge-on source triangle: its pixels count at the loss's cap.
-            if (lane == 0) {
-                double n = (double)(end - start);
-                double hub2 = huber * huber;
-                double cap = tukey ? hub2 / 3.0 : hub2;
-                for (int i = 0; i < REC; i++) rec[i] = 0.0;
-                rec[0] = pw * n * cap;
-                rec[1] = n;
-                rec[2] = pw * n;
+                for (int r = 0; r < 3; r++) H[3 * k + r] = y[k][r];
+            for (int i = 0; i < 9; i++) {
+                H[9 + i] = m[i];
+                H[18 + i] = tcur[i];
             }
-            return;
         }
+        SYNCWARP();
     }
     const float* pix = pixels + 6 * (unsigned long long)start;
     unsigned n = end - start;
@@ -294,46 +391,74 @@ KERNEL void evaluate_patches(
     // Pass 1: the gain fit's normal equations.
     double gm[9] = {0, 0, 0, 0, 0, 0, 0, 0, 0};
     double gr[3] = {0, 0, 0};
-    unsigned count = 0;
+    double count = 0.0;
     if (gain_model != GAIN_OFF) {
-        for (unsigned i = lane; i < n; i += WARP) {
-            const float* px = pix + 6 * i;
-            double l[3] = {(double)px[0], (double)px[1], (double)px[2]};
-            double hx = y[0][0] * l[0] + y[1][0] * l[1] + y[2][0] * l[2];
-            double hy = y[0][1] * l[0] + y[1][1] * l[1] + y[2][1] * l[2];
-            double hz = y[0][2] * l[0] + y[1][2] * l[1] + y[2][2] * l[2];
-            if (!(hz > 0.0)) continue;
-            double inv = 1.0 / hz;
-            float s[9];
-            if (!sample(img, iw, ih, hx * inv, hy * inv, cubic, s)) continue;
-            double sc = 0.0, cc = 0.0;
-            for (int k = 0; k < 3; k++) {
-                sc += (double)(s[k] * px[3 + k]);
-                cc += (double)(px[3 + k] * px[3 + k]);
-            }
-            for (int a = 0; a < 3; a++) {
-                for (int b = 0; b < 3; b++) gm[3 * a + b] += l[a] * l[b] * cc;
-                gr[a] += l[a] * sc;
-            }
-            count++;
+        double acc[OWN1];
+        int ia[OWN1], ib[OWN1], ic[OWN1];
+        for (int r = 0; r < OWN1; r++) {
+            acc[r] = 0.0;
+            int o = lane + WARP * r;
+            out1(o < NOUT1 ? o : 0, &ia[r], &ib[r], &ic[r]);
         }
-        for (int i = 0; i < 9; i++) gm[i] = reduce_sum(gm[i]);
-        for (int i = 0; i < 3; i++) gr[i] = reduce_sum(gr[i]);
-        count = reduce_sum_u(count);
+        for (unsigned base = 0; base < n; base += WARP) {
+            unsigned i = base + lane;
+            int ok = 0;
+            if (i < n) {
+                const float* px = pix + 6 * i;
+                double l[3] = {(double)px[0], (double)px[1], (double)px[2]};
+                double u, v, inv;
+                float s[9];
+                if (warp_pixel(H, l, &u, &v, &inv) && sample(img, iw, ih, u, v, cubic, s)) {
+                    double sc = 0.0, cc = 0.0;
+                    for (int k = 0; k < 3; k++) {
+                        sc += (double)(s[k] * px[3 + k]);
+                        cc += (double)(px[3 + k] * px[3 + k]);
+                    }
+                    V[lane][0] = 1.0;
+                    V[lane][1] = l[0];
+                    V[lane][2] = l[1];
+                    V[lane][3] = l[2];
+                    V[lane][4] = cc;
+                    V[lane][5] = sc;
+                    ok = 1;
+                }
+            }
+            valid[lane] = ok;
+            SYNCWARP();
+            unsigned cnt = n - base < WARP ? n - base : WARP;
+            for (unsigned q = 0; q < cnt; q++) {
+                if (!valid[q]) continue;
+                for (int r = 0; r < OWN1; r++)
+                    acc[r] += (V[q][ia[r]] * V[q][ib[r]]) * V[q][ic[r]];
+            }
+            SYNCWARP();
+        }
+        for (int r = 0; r < OWN1; r++) {
+            int o = lane + WARP * r;
+            if (o < NOUT1) so[o] = acc[r];
+        }
+        SYNCWARP();
+        const int A[6] = {0, 0, 0, 1, 1, 2};
+        const int B[6] = {0, 1, 2, 1, 2, 2};
+        for (int k = 0; k < 6; k++) {
+            gm[3 * A[k] + B[k]] = so[k];
+            gm[3 * B[k] + A[k]] = so[k];
+        }
+        for (int a = 0; a < 3; a++) gr[a] = so[6 + a];
+        count = so[9];
+        SYNCWARP();
     }
     float gains[3] = {1.0f, 1.0f, 1.0f};
     int fitted = FIT_NONE;
     double trace = gm[0] + gm[4] + gm[8];
     if (gain_model != GAIN_OFF && trace > 0.0) {
         bool done = false;
-        if (gain_model == GAIN_LINEAR && count >= 12) {
+        if (gain_model == GAIN_LINEAR && count >= 12.0) {
             double inv[9];
             if (inverse3(gm, inv)) {
                 double chk[9];
                 mul3(inv, gm, chk);
-                bool fin = true;
-                for (int i = 0; i < 9; i++) fin = fin && isfinite(chk[i]);
-                if (fin) {
+                if (all_finite9(chk)) {
                     bool same = true;
                     for (int r = 0; r < 3; r++) {
                         double g = inv[3 * r] * gr[0] + inv[3 * r + 1] * gr[1] + inv[3 * r + 2] * gr[2];
@@ -348,221 +473,201 @@ KERNEL void evaluate_patches(
         }
         if (!done) {
             double gs = gr[0] + gr[1] + gr[2];
-            double ms = 0.0;
-            for (int i = 0; i < 9; i++) ms += gm[i];
-            double g = gs / ms;
+            double g = gs / sum9_colmajor(gm);
             double c = g < 0.5 ? 0.5 : (g > 2.0 ? 2.0 : g);
-            if (!(g == g)) c = g;  // f64::clamp passes NaN through
             gains[0] = gains[1] = gains[2] = (float)c;
             fitted = (c == g) ? FIT_CONSTANT : FIT_NONE;
         }
     }
     bool on_template = system && fitted != FIT_NONE && !moving;
     bool free_gain = system && fitted != FIT_NONE && !on_template;
+    int nout = free_gain ? NOUT2 : (system ? 73 : 4);
 
     // Pass 2: residuals, loss, normal equations.
     double hub2 = huber * huber;
     double tol2 = tukey_px * tukey_px;
-    double hp[6][10];
-    for (int k = 0; k < 6; k++)
-        for (int e = 0; e < 10; e++) hp[k][e] = 0.0;
-    double gp[3][3] = {{0, 0, 0}, {0, 0, 0}, {0, 0, 0}};
-    double coupling[3][3][3];
-    double gram[9];
-    for (int i = 0; i < 27; i++) (&coupling[0][0][0])[i] = 0.0;
-    for (int i = 0; i < 9; i++) gram[i] = 0.0;
-    double pcost = 0.0, pd2 = 0.0;
-    unsigned pn = 0, rejected = 0;
-    for (unsigned i = lane; i < n; i += WARP) {
-        const float* px = pix + 6 * i;
-        double l[3] = {(double)px[0], (double)px[1], (double)px[2]};
-        double hx = y[0][0] * l[0] + y[1][0] * l[1] + y[2][0] * l[2];
-        double hy = y[0][1] * l[0] + y[1][1] * l[1] + y[2][1] * l[2];
-        double hz = y[0][2] * l[0] + y[1][2] * l[1] + y[2][2] * l[2];
-        if (!(hz > 0.0)) continue;
-        double inv = 1.0 / hz;
-        double u = hx * inv, v = hy * inv;
-        float s[9];
-        if (!sample(img, iw, ih, u, v, cubic, s)) continue;
-        if (moving) {
-            double c0 = tcur[0] * l[0] + tcur[1] * l[1] + tcur[2] * l[2];
-            double c1 = tcur[3] * l[0] + tcur[4] * l[1] + tcur[5] * l[2];
-            double c2 = tcur[6] * l[0] + tcur[7] * l[1] + tcur[8] * l[2];
-            l[0] = c0;
-            l[1] = c1;
-            l[2] = c2;
-        }
-        float gain = px[0] * gains[0] + px[1] * gains[1] + px[2] * gains[2];
-        double r[3];
-        for (int k = 0; k < 3; k++) r[k] = (double)(s[k] - gain * px[3 + k]);
-        double e2 = r[0] * r[0] + r[1] * r[1] + r[2] * r[2];
-        if (want_hist) {
-            double wgt = round(pw * 1024.0);
-            if (wgt < 1.0) wgt = 1.0;
-            atomicAdd(&hist[hist_bin(edges, e2)], (unsigned long long)wgt);
-        }
-        double rho, w;
-        if (!tukey) {
-            if (e2 <= hub2) {
-                rho = e2;
-                w = 1.0;
-            } else {
-                double e = sqrt(e2);
-                rho = 2.0 * huber * e - hub2;
-                w = huber / e;
-            }
-        } else {
-            double g2 = 0.0;
-            for (int k = 3; k < 9; k++) g2 += (double)(s[k] * s[k]);
-            double d2 = hub2 + tol2 * g2;
-            pd2 += d2;
-            if (e2 >= d2) {
-                rejected++;
-                rho = d2 / 3.0;
-                w = 0.0;
-            } else {
-                double t = 1.0 - e2 / d2;
-                rho = d2 / 3.0 * (1.0 - t * t * t);
-                w = t * t;
-            }
-        }
-        pcost += rho;
-        pn++;
-        if (!system) continue;
-        double gx[3] = {(double)s[3], (double)s[4], (double)s[5]};
-        double gy[3] = {(double)s[6], (double)s[7], (double)s[8]};
-        double aa = gx[0] * gx[0] + gx[1] * gx[1] + gx[2] * gx[2];
-        double ab = gx[0] * gy[0] + gx[1] * gy[1] + gx[2] * gy[2];
-        double bb = gy[0] * gy[0] + gy[1] * gy[1] + gy[2] * gy[2];
-        double ra = gx[0] * r[0] + gx[1] * r[1] + gx[2] * r[2];
-        double rb = gy[0] * r[0] + gy[1] * r[1] + gy[2] * r[2];
-        double da[3], db[3];
-        for (int k = 0; k < 3; k++) {
-            da[k] = (m[k] - u * m[6 + k]) * inv;
-            db[k] = (m[3 + k] - v * m[6 + k]) * inv;
-        }
-        double pp[3], qq[3];
-        for (int k = 0; k < 3; k++) {
-            pp[k] = aa * da[k] + ab * db[k];
-            qq[k] = ab * da[k] + bb * db[k];
-        }
-        double gt[10];
-        gt[0] = pp[0] * da[0] + qq[0] * db[0];
-        gt[1] = pp[1] * da[1] + qq[1] * db[1];
-        gt[2] = pp[2] * da[2] + qq[2] * db[2];
-        gt[3] = pp[0] * da[1] + qq[0] * db[1];
-        gt[4] = pp[0] * da[2] + qq[0] * db[2];
-        gt[5] = pp[1] * da[2] + qq[1] * db[2];
-        double r3[3];
-        for (int k = 0; k < 3; k++) r3[k] = ra * da[k] + rb * db[k];
-        double wl[3] = {w * l[0], w * l[1], w * l[2]};
-        double tt[3] = {0.0, 0.0, 0.0}, cc = 0.0;
-        if (fitted != FIT_NONE) {
-            double c[3] = {(double)px[3], (double)px[4], (double)px[5]};
-            double xc = gx[0] * c[0] + gx[1] * c[1] + gx[2] * c[2];
-            double yc = gy[0] * c[0] + gy[1] * c[1] + gy[2] * c[2];
-            for (int k = 0; k < 3; k++) tt[k] = da[k] * xc + db[k] * yc;
-            cc = c[0] * c[0] + c[1] * c[1] + c[2] * c[2];
-        }
-        gt[6] = tt[0];
-        gt[7] = tt[1];
-        gt[8] = tt[2];
-        gt[9] = cc;
-        for (int k = 0; k < 6; k++) {
-            double c = wl[pairs_i[k]] * l[pairs_j[k]];
-            for (int e = 0; e < 10; e++) hp[k][e] += c * gt[e];
-        }
-        for (int a = 0; a < 3; a++)
-            for (int k = 0; k < 3; k++) gp[a][k] += wl[a] * r3[k];
-        if (free_gain) {
-            double mu[3] = {(double)px[0], (double)px[1], (double)px[2]};
-            for (int a = 0; a < 3; a++)
-                for (int b = 0; b < 3; b++) {
-                    double f = wl[a] * mu[b];
-                    for (int e = 0; e < 3; e++) coupling[a][b][e] += f * tt[e];
-                    gram[3 * a + b] += w * cc * mu[a] * mu[b];
+    double acc[OWN2];
+    int ia[OWN2], ib[OWN2], ic[OWN2];
+    for (int r = 0; r < OWN2; r++) {
+        acc[r] = 0.0;
+        int o = lane + WARP * r;
+        out2(o < nout ? o : 0, &ia[r], &ib[r], &ic[r]);
+    }
+    for (unsigned base = 0; base < n; base += WARP) {
+        unsigned i = base + lane;
+        int ok = 0;
+        if (i < n) {
+            const float* px = pix + 6 * i;
+            double l[3] = {(double)px[0], (double)px[1], (double)px[2]};
+            double u, v, inv;
+            float s[9];
+            if (warp_pixel(H, l, &u, &v, &inv) && sample(img, iw, ih, u, v, cubic, s)) {
+                ok = 1;
+                double* W = V[lane];
+                if (moving) {
+                    const double* t = H + 18;
+                    double c0 = t[0] * l[0] + t[1] * l[1] + t[2] * l[2];
+                    double c1 = t[3] * l[0] + t[4] * l[1] + t[5] * l[2];
+                    double c2 = t[6] * l[0] + t[7] * l[1] + t[8] * l[2];
+                    l[0] = c0;
+                    l[1] = c1;
+                    l[2] = c2;
                 }
-        }
-    }
-    pcost = reduce_to_lane0(pcost);
-    pd2 = reduce_to_lane0(pd2);
-    pn = reduce_sum_u(pn);
-    rejected = reduce_sum_u(rejected);
-    if (system) {
-        for (int k = 0; k < 6; k++)
-            for (int e = 0; e < 10; e++) hp[k][e] = reduce_to_lane0(hp[k][e]);
-        for (int a = 0; a < 3; a++)
-            for (int k = 0; k < 3; k++) gp[a][k] = reduce_to_lane0(gp[a][k]);
-        if (free_gain) {
-            for (int i = 0; i < 27; i++)
-                (&coupling[0][0][0])[i] = reduce_to_lane0((&coupling[0][0][0])[i]);
-            for (int i = 0; i < 9; i++) gram[i] = reduce_to_lane0(gram[i]);
-        }
-    }
-    if (lane != 0) return;
-    if (on_template) {
-        for (int k = 0; k < 6; k++) {
-            int i = pairs_i[k], j = pairs_j[k];
-            for (int e = 0; e < 3; e++) {
-                coupling[i][j][e] = hp[k][6 + e];
-                coupling[j][i][e] = hp[k][6 + e];
+                float gain = px[0] * gains[0] + px[1] * gains[1] + px[2] * gains[2];
+                double r[3];
+                for (int k = 0; k < 3; k++) r[k] = (double)(s[k] - gain * px[3 + k]);
+                double e2 = r[0] * r[0] + r[1] * r[1] + r[2] * r[2];
+                if (want_hist) {
+                    double wgt = round(pw * 1024.0);
+                    if (wgt < 1.0) wgt = 1.0;
+                    atomicAdd(&hist[hist_bin(edges, e2)], (unsigned long long)wgt);
+                }
+                double rho, w, d2 = 0.0, rej = 0.0;
+                if (!tukey) {
+                    if (e2 <= hub2) {
+                        rho = e2;
+                        w = 1.0;
+                    } else {
+                        double e = sqrt(e2);
+                        rho = 2.0 * huber * e - hub2;
+                        w = huber / e;
+                    }
+                } else {
+                    double g2 = 0.0;
+                    for (int k = 3; k < 9; k++) g2 += (double)(s[k] * s[k]);
+                    d2 = hub2 + tol2 * g2;
+                    if (e2 >= d2) {
+                        rej = 1.0;
+                        rho = d2 / 3.0;
+                        w = 0.0;
+                    } else {
+                        double t = 1.0 - e2 / d2;
+                        rho = d2 / 3.0 * (1.0 - t * t * t);
+                        w = t * t;
+                    }
+                }
+                W[0] = 1.0;
+                W[1] = rho;
+                W[2] = d2;
+                W[3] = rej;
+                if (system) {
+                    double gx[3] = {(double)s[3], (double)s[4], (double)s[5]};
+                    double gy[3] = {(double)s[6], (double)s[7], (double)s[8]};
+                    double aa = gx[0] * gx[0] + gx[1] * gx[1] + gx[2] * gx[2];
+                    double ab = gx[0] * gy[0] + gx[1] * gy[1] + gx[2] * gy[2];
+                    double bb = gy[0] * gy[0] + gy[1] * gy[1] + gy[2] * gy[2];
+                    double ra = gx[0] * r[0] + gx[1] * r[1] + gx[2] * r[2];
+                    double rb = gy[0] * r[0] + gy[1] * r[1] + gy[2] * r[2];
+                    const double* m = H + 9;
+                    double da[3], db[3];
+                    for (int k = 0; k < 3; k++) {
+                        da[k] = (m[k] - u * m[6 + k]) * inv;
+                        db[k] = (m[3 + k] - v * m[6 + k]) * inv;
+                    }
+                    double pp[3], qq[3];
+                    for (int k = 0; k < 3; k++) {
+                        pp[k] = aa * da[k] + ab * db[k];
+                        qq[k] = ab * da[k] + bb * db[k];
+                    }
+                    double* gt = W + 10;
+                    gt[0] = pp[0] * da[0] + qq[0] * db[0];
+                    gt[1] = pp[1] * da[1] + qq[1] * db[1];
+                    gt[2] = pp[2] * da[2] + qq[2] * db[2];
+                    gt[3] = pp[0] * da[1] + qq[0] * db[1];
+                    gt[4] = pp[0] * da[2] + qq[0] * db[2];
+                    gt[5] = pp[1] * da[2] + qq[1] * db[2];
+                    for (int k = 0; k < 3; k++) W[20 + k] = ra * da[k] + rb * db[k];
+                    for (int k = 0; k < 3; k++) {
+                        W[4 + k] = w * l[k];
+                        W[7 + k] = l[k];
+                        W[23 + k] = (double)px[k];
+                    }
+                    double cc = 0.0;
+                    if (fitted != FIT_NONE) {
+                        double c[3] = {(double)px[3], (double)px[4], (double)px[5]};
+                        double xc = gx[0] * c[0] + gx[1] * c[1] + gx[2] * c[2];
+                        double yc = gy[0] * c[0] + gy[1] * c[1] + gy[2] * c[2];
+                        for (int k = 0; k < 3; k++) gt[6 + k] = da[k] * xc + db[k] * yc;
+                        cc = c[0] * c[0] + c[1] * c[1] + c[2] * c[2];
+                    } else {
+                        gt[6] = gt[7] = gt[8] = 0.0;
+                    }
+                    gt[9] = cc;
+                    W[26] = w * cc;
+                }
             }
-            gram[3 * i + j] = hp[k][9];
-            gram[3 * j + i] = hp[k][9];
         }
+        valid[lane] = ok;
+        SYNCWARP();
+        unsigned cnt = n - base < WARP ? n - base : WARP;
+        for (unsigned q = 0; q < cnt; q++) {
+            if (!valid[q]) continue;
+            for (int r = 0; r < OWN2; r++)
+                acc[r] += (V[q][ia[r]] * V[q][ib[r]]) * V[q][ic[r]];
+        }
+        SYNCWARP();
     }
-    // `gain_schur`: the positions' curvature the fitted gains take away.
+    for (int r = 0; r < OWN2; r++) {
+        int o = lane + WARP * r;
+        if (o < nout) so[o] = acc[r];
+    }
+    SYNCWARP();
+    if (lane != 0) return;
+    // Lane 0 finishes the patch from the sums in shared memory (few registers: the arrays the
+    // CPU names are read where they lie).
+    double pcost = so[0], pd2 = so[1], pn = so[2], rejected = so[3];
+    // coupling[i][j][a] and gram[i][j]: from the pair blocks' extra entries on a template (the
+    // gains' basis is the pixels' own barycentrics), else from their own sums.
+    const int PK[9] = {0, 3, 4, 3, 1, 5, 4, 5, 2};
+#define CPL(i, j, a) (on_template ? so[4 + 10 * PK[3 * (i) + (j)] + 6 + (a)] : so[73 + 9 * (i) + 3 * (j) + (a)])
+#define GRAM(i, j) (on_template ? so[4 + 10 * PK[3 * (i) + (j)] + 9] : so[100 + 3 * (i) + (j)])
+    // `gain_schur`: the positions' curvature the fitted gains take away. left[i] and right[i]
+    // (3x3 each, row-major) are kept in the now free pixel buffer.
+    double* left = &V[0][0];
+    double* right = left + 27;
     bool have_schur = false;
-    double schur[6][9];
     if (system && fitted != FIT_NONE) {
-        // q[i] (3x3, row a, column j) = coupling[i][j][a]
-        double left[3][9], right[3][9];
         bool ok = true;
         if (fitted == FIT_LINEAR) {
-            double ginv[9];
-            ok = inverse3(gram, ginv);
+            double gram[9], ginv[9];
+            for (int i = 0; i < 3; i++)
+                for (int j = 0; j < 3; j++) gram[3 * i + j] = GRAM(i, j);
+            ok = inverse3(gram, ginv) && all_finite9(ginv);
             if (ok) {
                 for (int i = 0; i < 3; i++) {
                     double q[9];
-                    for (int a = 0; a < 3; a++)
-                        for (int j = 0; j < 3; j++) q[3 * a + j] = coupling[i][j][a];
-                    mul3(q, ginv, left[i]);
-                    for (int e = 0; e < 9; e++) right[i][e] = q[e];
+                    for (int r = 0; r < 3; r++)
+                        for (int j = 0; j < 3; j++) q[3 * r + j] = CPL(i, j, r);
+                    mul3(q, ginv, left + 9 * i);
+                    for (int e = 0; e < 9; e++) right[9 * i + e] = q[e];
                 }
             }
         } else {
-            double hs = 0.0;
-            for (int e = 0; e < 9; e++) hs += gram[e];
+            double gram[9];
+            for (int i = 0; i < 3; i++)
+                for (int j = 0; j < 3; j++) gram[3 * i + j] = GRAM(i, j);
+            double hs = sum9_colmajor(gram);
             ok = hs == hs && hs > 0.0;
             if (ok) {
                 for (int i = 0; i < 3; i++) {
                     for (int e = 0; e < 9; e++) {
-                        left[i][e] = 0.0;
-                        right[i][e] = 0.0;
+                        left[9 * i + e] = 0.0;
+                        right[9 * i + e] = 0.0;
                     }
-                    for (int a = 0; a < 3; a++) {
-                        double cs = coupling[i][0][a] + coupling[i][1][a] + coupling[i][2][a];
-                        right[i][3 * a] = cs;
-                        left[i][3 * a] = cs / hs;
+                    for (int r = 0; r < 3; r++) {
+                        double cs = CPL(i, 0, r) + CPL(i, 1, r) + CPL(i, 2, r);
+                        right[9 * i + 3 * r] = cs;
+                        left[9 * i + 3 * r] = cs / hs;
                     }
                 }
             }
         }
-        if (ok) {
-            have_schur = true;
-            for (int k = 0; k < 6; k++) {
-                const double* L = left[pairs_i[k]];
-                const double* R = right[pairs_j[k]];
-                // L * R^T
-                for (int r = 0; r < 3; r++)
-                    for (int c = 0; c < 3; c++)
-                        schur[k][3 * r + c] =
-                            L[3 * r] * R[3 * c] + L[3 * r + 1] * R[3 * c + 1] + L[3 * r + 2] * R[3 * c + 2];
-            }
-        }
+        have_schur = ok;
     }
+#undef CPL
+#undef GRAM
     // The patch's Cauchy loss (Tukey's patch scale).
-    double nn = pn > 0 ? (double)pn : 1.0;
+    double nn = pn > 0.0 ? pn : 1.0;
     double patch2 = tukey ? patch_scale * patch_scale : 0.0;
     double s2 = patch2 * pd2 / nn;
     double pf = 1.0;
@@ -572,33 +677,76 @@ KERNEL void evaluate_patches(
         pf = 1.0 / (1.0 + mm / s2);
     }
     rec[0] = pw * pcost;
-    rec[1] = (double)pn;
-    rec[2] = pw * (double)pn;
-    rec[3] = (double)rejected;
+    rec[1] = pn;
+    rec[2] = pw;
+    rec[3] = rejected;
     double pwf = pw * pf;
+    const int HB[9] = {0, 3, 4, 3, 1, 5, 4, 5, 2};
     for (int k = 0; k < 6; k++) {
-        const double* e = hp[k];
-        double hb[9] = {e[0], e[3], e[4], e[3], e[1], e[5], e[4], e[5], e[2]};
-        for (int i = 0; i < 9; i++) {
-            double v = hb[i];
-            if (have_schur) v -= schur[k][i];
-            rec[4 + 9 * k + i] = system ? v * pwf : 0.0;
-        }
+        const double* e = so + 4 + 10 * k;
+        const double* L = left + 9 * pairs_i[k];
+        const double* R = right + 9 * pairs_j[k];
+        for (int r = 0; r < 3; r++)
+            for (int c = 0; c < 3; c++) {
+                int i = 3 * r + c;
+                if (!system) {
+                    rec[4 + 9 * k + i] = 0.0;
+                    continue;
+                }
+                double v = e[HB[i]];
+                // (L * R^T)[r][c]
+                if (have_schur)
+                    v -= L[3 * r] * R[3 * c] + L[3 * r + 1] * R[3 * c + 1] + L[3 * r + 2] * R[3 * c + 2];
+                rec[4 + 9 * k + i] = v * pwf;
+            }
     }
-    for (int a = 0; a < 3; a++)
-        for (int k = 0; k < 3; k++) rec[58 + 3 * a + k] = system ? gp[a][k] * pwf : 0.0;
+    for (int i = 0; i < 9; i++) rec[58 + i] = system ? so[64 + i] * pwf : 0.0;
 }
 
-// Sums each triangle's patch records in order (one thread per triangle).
+// The kernel, as compiled (the registers it may hold chosen by the compiler)...
+KERNEL void evaluate_patches(
+    const double* x, const double* x0, const double* prev, const double* proj,
+    const double* lag, double gap, const unsigned* tris, const unsigned* patches,
+    const float* weights, const float* pixels, const float* images, const unsigned long long* img_off,
+    const int* img_size, int npatches, double huber, double tukey_px, double patch_scale,
+    int flags, const double* edges, double* out, unsigned long long* hist) {
+    evaluate_patch(x, x0, prev, proj, lag, gap, tris, patches, weights, pixels, images, img_off, img_size, npatches, huber, tukey_px, patch_scale, flags, edges, out, hist);
+}
+
+// ...and held to 128 registers, for four blocks of four warps per SM instead of two, at the
+// price of a few hundred bytes of spills (`Gpu` picks one: docs/gpu.md).
+KERNEL LAUNCH_BOUNDS void evaluate_patches_bounded(
+    const double* x, const double* x0, const double* prev, const double* proj,
+    const double* lag, double gap, const unsigned* tris, const unsigned* patches,
+    const float* weights, const float* pixels, const float* images, const unsigned long long* img_off,
+    const int* img_size, int npatches, double huber, double tukey_px, double patch_scale,
+    int flags, const double* edges, double* out, unsigned long long* hist) {
+    evaluate_patch(x, x0, prev, proj, lag, gap, tris, patches, weights, pixels, images, img_off, img_size, npatches, huber, tukey_px, patch_scale, flags, edges, out, hist);
+}
+
+// Sums each triangle's patch records in order (one thread per triangle), as the CPU's
+// `TriAccum` does: the cost and the blocks per patch, the weight per pixel.
 KERNEL void sum_triangles(const double* recs, const unsigned* ranges, int ntri, int system,
                           double* scalars, double* blocks) {
     int t = BLOCK_X * BLOCK_DIM_X + THREAD_X;
     if (t >= ntri) return;
     unsigned a = ranges[2 * t], b = ranges[2 * t + 1];
-    double s[4] = {0, 0, 0, 0};
-    for (unsigned p = a; p < b; p++)
-        for (int i = 0; i < 4; i++) s[i] += recs[(unsigned long long)REC * p + i];
-    for (int i = 0; i < 4; i++) scalars[4 * (unsigned long long)t + i] = s[i];
+    double cost = 0.0, pixels = 0.0, weight = 0.0, rejected = 0.0;
+    for (unsigned p = a; p < b; p++) {
+        const double* r = recs + (unsigned long long)REC * p;
+        cost += r[0];
+        pixels += r[1];
+        if (r[3] < 0.0) {
+            weight += r[2];
+        } else {
+            for (long i = 0; i < (long)r[1]; i++) weight += r[2];
+            rejected += r[3];
+        }
+    }
+    scalars[4 * (unsigned long long)t] = cost;
+    scalars[4 * (unsigned long long)t + 1] = pixels;
+    scalars[4 * (unsigned long long)t + 2] = weight;
+    scalars[4 * (unsigned long long)t + 3] = rejected;
     if (!system) return;
     for (int i = 0; i < REC - 4; i++) {
         double v = 0.0;

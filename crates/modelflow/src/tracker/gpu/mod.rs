@@ -480,7 +480,10 @@ mod cuda {
         #define BLOCK_X blockIdx.x\n\
         #define THREAD_X threadIdx.x\n\
         #define THREAD_Y threadIdx.y\n\
-        #define BLOCK_DIM_X blockDim.x\n";
+        #define BLOCK_DIM_X blockDim.x\n\
+        #define SHARED __shared__\n\
+        #define SYNCWARP() __syncwarp()\n\
+        #define LAUNCH_BOUNDS __launch_bounds__(128, 4)\n";
 
     /// The kernels compiled by NVRTC for compute capability `major.minor` (needs the NVRTC
     /// library, not a device).
@@ -536,9 +539,16 @@ mod cuda {
             let module = ctx
                 .load_module(ptx)
                 .map_err(gpu_err("loading the kernels"))?;
+            // Which register budget the per-patch kernel runs with: held to 128 (the default,
+            // twice the occupancy) or as compiled (`MODELFLOW_GPU_KERNEL=unbounded`, kept for
+            // measuring the choice again on other GPUs; docs/gpu.md).
+            let kernel = match std::env::var("MODELFLOW_GPU_KERNEL").as_deref() {
+                Ok("unbounded") => "evaluate_patches",
+                _ => "evaluate_patches_bounded",
+            };
             let evaluate = module
-                .load_function("evaluate_patches")
-                .map_err(gpu_err("loading evaluate_patches"))?;
+                .load_function(kernel)
+                .map_err(gpu_err("loading the per-patch kernel"))?;
             let sum = module
                 .load_function("sum_triangles")
                 .map_err(gpu_err("loading sum_triangles"))?;
