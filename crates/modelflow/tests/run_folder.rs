@@ -71,6 +71,8 @@ fn without_times(mut l: FrameLog) -> FrameLog {
         r.timing = Default::default();
         for s in &mut r.levels {
             s.seconds = 0.0;
+            s.evaluation_seconds = 0.0;
+            s.linear_solver_seconds = 0.0;
             s.iterations.iter_mut().for_each(|i| i.seconds = 0.0);
         }
     }
