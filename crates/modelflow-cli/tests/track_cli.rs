@@ -244,3 +244,57 @@ fn a_frame_the_cameras_disagree_about_is_named_and_counted() {
         "{err}"
     );
 }
+
+/// `--device gpu` where no GPU can be used stops before anything is written and says what is
+/// missing (the driver, or CUDA's NVRTC library); where one can, the run is the CPU's.
+#[test]
+fn a_missing_gpu_is_named_and_nothing_is_written() {
+    let dir = tempfile::tempdir().unwrap();
+    let opts = SynthOptions {
+        width: 160,
+        height: 120,
+        frames: 3,
+        ..SynthOptions::default()
+    };
+    let scene = write_dataset(&opts, &dir.path().join("footage"), &|_, _| {}).unwrap();
+    let run = |out: &std::path::Path, device: &str| {
+        Command::new(env!("CARGO_BIN_EXE_modelflow"))
+            .arg("track")
+            .arg("--scene")
+            .arg(&scene)
+            .arg("--out")
+            .arg(out)
+            .args(["--device", device])
+            .output()
+            .unwrap()
+    };
+    let (gpu_dir, cpu_dir) = (dir.path().join("gpu"), dir.path().join("cpu"));
+    let out = run(&gpu_dir, "gpu");
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    if out.status.success() {
+        // A GPU here: the meshes are the CPU's.
+        assert!(run(&cpu_dir, "cpu").status.success());
+        for f in 0..3 {
+            let name = format!("{f:04}.obj");
+            assert_eq!(
+                std::fs::read(gpu_dir.join(&name)).unwrap(),
+                std::fs::read(cpu_dir.join(&name)).unwrap(),
+                "{name}"
+            );
+        }
+        return;
+    }
+    assert_eq!(out.status.code(), Some(1), "{stderr}");
+    assert!(
+        stderr.contains("error: GPU: ") && (stderr.contains("CUDA") || stderr.contains("NVRTC")),
+        "{stderr}"
+    );
+    assert!(
+        !stderr.contains("at frame 0:"),
+        "stopped before anything else: {stderr}"
+    );
+    assert!(!gpu_dir.exists(), "nothing written");
+    let out = run(&cpu_dir, "tpu");
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success() && stderr.contains("tpu"), "{stderr}");
+}
