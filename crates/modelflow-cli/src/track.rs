@@ -70,6 +70,11 @@ pub struct TrackArgs {
     /// Stop a level when a step lowers the cost by less than this fraction of it (0 to below 1).
     #[arg(long, default_value_t = TrackOptions::default().solver.min_relative_decrease)]
     pub min_decrease: f64,
+    /// Stop an approach stage (the Huber solve of every level but the coarsest, when a finer
+    /// level or the Tukey refine follows) when a step lowers its cost by less than this fraction
+    /// of it; the coarsest level and the last solve use --min-decrease (0 = off; 0 to below 1).
+    #[arg(long, default_value_t = TrackOptions::default().approach_decrease)]
+    pub approach_decrease: f64,
     /// Huber threshold on the RGB residual (image values 0..1; above 0, at most 10).
     #[arg(long, default_value_t = TrackOptions::default().solver.huber)]
     pub huber: f64,
@@ -165,6 +170,7 @@ impl TrackArgs {
             anchor_weight: self.anchor_weight,
             consensus: self.consensus,
             stereo: self.stereo,
+            approach_decrease: self.approach_decrease,
             blur: self.blur,
             checkerboard: !self.all_pixels,
             rigid_first: !self.no_rigid_stage,

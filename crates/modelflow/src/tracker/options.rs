@@ -59,6 +59,14 @@ pub struct TrackOptions {
     /// baseline does not drift (`sequence::stereo_levels`; docs/tracker.md).
     #[serde(default)]
     pub stereo: f64,
+    /// An approach stage (the Huber solve of every level but the coarsest, when a finer level
+    /// or the Tukey refine still follows) stops once an accepted step lowers its cost by less
+    /// than this fraction of it, instead of `solver.min_relative_decrease`: what is left there
+    /// is creep that the stage after it re-solves anyway. The coarsest level, which catches
+    /// large motion, and the frame's last solve keep `min_relative_decrease`. 0 = off (every
+    /// stage to `min_relative_decrease`, as runs made before it existed did).
+    #[serde(default)]
+    pub approach_decrease: f64,
 }
 
 fn default_consensus() -> f64 {
@@ -85,6 +93,7 @@ impl Default for TrackOptions {
             rigid_first: true,
             consensus: default_consensus(),
             stereo: 0.0,
+            approach_decrease: 0.03,
         }
     }
 }
@@ -219,6 +228,13 @@ impl TrackOptions {
                 low: (0.0, true),
                 high: (1.0, false),
                 why: "a fraction of the cost",
+            },
+            Range {
+                option: "--approach-decrease",
+                value: self.approach_decrease,
+                low: (0.0, true),
+                high: (1.0, false),
+                why: "a fraction of the cost; 0 = off",
             },
             Range {
                 option: "--huber",

@@ -617,12 +617,22 @@ impl Tracker {
             // The Huber solves sample bilinearly, also at full resolution when a refine
             // follows: they bring the mesh to within a fraction of a pixel, and the refine,
             // in the chosen interpolation, decides the solution (docs/tracker.md, "Levels").
+            // An approach stage (a finer level or the refine follows, and it is not the
+            // coarsest level, where large motion is caught) stops at the looser decrease.
+            let approach = level + 1 < levels && (refine || level > finest);
             let sopts = SolverOptions {
                 loss: Loss::Huber,
                 interpolation: if refine {
                     Interpolation::Linear
                 } else {
                     robust.interpolation
+                },
+                min_relative_decrease: if approach {
+                    robust
+                        .min_relative_decrease
+                        .max(self.opts.approach_decrease)
+                } else {
+                    robust.min_relative_decrease
                 },
                 ..robust
             };

@@ -283,6 +283,85 @@ fn a_large_motion_is_caught() {
     }
 }
 
+/// The relative decreases of a stage's accepted steps, in order.
+fn accepted_decreases(stage: &crate::tracker::solve::SolveSummary) -> Vec<f64> {
+    stage
+        .iterations
+        .iter()
+        .filter(|i| i.accepted)
+        .map(|i| -i.cost_change / (i.cost - i.cost_change))
+        .collect()
+}
+
+#[test]
+fn approach_stages_stop_at_their_own_decrease_and_the_frames_stay_as_accurate() {
+    // Two levels: the coarsest (rigid, then free) and full resolution (a Huber approach, then
+    // the Tukey refine). Only the approach may stop at `approach_decrease`; every other stage
+    // goes on while a step lowers its cost by `min_relative_decrease` or more.
+    let rig = rig();
+    let motion = Vector3::new(0.006, -0.004, 0.005);
+    let track = |approach: f64| {
+        let opts = TrackOptions {
+            levels: 2,
+            approach_decrease: approach,
+            ..TrackOptions::default()
+        };
+        let min = opts.solver.min_relative_decrease;
+        let plane0 = plane_at(Vector3::zeros());
+        let mut tr = Tracker::new(
+            &mesh_of(&plane0),
+            rig.cameras(),
+            0,
+            &rig.images(&plane0),
+            opts,
+        )
+        .unwrap();
+        let mut reports = Vec::new();
+        for f in 1..=3u32 {
+            let plane = plane_at(motion * f as f64);
+            let rep = tr.step(f, &rig.images(&plane)).unwrap();
+            assert!(!rep.stalled, "frame {f} stalled");
+            let err = rms_distance(tr.positions(), &mesh_of(&plane).positions);
+            assert!(err < 1.0e-3, "approach {approach}, frame {f}: rms {err} m");
+            assert_eq!(rep.levels.len(), 4, "stages: {:?}", rep.levels);
+            for (k, stage) in rep.levels.iter().enumerate() {
+                let threshold = if k == 2 { min.max(approach) } else { min };
+                let d = accepted_decreases(stage);
+                // Every accepted step but the last lowered the cost by the threshold or more
+                // (else the stage would have stopped there).
+                for (i, &dec) in d.iter().enumerate().take(d.len().saturating_sub(1)) {
+                    assert!(
+                        dec >= threshold,
+                        "approach {approach}, frame {f}, stage {k}: step {i} lowered the cost by \
+                         {dec:.2e} < {threshold:.0e} and the stage went on: {stage:?}"
+                    );
+                }
+            }
+            reports.push(rep);
+        }
+        reports
+    };
+    let strict = track(0.0);
+    let loose = track(0.03);
+    // The coarsest level is not an approach: the first frame's is the same either way.
+    for k in 0..2 {
+        assert_eq!(
+            accepted_decreases(&strict[0].levels[k]),
+            accepted_decreases(&loose[0].levels[k]),
+            "stage {k}"
+        );
+    }
+    let tries = |r: &[crate::tracker::FrameReport]| -> usize {
+        r.iter().map(|r| r.levels[2].iterations.len()).sum()
+    };
+    eprintln!(
+        "approach stages' tries over 3 frames: {} with the looser stop, {} without",
+        tries(&loose),
+        tries(&strict)
+    );
+    assert!(tries(&loose) < tries(&strict));
+}
+
 #[test]
 fn a_frame_that_cannot_be_improved_is_reported_as_stalled() {
     // A NaN in the next image (the file readers refuse them; a library user might not) makes
