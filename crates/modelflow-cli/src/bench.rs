@@ -251,7 +251,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             report.ms_solve
         );
         println!(
-            "    template patches  {:8.1} ms  (median)",
+            "    template patches  {:8.1} ms  (median; the finer levels' overlapped with the coarser solves)",
             report.ms_patches
         );
         println!(

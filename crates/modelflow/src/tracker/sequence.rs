@@ -102,7 +102,8 @@ pub struct StepTiming {
     /// Building the frame's image pyramids ([`prepare`]); `track_scene` does this while the
     /// previous frame is solved, so it is not on the critical path there.
     pub pyramids: f64,
-    /// Building the template patches.
+    /// Building the template patches. Each finer level's are built while the level above it is
+    /// solved, so this time overlaps `solve` in part.
     pub patches: f64,
     /// The Gauss–Newton solves.
     pub solve: f64,
@@ -556,17 +557,31 @@ impl Tracker {
         }
         // Levels finer than `finest_level` are not solved (a draft at reduced resolution).
         let finest = self.opts.finest_level;
-        for level in (finest..levels).rev() {
+        let this = &*self;
+        // A level's template comes from the previous frame alone, so the next finer level's is
+        // built while this level is solved (on the core the solve's serial parts leave idle);
+        // the patches are the same whichever thread builds them.
+        let build = |level: usize| {
             let tp = Instant::now();
-            let cb = level == 0 && self.opts.checkerboard;
+            let cb = level == 0 && this.opts.checkerboard;
             let weight = if cb { 2.0 } else { 1.0 };
-            let before = self.before_prev.as_deref().map(|b| {
+            let before = this.before_prev.as_deref().map(|b| {
                 (
                     b,
-                    self.prev.frame.saturating_sub(self.before_frame).max(1) as f64,
+                    this.prev.frame.saturating_sub(this.before_frame).max(1) as f64,
                 )
             });
-            let (mut set, dropped) = self.template_patches(&self.prev, before, level, weight, cb);
+            let built = this.template_patches(&this.prev, before, level, weight, cb);
+            (built, tp.elapsed().as_secs_f64())
+        };
+        let mut ahead = None;
+        for level in (finest..levels).rev() {
+            let ((mut set, dropped), built_seconds) = match ahead.take() {
+                Some(b) => b,
+                None => build(level),
+            };
+            timing.patches += built_seconds;
+            let tp = Instant::now();
             if level == finest {
                 contradicted = dropped;
                 let taken = set.pixels.len() + dropped;
@@ -606,136 +621,145 @@ impl Tracker {
             }
             let by_triangle = set.by_triangle();
             timing.patches += tp.elapsed().as_secs_f64();
-            let ts = Instant::now();
-            // Every solve but the last one runs with the convex Huber loss; with `Loss::Tukey`
-            // a last free solve from the Huber solution rejects what it cannot explain.
-            let robust = SolverOptions {
-                interpolation: self.used.interpolation_per_level[level],
-                ..self.opts.solver
-            };
-            let refine = robust.loss != Loss::Huber && level == finest;
-            // The Huber solves sample bilinearly, also at full resolution when a refine
-            // follows: they bring the mesh to within a fraction of a pixel, and the refine,
-            // in the chosen interpolation, decides the solution (docs/tracker.md, "Levels").
-            // An approach stage (a finer level or the refine follows, and it is not the
-            // coarsest level, where large motion is caught) stops at the looser decrease.
-            let approach = level + 1 < levels && (refine || level > finest);
-            let sopts = SolverOptions {
-                loss: Loss::Huber,
-                interpolation: if refine {
-                    Interpolation::Linear
-                } else {
-                    robust.interpolation
-                },
-                min_relative_decrease: if approach {
-                    robust
-                        .min_relative_decrease
-                        .max(self.opts.approach_decrease)
-                } else {
-                    robust.min_relative_decrease
-                },
-                ..robust
-            };
-            let mut problem = Problem {
-                triangles: &self.triangles,
-                patches: &set.patches,
-                pixels: &set.pixels,
-                by_triangle: &by_triangle,
-                targets: next.iter().map(|p| &p.levels[level]).collect(),
-                projections: self
-                    .cameras
-                    .iter()
-                    .map(|c| level_projection(c.at(frame), level))
-                    .collect(),
-                pattern: &self.pattern,
-                regularisers: &self.regularisers,
-                cancel: self.cancel.as_deref(),
-                gpu: None,
-                moving_source: stereo.then_some(&stereo_x0[..]),
-                gauge_floor: 0.0,
-                // Until a velocity is known the templates are taken as the cameras saw them
-                // too, which for a steady motion is exact on both sides.
-                lag: (lagged && self.before_prev.is_some()).then_some(Lag {
-                    offsets: &offsets,
-                    previous: &self.prev.positions,
-                    gap: frame.saturating_sub(self.prev.frame).max(1) as f64,
-                }),
-            };
-            // On the GPU: this level's patches, pixels and images go up once, and every
-            // evaluation of the solves below runs there.
-            let uploaded = match &self.gpu {
-                Some(g) => Some(g.upload(&problem)?),
-                None => None,
-            };
-            problem.gpu = uploaded.as_ref();
-            if level == levels - 1 && self.opts.predict {
-                if let Some(pp) = &self.before_prev {
-                    let guess: Vec<Point3<f64>> =
-                        x.iter().zip(pp).map(|(a, b)| a + (a - b)).collect();
-                    if problem.cost(&guess, &sopts) < problem.cost(&x, &sopts) {
-                        x = guess;
-                        predicted = true;
+            let (solved, built) = rayon::join(
+                || -> Result<()> {
+                    let ts = Instant::now();
+                    // Every solve but the last one runs with the convex Huber loss; with `Loss::Tukey`
+                    // a last free solve from the Huber solution rejects what it cannot explain.
+                    let robust = SolverOptions {
+                        interpolation: self.used.interpolation_per_level[level],
+                        ..self.opts.solver
+                    };
+                    let refine = robust.loss != Loss::Huber && level == finest;
+                    // The Huber solves sample bilinearly, also at full resolution when a refine
+                    // follows: they bring the mesh to within a fraction of a pixel, and the refine,
+                    // in the chosen interpolation, decides the solution (docs/tracker.md, "Levels").
+                    // An approach stage (a finer level or the refine follows, and it is not the
+                    // coarsest level, where large motion is caught) stops at the looser decrease.
+                    let approach = level + 1 < levels && (refine || level > finest);
+                    let sopts = SolverOptions {
+                        loss: Loss::Huber,
+                        interpolation: if refine {
+                            Interpolation::Linear
+                        } else {
+                            robust.interpolation
+                        },
+                        min_relative_decrease: if approach {
+                            robust
+                                .min_relative_decrease
+                                .max(self.opts.approach_decrease)
+                        } else {
+                            robust.min_relative_decrease
+                        },
+                        ..robust
+                    };
+                    let mut problem = Problem {
+                        triangles: &self.triangles,
+                        patches: &set.patches,
+                        pixels: &set.pixels,
+                        by_triangle: &by_triangle,
+                        targets: next.iter().map(|p| &p.levels[level]).collect(),
+                        projections: self
+                            .cameras
+                            .iter()
+                            .map(|c| level_projection(c.at(frame), level))
+                            .collect(),
+                        pattern: &self.pattern,
+                        regularisers: &self.regularisers,
+                        cancel: self.cancel.as_deref(),
+                        gpu: None,
+                        moving_source: stereo.then_some(&stereo_x0[..]),
+                        gauge_floor: 0.0,
+                        // Until a velocity is known the templates are taken as the cameras saw them
+                        // too, which for a steady motion is exact on both sides.
+                        lag: (lagged && self.before_prev.is_some()).then_some(Lag {
+                            offsets: &offsets,
+                            previous: &self.prev.positions,
+                            gap: frame.saturating_sub(self.prev.frame).max(1) as f64,
+                        }),
+                    };
+                    // On the GPU: this level's patches, pixels and images go up once, and every
+                    // evaluation of the solves below runs there.
+                    let uploaded = match &self.gpu {
+                        Some(g) => Some(g.upload(&problem)?),
+                        None => None,
+                    };
+                    problem.gpu = uploaded.as_ref();
+                    if level == levels - 1 && self.opts.predict {
+                        if let Some(pp) = &self.before_prev {
+                            let guess: Vec<Point3<f64>> =
+                                x.iter().zip(pp).map(|(a, b)| a + (a - b)).collect();
+                            if problem.cost(&guess, &sopts) < problem.cost(&x, &sopts) {
+                                x = guess;
+                                predicted = true;
+                            }
+                        }
                     }
-                }
-            }
-            if level == finest {
-                cost_before = problem.cost(&self.prev.positions, &sopts);
-            }
-            // A cancelled solve ends the step: the tracker stays at the previous frame and
-            // nothing of this step is kept.
-            let last_complete = self.prev.frame;
-            let solve = |x: &[Point3<f64>], lin, o: &SolverOptions, motion, median| {
-                let out = problem.solve_stage(x, lin, o, motion, median);
-                if out.1.stop == StopReason::Cancelled {
-                    Err(Error::Interrupted { last_complete })
-                } else {
-                    Ok(out)
-                }
-            };
-            let mut linearised = None;
-            // The rigid stage at the coarsest level only: that is where a large motion is caught;
-            // at the finer levels the coarser solution already holds it, and a rigid stage there
-            // found next to nothing (0.7 accepted steps per frame, 2 evaluations each).
-            if self.opts.rigid_first && level == levels - 1 {
-                let (sol, summary, lin) = solve(&x, None, &sopts, Motion::Rigid, false)?;
-                x = sol;
-                linearised = Some(lin);
-                summaries.push(summary);
-            }
-            // Before a refine, the Huber solve takes the residuals' median at its result as it
-            // goes, which sets the refine's threshold without a pass of its own.
-            let (sol, mut summary, mut lin) = solve(&x, linearised, &sopts, Motion::Free, refine)?;
-            x = sol;
-            if refine {
-                let (sol, refined, refined_lin) =
-                    solve(&x, Some(lin), &robust, Motion::Free, false)?;
-                x = sol;
-                lin = refined_lin;
-                summaries.push(std::mem::replace(&mut summary, refined));
-            }
-            if level == finest {
-                cost_after = summary.final_cost;
-                pixels = summary.pixels;
-                stop = summary.stop;
-                let tc = Instant::now();
-                // Read from the last solve's linearisation, made at `x` with `robust`.
-                confidence = problem.confidence(&lin);
-                rejected_share = problem.rejected_share(&lin);
-                timing.confidence = tc.elapsed().as_secs_f64();
-            }
-            summaries.push(summary);
-            // The confidence is timed apart.
-            let own = if level == finest {
-                timing.confidence
-            } else {
-                0.0
-            };
-            timing.solve += ts.elapsed().as_secs_f64() - own;
-            // A failure on the device was answered by the CPU within the solve; the frame is
-            // still refused, so that a broken GPU path is never silent.
-            if let Some(e) = uploaded.as_ref().and_then(|u| u.failure()) {
-                return Err(e);
-            }
+                    if level == finest {
+                        cost_before = problem.cost(&self.prev.positions, &sopts);
+                    }
+                    // A cancelled solve ends the step: the tracker stays at the previous frame and
+                    // nothing of this step is kept.
+                    let last_complete = self.prev.frame;
+                    let solve = |x: &[Point3<f64>], lin, o: &SolverOptions, motion, median| {
+                        let out = problem.solve_stage(x, lin, o, motion, median);
+                        if out.1.stop == StopReason::Cancelled {
+                            Err(Error::Interrupted { last_complete })
+                        } else {
+                            Ok(out)
+                        }
+                    };
+                    let mut linearised = None;
+                    // The rigid stage at the coarsest level only: that is where a large motion is caught;
+                    // at the finer levels the coarser solution already holds it, and a rigid stage there
+                    // found next to nothing (0.7 accepted steps per frame, 2 evaluations each).
+                    if self.opts.rigid_first && level == levels - 1 {
+                        let (sol, summary, lin) = solve(&x, None, &sopts, Motion::Rigid, false)?;
+                        x = sol;
+                        linearised = Some(lin);
+                        summaries.push(summary);
+                    }
+                    // Before a refine, the Huber solve takes the residuals' median at its result as it
+                    // goes, which sets the refine's threshold without a pass of its own.
+                    let (sol, mut summary, mut lin) =
+                        solve(&x, linearised, &sopts, Motion::Free, refine)?;
+                    x = sol;
+                    if refine {
+                        let (sol, refined, refined_lin) =
+                            solve(&x, Some(lin), &robust, Motion::Free, false)?;
+                        x = sol;
+                        lin = refined_lin;
+                        summaries.push(std::mem::replace(&mut summary, refined));
+                    }
+                    if level == finest {
+                        cost_after = summary.final_cost;
+                        pixels = summary.pixels;
+                        stop = summary.stop;
+                        let tc = Instant::now();
+                        // Read from the last solve's linearisation, made at `x` with `robust`.
+                        confidence = problem.confidence(&lin);
+                        rejected_share = problem.rejected_share(&lin);
+                        timing.confidence = tc.elapsed().as_secs_f64();
+                    }
+                    summaries.push(summary);
+                    // The confidence is timed apart.
+                    let own = if level == finest {
+                        timing.confidence
+                    } else {
+                        0.0
+                    };
+                    timing.solve += ts.elapsed().as_secs_f64() - own;
+                    // A failure on the device was answered by the CPU within the solve; the frame is
+                    // still refused, so that a broken GPU path is never silent.
+                    if let Some(e) = uploaded.as_ref().and_then(|u| u.failure()) {
+                        return Err(e);
+                    }
+                    Ok(())
+                },
+                || (level > finest).then(|| build(level - 1)),
+            );
+            solved?;
+            ahead = built;
         }
         let iterations = summaries.iter().map(|s| s.iterations.len()).sum();
         // No pixel compared at full resolution (the mesh left every camera's view, or every

@@ -795,14 +795,19 @@ fn results_do_not_depend_on_the_thread_count() {
             im
         })
         .collect();
+    // Two levels: the full-resolution templates are built on another thread while the coarser
+    // level is solved (with three threads; in turn with one).
+    let opts = TrackOptions {
+        levels: 2,
+        ..TrackOptions::default()
+    };
     let run = |threads: usize| {
         let pool = rayon::ThreadPoolBuilder::new()
             .num_threads(threads)
             .build()
             .unwrap();
         pool.install(|| {
-            let mut tr =
-                Tracker::new(&mesh, rig.cameras(), 0, &frames[0], TrackOptions::default()).unwrap();
+            let mut tr = Tracker::new(&mesh, rig.cameras(), 0, &frames[0], opts).unwrap();
             for (f, images) in frames.iter().enumerate().skip(1) {
                 tr.step(f as u32, images).unwrap();
             }
