@@ -4,16 +4,21 @@
 use modelflow::synth::{write_dataset, SynthOptions};
 use std::process::Command;
 
-#[test]
-fn a_sliver_triangle_is_tracked_and_named_in_a_warning() {
-    let dir = tempfile::tempdir().unwrap();
+/// Three frames of the synthetic cloth at 160×120, written under `dir/footage`: its scene file.
+fn small_cloth(dir: &std::path::Path) -> std::path::PathBuf {
     let opts = SynthOptions {
         width: 160,
         height: 120,
         frames: 3,
         ..SynthOptions::default()
     };
-    let scene = write_dataset(&opts, &dir.path().join("footage"), &|_, _| {}).unwrap();
+    write_dataset(&opts, &dir.join("footage"), &|_, _| {}).unwrap()
+}
+
+#[test]
+fn a_sliver_triangle_is_tracked_and_named_in_a_warning() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = small_cloth(dir.path());
     // Three more vertices on the cloth's top edge forming a triangle 1e-7 m high on a 2.5 cm
     // edge (written without `vt`, so the file's faces use plain indices).
     let obj = dir.path().join("footage/mesh/initial.obj");
@@ -250,13 +255,7 @@ fn a_frame_the_cameras_disagree_about_is_named_and_counted() {
 #[test]
 fn a_missing_gpu_is_named_and_nothing_is_written() {
     let dir = tempfile::tempdir().unwrap();
-    let opts = SynthOptions {
-        width: 160,
-        height: 120,
-        frames: 3,
-        ..SynthOptions::default()
-    };
-    let scene = write_dataset(&opts, &dir.path().join("footage"), &|_, _| {}).unwrap();
+    let scene = small_cloth(dir.path());
     let run = |out: &std::path::Path, device: &str| {
         Command::new(env!("CARGO_BIN_EXE_modelflow"))
             .arg("track")

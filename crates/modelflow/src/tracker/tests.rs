@@ -463,6 +463,34 @@ fn frame0_patches(mesh: &Mesh, cams: &[Camera], src: &[Pyramid]) -> PatchSet {
     set
 }
 
+/// The photometric problem of frame-0 patches `set` against the full-resolution images `dst`
+/// that `cams` saw at frame 1, with `regularisers` (the setup of the tests on one plane).
+fn frame1_problem<'a>(
+    mesh: &'a Mesh,
+    set: &'a PatchSet,
+    by_triangle: &'a [(u32, std::ops::Range<usize>)],
+    dst: &'a [Pyramid],
+    cams: &[Camera],
+    pattern: &'a [[u32; 2]],
+    regularisers: &'a [Box<dyn regularise::Regulariser>],
+) -> Problem<'a> {
+    Problem {
+        triangles: &mesh.triangles,
+        patches: &set.patches,
+        pixels: &set.pixels,
+        by_triangle,
+        targets: dst.iter().map(|p| &p.levels[0]).collect(),
+        projections: cams.iter().map(|c| c.at(1).clone()).collect(),
+        pattern,
+        regularisers,
+        cancel: None,
+        gpu: None,
+        moving_source: None,
+        gauge_floor: 0.0,
+        lag: None,
+    }
+}
+
 #[test]
 fn assembled_gradient_matches_finite_differences_of_the_cost() {
     let rig = rig();
@@ -496,21 +524,15 @@ fn assembled_gradient_matches_finite_differences_of_the_cost() {
             predicted: &mesh.positions,
         });
     }
-    let problem = Problem {
-        triangles: &mesh.triangles,
-        patches: &set.patches,
-        pixels: &set.pixels,
-        by_triangle: &by_triangle,
-        targets: dst.iter().map(|p| &p.levels[0]).collect(),
-        projections: cams.iter().map(|c| c.at(1).clone()).collect(),
-        pattern: &edges.edges,
-        regularisers: &regularisers,
-        cancel: None,
-        gpu: None,
-        moving_source: None,
-        gauge_floor: 0.0,
-        lag: None,
-    };
+    let problem = frame1_problem(
+        &mesh,
+        &set,
+        &by_triangle,
+        &dst,
+        &cams,
+        &edges.edges,
+        &regularisers,
+    );
     // Huber off (huge threshold) so the cost is the plain sum of squares whose gradient is 2·Jᵀr.
     // Both ways of sampling the next frame: the Jacobian is each interpolant's own derivative.
     let mut checked = 0;
@@ -1096,21 +1118,7 @@ fn normal_equations_are_the_curvature_of_the_cost_with_its_gains_refitted() {
     let mut set = frame0_patches(&mesh, &cams, &src);
     let by_triangle = set.by_triangle();
     let edges = EdgeSet::new(&mesh);
-    let problem = Problem {
-        triangles: &mesh.triangles,
-        patches: &set.patches,
-        pixels: &set.pixels,
-        by_triangle: &by_triangle,
-        targets: dst.iter().map(|p| &p.levels[0]).collect(),
-        projections: cams.iter().map(|c| c.at(1).clone()).collect(),
-        pattern: &edges.edges,
-        regularisers: &[],
-        cancel: None,
-        gpu: None,
-        moving_source: None,
-        gauge_floor: 0.0,
-        lag: None,
-    };
+    let problem = frame1_problem(&mesh, &set, &by_triangle, &dst, &cams, &edges.edges, &[]);
     let x = mesh.positions.clone();
     let n = x.len();
     for gain in [GainModel::Constant, GainModel::Linear] {
@@ -1317,21 +1325,7 @@ fn the_gpu_kernels_give_the_cpu_sums() {
     let mut set = frame0_patches(&mesh, &cams, &src);
     let by_triangle = set.by_triangle();
     let edges = Arc::new(EdgeSet::new(&mesh));
-    let problem = Problem {
-        triangles: &mesh.triangles,
-        patches: &set.patches,
-        pixels: &set.pixels,
-        by_triangle: &by_triangle,
-        targets: dst.iter().map(|p| &p.levels[0]).collect(),
-        projections: cams.iter().map(|c| c.at(1).clone()).collect(),
-        pattern: &edges.edges,
-        regularisers: &[],
-        cancel: None,
-        gpu: None,
-        moving_source: None,
-        gauge_floor: 0.0,
-        lag: None,
-    };
+    let problem = frame1_problem(&mesh, &set, &by_triangle, &dst, &cams, &edges.edges, &[]);
     let mut x = mesh.positions.clone();
     x[5].x += 0.02;
     x[6].z -= 0.01;
