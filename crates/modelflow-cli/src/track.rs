@@ -292,7 +292,7 @@ pub fn run(args: Args, invocation: &Invocation) -> anyhow::Result<()> {
     let suspect = match summary.suspect_frames.len() {
         0 => String::new(),
         n => format!(
-            ", {n} SUSPECT (the cameras disagreed about the surface): frames {}",
+            ", {n} SUSPECT (the cameras disagreed about the surface, or it showed next to no texture): frames {}",
             list_frames(&summary.suspect_frames)
         ),
     };
@@ -341,7 +341,17 @@ pub fn run_scene(
     let progress = Progress::new("track", total);
     let result = track_scene(scene, opts, out, run, &mut |f| {
         let r = f.model_flow();
-        if let Some(r) = r.filter(|r| r.suspect) {
+        if let Some(r) = r.filter(|r| r.information_share < modelflow::tracker::INFORMATION_FLOOR) {
+            progress.println(&format!(
+                "warning: frame {}: the images constrain the mesh {:.0} % as much as the first frame's own images do (below {:.0} %): it sees next to none of the surface's texture, so it may have slipped off onto the background (motion beyond the capture range), or the surface left the views, turned away or blurred out; check this frame's overlay",
+                f.frame,
+                100.0 * r.information_share,
+                100.0 * modelflow::tracker::INFORMATION_FLOOR
+            ));
+        }
+        if let Some(r) = r.filter(|r| {
+            r.contradicted_share > r.contradicted_at_first + modelflow::tracker::SUSPECT_RISE
+        }) {
             progress.println(&format!(
                 "warning: frame {}: the other cameras contradicted {:.0} % of where the previous frame left the surface, against {:.0} % at the first frame (a rise of more than {:.0} points): the mesh may have slipped off it (motion beyond the capture range) or a large occluder covers it; check this frame's overlay",
                 f.frame,

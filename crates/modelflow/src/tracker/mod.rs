@@ -33,7 +33,9 @@ pub use coverage::{coverage, Coverage};
 pub use gpu::{Gpu, GpuStats};
 pub use options::{OptionsUsed, TrackOptions};
 pub use regularise::Regularisation;
-pub use sequence::{prepare, FrameReport, Prepared, StepTiming, Tracker, SUSPECT_RISE};
+pub use sequence::{
+    prepare, FrameReport, Prepared, StepTiming, Tracker, INFORMATION_FLOOR, SUSPECT_RISE,
+};
 pub use shot::{median, track_scene, TrackSummary};
 pub use solve::{
     GainModel, Interpolation, IterationSummary, Loss, SolveSummary, SolverOptions, StopReason,

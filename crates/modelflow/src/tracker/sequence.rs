@@ -42,6 +42,13 @@ use std::time::Instant;
 /// 0.37 in the frame after they slipped (docs/tracker.md, "Suspect frames").
 pub const SUSPECT_RISE: f64 = 0.1;
 
+/// A frame is also suspect when the images constrain its solution less than this share of what
+/// the first frame's own images give its mesh (`FrameReport::information_share`): the mesh sees
+/// next to none of the surface's texture, as when it has slipped off onto the background. Tracked
+/// clips keep 0.25 or more, the hard sample's lowest while the rod covers it; meshes lost past the
+/// capture range fall to 0.00–0.04 (docs/tracker.md, "Suspect frames").
+pub const INFORMATION_FLOOR: f64 = 0.1;
+
 /// What happened in one frame (the frame and its timing are the caller's: see
 /// `run::FrameLog`).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -66,10 +73,19 @@ pub struct FrameReport {
     /// footage's own level of disagreement between cameras.
     #[serde(default)]
     pub contradicted_at_first: f64,
-    /// `contradicted_share` rose more than [`SUSPECT_RISE`] above `contradicted_at_first`: the
-    /// cameras disagree about where the previous frame left the surface, so the mesh may have
-    /// slipped off it (motion beyond the capture range) or a large occluder covers it. The frame
-    /// is solved as any other; reported as a warning.
+    /// How much the images constrain the solution, as a share of what the first frame's own
+    /// images give its mesh: the sum over the vertices of the smallest eigenvalue of each
+    /// vertex's photometric normal-equation block (the confidence file's `information`), at the
+    /// solution against the same sum for the first frame's templates compared with the first
+    /// frame itself. Logs written before it existed read as 1.
+    #[serde(default = "one")]
+    pub information_share: f64,
+    /// The frame may be wrong, for either of two reasons: `contradicted_share` rose more than
+    /// [`SUSPECT_RISE`] above `contradicted_at_first` (the cameras disagree about where the
+    /// previous frame left the surface: the mesh may have slipped off it, or a large occluder
+    /// covers it), or `information_share` is below [`INFORMATION_FLOOR`] (the mesh sees next to
+    /// none of the surface's texture: it may have slipped off onto the background, or left the
+    /// views). The frame is solved as any other; reported as a warning.
     #[serde(default)]
     pub suspect: bool,
     /// The share of the pixels compared at the solution, finest level, that the robust loss
@@ -94,6 +110,10 @@ pub struct FrameReport {
     /// beside the frame's mesh, not into the log).
     #[serde(skip)]
     pub confidence: Vec<VertexConfidence>,
+}
+
+fn one() -> f64 {
+    1.0
 }
 
 /// Time split of one frame's step, seconds.
@@ -137,6 +157,8 @@ pub struct Tracker {
     /// The share of the first frame's finest template that the other cameras contradict
     /// (`FrameReport::contradicted_at_first`).
     contradicted_at_first: f64,
+    /// What the first frame's own images give its mesh (`FrameReport::information_share`).
+    information_at_first: f64,
     /// The first frame (where the anchor was taken).
     anchor_frame: u32,
     prev: Template,
@@ -204,6 +226,7 @@ impl Tracker {
             gpu: None,
             anchor: Vec::new(),
             contradicted_at_first: 0.0,
+            information_at_first: 0.0,
             anchor_frame: frame,
             prev: Template {
                 positions: mesh.positions.clone(),
@@ -214,7 +237,58 @@ impl Tracker {
             before_frame: frame,
         };
         (t.anchor, t.contradicted_at_first) = t.anchor_patches(&t.prev, None);
+        t.information_at_first = t.information_at_first();
         Ok(t)
+    }
+
+    /// The sum over the vertices of the information (`VertexConfidence::information`) that the
+    /// first frame's finest templates, its anchor included, give the mesh when compared with the
+    /// first frame's own images: what a perfectly tracked frame of this footage would show.
+    fn information_at_first(&self) -> f64 {
+        let level = self.opts.finest_level;
+        let cb = level == 0 && self.opts.checkerboard;
+        let (mut set, _) =
+            self.template_patches(&self.prev, None, level, if cb { 2.0 } else { 1.0 }, cb);
+        if let Some(anchor) = self.anchor.get(level) {
+            merge_into(&mut set, anchor.clone());
+        }
+        let by_triangle = set.by_triangle();
+        let problem = Problem {
+            triangles: &self.triangles,
+            patches: &set.patches,
+            pixels: &set.pixels,
+            by_triangle: &by_triangle,
+            targets: self
+                .prev
+                .pyramids
+                .iter()
+                .map(|p| &p.levels[level])
+                .collect(),
+            projections: self
+                .cameras
+                .iter()
+                .map(|c| level_projection(c.at(self.prev.frame), level))
+                .collect(),
+            pattern: &self.pattern,
+            regularisers: &[],
+            cancel: None,
+            gpu: None,
+            moving_source: None,
+            gauge_floor: 0.0,
+            lag: None,
+        };
+        let opts = SolverOptions {
+            interpolation: self.used.interpolation_per_level[level],
+            ..self.opts.solver
+        };
+        problem
+            .vertex_confidence(
+                &self.prev.positions,
+                &problem.solve_options(&self.prev.positions, &opts),
+            )
+            .iter()
+            .map(|c| c.information)
+            .sum()
     }
 
     /// Replaces the current frame's vertex positions (e.g. a corrected shape from an artist, or
@@ -762,6 +836,12 @@ impl Tracker {
             ahead = built;
         }
         let iterations = summaries.iter().map(|s| s.iterations.len()).sum();
+        let information: f64 = confidence.iter().map(|c| c.information).sum();
+        let information_share = if self.information_at_first > 0.0 {
+            information / self.information_at_first
+        } else {
+            1.0
+        };
         // No pixel compared at full resolution (the mesh left every camera's view, or every
         // template pixel was lost): whatever the steps did, only the regularisers moved the
         // mesh, so the frame counts as stalled and keeps the previous frame's shape.
@@ -803,7 +883,9 @@ impl Tracker {
             contradicted,
             contradicted_share,
             contradicted_at_first: self.contradicted_at_first,
-            suspect: contradicted_share > self.contradicted_at_first + SUSPECT_RISE,
+            information_share,
+            suspect: contradicted_share > self.contradicted_at_first + SUSPECT_RISE
+                || information_share < INFORMATION_FLOOR,
             rejected_share,
             stop,
             predicted,

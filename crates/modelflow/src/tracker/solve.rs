@@ -1078,8 +1078,8 @@ impl Problem<'_> {
 
     /// Per vertex, how well the images constrain it at `x` ([`VertexConfidence`]): one more
     /// linearisation. The tracker reads the same from the solve's last linearisation instead
-    /// ([`Problem::confidence`]); this is the reference it is tested against.
-    #[cfg(test)]
+    /// ([`Problem::confidence`]), which is tested against this; the tracker calls this once, for
+    /// the first frame's reference (`FrameReport::information_share`).
     pub fn vertex_confidence(
         &self,
         x: &[Point3<f64>],

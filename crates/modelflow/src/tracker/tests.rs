@@ -363,6 +363,48 @@ fn approach_stages_stop_at_their_own_decrease_and_the_frames_stay_as_accurate() 
 }
 
 #[test]
+fn a_frame_whose_images_show_no_texture_where_the_mesh_is_is_suspect() {
+    // A tracked frame keeps about the information the first frame's own images give the mesh;
+    // a mesh that slipped off onto a plain background sees none: every camera shows flat grey
+    // in frame 2 here. Its information share falls under the floor and the frame is suspect.
+    let rig = rig();
+    let plane0 = plane_at(Vector3::zeros());
+    let mesh = mesh_of(&plane0);
+    let mut tr = Tracker::new(
+        &mesh,
+        rig.cameras(),
+        0,
+        &rig.images(&plane0),
+        TrackOptions::default(),
+    )
+    .unwrap();
+    let rep = tr
+        .step(
+            1,
+            &rig.images(&plane_at(Vector3::new(0.004, -0.002, 0.003))),
+        )
+        .unwrap();
+    assert!(
+        rep.information_share > 0.5 && !rep.suspect,
+        "frame 1: share {}, suspect {}",
+        rep.information_share,
+        rep.suspect
+    );
+    let grey: Vec<RgbImage> = rig
+        .images(&plane0)
+        .iter()
+        .map(|i| RgbImage::from_fn(i.width(), i.height(), |_, _| [0.5; 3]))
+        .collect();
+    let rep = tr.step(2, &grey).unwrap();
+    assert!(
+        rep.information_share < crate::tracker::INFORMATION_FLOOR && rep.suspect,
+        "frame 2: share {}, suspect {}",
+        rep.information_share,
+        rep.suspect
+    );
+}
+
+#[test]
 fn a_frame_that_cannot_be_improved_is_reported_as_stalled() {
     // A NaN in the next image (the file readers refuse them; a library user might not) makes
     // every cost that samples it NaN: no step can lower it, and the report must say so.
