@@ -77,7 +77,8 @@ def track_scene(
     saying what is missing where there is none). Returns the
     summary: "frames", "solved", "resumed_from", "total_seconds", "median_frame_seconds",
     "median_iterations", "stalled_frames" (the mesh could not move) and "suspect_frames" (the
-    cameras disagreed about where the previous frame left the surface)."""
+    cameras disagreed about where the previous frame left the surface, or the mesh saw next to
+    none of its texture)."""
 
 def evaluate(scene: Scene, run: _Path) -> Dict[str, Any]:
     """Scores a run folder against the scene's ground truth (per-frame and mean RMS error)."""

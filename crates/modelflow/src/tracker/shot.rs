@@ -29,7 +29,8 @@ pub struct TrackSummary {
     /// Frames solved by this call in which the solver could not lower the cost at all (see
     /// `FrameReport::stalled`), in order.
     pub stalled_frames: Vec<u32>,
-    /// Frames solved by this call whose previous frame the cameras disagreed about (see
+    /// Frames solved by this call that may be wrong: the cameras disagreed about the previous
+    /// frame's surface, or the mesh saw next to none of its texture (see
     /// `FrameReport::suspect`), in order.
     pub suspect_frames: Vec<u32>,
 }
