@@ -535,19 +535,16 @@ pub fn align(
             let mut set = cross_patches(&x0, &mesh.triangles, &projections, &targets, &popts);
             let by_triangle = set.by_triangle();
             let problem = Problem {
-                triangles: &mesh.triangles,
-                patches: &set.patches,
-                pixels: &set.pixels,
-                by_triangle: &by_triangle,
-                targets: targets.clone(),
-                projections: projections.clone(),
-                pattern: &pattern,
-                regularisers: &[],
-                cancel: None,
-                gpu: None,
                 moving_source: Some(&x0),
                 gauge_floor: opts.gauge_floor,
-                lag: None,
+                ..Problem::photometric(
+                    &mesh.triangles,
+                    &set,
+                    &by_triangle,
+                    targets.clone(),
+                    projections.clone(),
+                    &pattern,
+                )
             };
             // The chosen robust loss from the first round: an occluder in front of the surface
             // (a rod, a hand) or a highlight is seen differently by every camera, and with a

@@ -253,30 +253,21 @@ impl Tracker {
             merge_into(&mut set, anchor.clone());
         }
         let by_triangle = set.by_triangle();
-        let problem = Problem {
-            triangles: &self.triangles,
-            patches: &set.patches,
-            pixels: &set.pixels,
-            by_triangle: &by_triangle,
-            targets: self
-                .prev
+        let problem = Problem::photometric(
+            &self.triangles,
+            &set,
+            &by_triangle,
+            self.prev
                 .pyramids
                 .iter()
                 .map(|p| &p.levels[level])
                 .collect(),
-            projections: self
-                .cameras
+            self.cameras
                 .iter()
                 .map(|c| level_projection(c.at(self.prev.frame), level))
                 .collect(),
-            pattern: &self.pattern,
-            regularisers: &[],
-            cancel: None,
-            gpu: None,
-            moving_source: None,
-            gauge_floor: 0.0,
-            lag: None,
-        };
+            &self.pattern,
+        );
         let opts = SolverOptions {
             interpolation: self.used.interpolation_per_level[level],
             ..self.opts.solver
@@ -728,22 +719,9 @@ impl Tracker {
                         ..robust
                     };
                     let mut problem = Problem {
-                        triangles: &self.triangles,
-                        patches: &set.patches,
-                        pixels: &set.pixels,
-                        by_triangle: &by_triangle,
-                        targets: next.iter().map(|p| &p.levels[level]).collect(),
-                        projections: self
-                            .cameras
-                            .iter()
-                            .map(|c| level_projection(c.at(frame), level))
-                            .collect(),
-                        pattern: &self.pattern,
                         regularisers: &self.regularisers,
                         cancel: self.cancel.as_deref(),
-                        gpu: None,
                         moving_source: stereo.then_some(&stereo_x0[..]),
-                        gauge_floor: 0.0,
                         // Until a velocity is known the templates are taken as the cameras saw them
                         // too, which for a steady motion is exact on both sides.
                         lag: (lagged && self.before_prev.is_some()).then_some(Lag {
@@ -751,6 +729,17 @@ impl Tracker {
                             previous: &self.prev.positions,
                             gap: frame.saturating_sub(self.prev.frame).max(1) as f64,
                         }),
+                        ..Problem::photometric(
+                            &self.triangles,
+                            &set,
+                            &by_triangle,
+                            next.iter().map(|p| &p.levels[level]).collect(),
+                            self.cameras
+                                .iter()
+                                .map(|c| level_projection(c.at(frame), level))
+                                .collect(),
+                            &self.pattern,
+                        )
                     };
                     // On the GPU: this level's patches, pixels and images go up once, and every
                     // evaluation of the solves below runs there.

@@ -22,7 +22,7 @@ use crate::base::camera::Projection;
 use crate::base::image::RgbImage;
 use crate::base::mesh::{centroid, rms_radius};
 use crate::tracker::gpu::Uploaded;
-use crate::tracker::patch::{Patch, PixelSample};
+use crate::tracker::patch::{Patch, PatchSet, PixelSample};
 use crate::tracker::regularise::Regulariser;
 use crate::tracker::sparse::{solve_pcg, BlockSparse};
 use crate::tracker::warp::{source_matrix, warp_h};
@@ -187,6 +187,36 @@ pub(crate) struct Problem<'a> {
     /// previous frame's positions: camera `c` sees the surface at `x + δ_c·(x − previous)/gap`.
     /// `None`: every camera on time.
     pub lag: Option<Lag<'a>>,
+}
+
+impl<'a> Problem<'a> {
+    /// The photometric problem of `set`'s patches (grouped by `by_triangle`) against `targets`
+    /// seen through `projections`: no regulariser, on the CPU, no cancel flag, template patches
+    /// only, every camera on time. Callers set the other fields with struct update syntax.
+    pub fn photometric(
+        triangles: &'a [[u32; 3]],
+        set: &'a PatchSet,
+        by_triangle: &'a [(u32, std::ops::Range<usize>)],
+        targets: Vec<&'a RgbImage>,
+        projections: Vec<Projection>,
+        pattern: &'a [[u32; 2]],
+    ) -> Self {
+        Problem {
+            triangles,
+            patches: &set.patches,
+            pixels: &set.pixels,
+            by_triangle,
+            targets,
+            projections,
+            pattern,
+            regularisers: &[],
+            cancel: None,
+            gpu: None,
+            moving_source: None,
+            gauge_floor: 0.0,
+            lag: None,
+        }
+    }
 }
 
 /// When each camera records the frame solved, and where the surface was at the frame before: a

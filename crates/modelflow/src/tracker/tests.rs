@@ -517,19 +517,15 @@ fn frame1_problem<'a>(
     regularisers: &'a [Box<dyn regularise::Regulariser>],
 ) -> Problem<'a> {
     Problem {
-        triangles: &mesh.triangles,
-        patches: &set.patches,
-        pixels: &set.pixels,
-        by_triangle,
-        targets: dst.iter().map(|p| &p.levels[0]).collect(),
-        projections: cams.iter().map(|c| c.at(1).clone()).collect(),
-        pattern,
         regularisers,
-        cancel: None,
-        gpu: None,
-        moving_source: None,
-        gauge_floor: 0.0,
-        lag: None,
+        ..Problem::photometric(
+            &mesh.triangles,
+            set,
+            by_triangle,
+            dst.iter().map(|p| &p.levels[0]).collect(),
+            cams.iter().map(|c| c.at(1).clone()).collect(),
+            pattern,
+        )
     }
 }
 
@@ -1038,19 +1034,15 @@ impl CrossPlane {
     /// tracker's derivative over the same pixels (as if they were glued to the surface).
     fn problem(&self, glued: bool) -> Problem<'_> {
         Problem {
-            triangles: &self.mesh.triangles,
-            patches: &self.set.patches,
-            pixels: &self.set.pixels,
-            by_triangle: &self.by_triangle,
-            targets: self.pyramids.iter().map(|p| &p.levels[0]).collect(),
-            projections: self.projections.clone(),
-            pattern: &self.edges.edges,
-            regularisers: &[],
-            cancel: None,
-            gpu: None,
             moving_source: (!glued).then_some(&self.x0[..]),
-            gauge_floor: 0.0,
-            lag: None,
+            ..Problem::photometric(
+                &self.mesh.triangles,
+                &self.set,
+                &self.by_triangle,
+                self.pyramids.iter().map(|p| &p.levels[0]).collect(),
+                self.projections.clone(),
+                &self.edges.edges,
+            )
         }
     }
 }
