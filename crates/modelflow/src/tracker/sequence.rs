@@ -45,8 +45,9 @@ pub const SUSPECT_RISE: f64 = 0.1;
 /// A frame is also suspect when the images constrain its solution less than this share of what
 /// the first frame's own images give its mesh (`FrameReport::information_share`): the mesh sees
 /// next to none of the surface's texture, as when it has slipped off onto the background. Tracked
-/// clips keep 0.25 or more, the hard sample's lowest while the rod covers it; meshes lost past the
-/// capture range fall to 0.00–0.04 (docs/tracker.md, "Suspect frames").
+/// clips keep 0.26 or more (the real board 0.29, the hard sample 0.33 while the rod covers it, a
+/// 150-frame synthetic blob 0.26); meshes lost past the capture range fall to 0.00–0.03 once off
+/// the surface (docs/tracker.md, "Suspect frames").
 pub const INFORMATION_FLOOR: f64 = 0.1;
 
 /// What happened in one frame (the frame and its timing are the caller's: see
