@@ -76,9 +76,11 @@ def track_scene(
     "cpu", or "gpu" for the solver's per-pixel work on an NVIDIA GPU (raises ModelflowError
     saying what is missing where there is none). Returns the
     summary: "frames", "solved", "resumed_from", "total_seconds", "median_frame_seconds",
-    "median_iterations", "stalled_frames" (the mesh could not move) and "suspect_frames" (the
-    cameras disagreed about where the previous frame left the surface, or the mesh saw next to
-    none of its texture)."""
+    "median_iterations", "stalled_frames" (the mesh could not move), "suspect_frames" (the
+    cameras contradicted where the frame left the surface, the frame started from such a
+    solution, or the mesh saw next to none of its texture) and "checks": every frame to look
+    at, as {"frame": N, "concerns": [{"kind": "stalled" | "contradicted" |
+    "started_contradicted" | "little_texture", ...their figures}]}."""
 
 def evaluate(scene: Scene, run: _Path) -> Dict[str, Any]:
     """Scores a run folder against the scene's ground truth (per-frame and mean RMS error)."""

@@ -339,37 +339,18 @@ pub fn run_scene(
 ) -> anyhow::Result<TrackSummary> {
     let total = (scene.last - scene.first) as u64;
     let progress = Progress::new("track", total);
+    let mut checks = modelflow::tracker::Checks::default();
     let result = track_scene(scene, opts, out, run, &mut |f| {
         let r = f.model_flow();
-        if let Some(r) = r.filter(|r| r.information_share < modelflow::tracker::INFORMATION_FLOOR) {
-            progress.println(&format!(
-                "warning: frame {}: the images constrain the mesh {:.0} % as much as the first frame's own images do (below {:.0} %): it sees next to none of the surface's texture, so it may have slipped off onto the background (motion beyond the capture range), or the surface left the views, turned away or blurred out; check this frame's overlay",
-                f.frame,
-                100.0 * r.information_share,
-                100.0 * modelflow::tracker::INFORMATION_FLOOR
-            ));
-        }
-        if let Some(r) = r.filter(|r| {
-            r.contradicted_share > r.contradicted_at_first + modelflow::tracker::SUSPECT_RISE
-        }) {
-            progress.println(&format!(
-                "warning: frame {}: the other cameras contradicted {:.0} % of where the previous frame left the surface, against {:.0} % at the first frame (a rise of more than {:.0} points): the mesh may have slipped off it (motion beyond the capture range) or a large occluder covers it; check this frame's overlay",
-                f.frame,
-                100.0 * r.contradicted_share,
-                100.0 * r.contradicted_at_first,
-                100.0 * modelflow::tracker::SUSPECT_RISE
-            ));
-        }
-        if let Some(r) = r.filter(|r| r.stalled) {
-            let why = if r.pixels == 0 {
-                "no pixel of the mesh was compared at full resolution (it is out of every camera's view, or hidden)"
-            } else {
-                "no step lowered the cost (every step, shortened down to 1/64, raised it)"
-            };
-            progress.println(&format!(
-                "warning: frame {}: {why}; the mesh kept the previous frame's shape",
-                f.frame
-            ));
+        // The concerns this line adds (a slip shows in the next frame's report, so some are
+        // about the frame before), one warning each; "started from a contradicted solution"
+        // goes without saying after the warning about that solution.
+        if let Some(r) = r {
+            for (frame, c) in checks.add(f.frame, scene.first, r) {
+                if !matches!(c, modelflow::tracker::Concern::StartedContradicted { .. }) {
+                    progress.println(&format!("warning: frame {frame}: {}", c.describe()));
+                }
+            }
         }
         progress.at(
             (f.frame - scene.first) as u64,

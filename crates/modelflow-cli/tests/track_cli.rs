@@ -231,8 +231,9 @@ fn a_rig_whose_views_do_not_overlap_is_named_before_tracking() {
 #[test]
 fn a_frame_the_cameras_disagree_about_is_named_and_counted() {
     // The cloth shaken by 70 px per frame at 320×240, past its capture range at that size: the
-    // mesh slips off the surface, the two cameras contradict where it left it, and then it
-    // sees next to none of the surface's texture.
+    // mesh slips off the surface in frame 1. The cameras contradict where frame 1 left it, which
+    // shows when frame 2's templates are taken from it: the warning names frame 1, the frame to
+    // look at first. Once off the surface the mesh sees next to none of its texture.
     let err = track_synthetic(SynthOptions {
         width: 320,
         height: 240,
@@ -242,17 +243,18 @@ fn a_frame_the_cameras_disagree_about_is_named_and_counted() {
         ..SynthOptions::default()
     });
     assert!(
-        err.contains("warning: frame 2: the other cameras contradicted"),
+        err.contains("warning: frame 1: the other cameras contradict 35 % of where this frame left the surface, against 0 % at the first frame"),
         "{err}"
     );
-    // Once off the surface the mesh sees next to none of its texture: named too.
     assert!(
         err.contains("warning: frame 3: the images constrain the mesh 0 % as much as the first frame's own images do"),
         "{err}"
     );
+    // The summary counts the slipped frame and every frame after it; the last frame, which no
+    // next frame judges, by its own information share.
     assert!(
         err.contains(
-            "SUSPECT (the cameras disagreed about the surface, or it showed next to no texture): frames 2"
+            "3 SUSPECT (the cameras disagreed about the surface, or it showed next to no texture): frames 1, 2, 3"
         ),
         "{err}"
     );

@@ -11,6 +11,7 @@ pub(crate) mod align;
 pub(crate) mod consensus;
 mod coverage;
 mod gpu;
+pub(crate) mod health;
 mod options;
 pub(crate) mod outline;
 pub(crate) mod patch;
@@ -31,11 +32,10 @@ pub use align::{
 };
 pub use coverage::{coverage, Coverage};
 pub use gpu::{Gpu, GpuStats};
+pub use health::{frames_to_check, Checks, Concern, FrameCheck, INFORMATION_FLOOR, SUSPECT_RISE};
 pub use options::{OptionsUsed, TrackOptions};
 pub use regularise::Regularisation;
-pub use sequence::{
-    prepare, FrameReport, Prepared, StepTiming, Tracker, INFORMATION_FLOOR, SUSPECT_RISE,
-};
+pub use sequence::{prepare, FrameReport, Prepared, StepTiming, Tracker};
 pub use shot::{median, track_scene, TrackSummary};
 pub use solve::{
     GainModel, Interpolation, IterationSummary, Loss, SolveSummary, SolverOptions, StopReason,

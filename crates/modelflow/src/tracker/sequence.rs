@@ -18,6 +18,7 @@ use crate::error::{Error, Result};
 use crate::tracker::align;
 use crate::tracker::consensus::{drop_contradicted, ConsensusOptions};
 use crate::tracker::gpu::Gpu;
+use crate::tracker::health;
 use crate::tracker::options::{OptionsUsed, TrackOptions};
 use crate::tracker::patch::{PatchOptions, PatchSet};
 use crate::tracker::pyramid::Pyramid;
@@ -32,23 +33,6 @@ use serde::{Deserialize, Serialize};
 use std::sync::atomic::AtomicBool;
 use std::sync::Arc;
 use std::time::Instant;
-
-/// How far the share of the previous frame's finest template that the other cameras
-/// contradict may rise above that share at the first frame (where the mesh is given lined up)
-/// before a frame is reported as suspect (`FrameReport::suspect`). Footage has its own level of
-/// disagreement between cameras (highlights that move with the viewpoint, an occluder, blur):
-/// the Blender hard sample starts at 0.160 and stays within 0.024 of it, the real board held in
-/// two hands within 0.026 of its start; cloths tracked past their capture range rose by 0.19 to
-/// 0.37 in the frame after they slipped (docs/tracker.md, "Suspect frames").
-pub const SUSPECT_RISE: f64 = 0.1;
-
-/// A frame is also suspect when the images constrain its solution less than this share of what
-/// the first frame's own images give its mesh (`FrameReport::information_share`): the mesh sees
-/// next to none of the surface's texture, as when it has slipped off onto the background. Tracked
-/// clips keep 0.26 or more (the real board 0.29, the hard sample 0.33 while the rod covers it, a
-/// 150-frame synthetic blob 0.26); meshes lost past the capture range fall to 0.00–0.03 once off
-/// the surface (docs/tracker.md, "Suspect frames").
-pub const INFORMATION_FLOOR: f64 = 0.1;
 
 /// What happened in one frame (the frame and its timing are the caller's: see
 /// `run::FrameLog`).
@@ -81,12 +65,13 @@ pub struct FrameReport {
     /// frame itself. Logs written before it existed read as 1.
     #[serde(default = "one")]
     pub information_share: f64,
-    /// The frame may be wrong, for either of two reasons: `contradicted_share` rose more than
-    /// [`SUSPECT_RISE`] above `contradicted_at_first` (the cameras disagree about where the
-    /// previous frame left the surface: the mesh may have slipped off it, or a large occluder
-    /// covers it), or `information_share` is below [`INFORMATION_FLOOR`] (the mesh sees next to
-    /// none of the surface's texture: it may have slipped off onto the background, or left the
-    /// views). The frame is solved as any other; reported as a warning.
+    /// The frame may be wrong, by its own report ([`health::own_concerns`]): `contradicted_share`
+    /// rose more than [`health::SUSPECT_RISE`] above `contradicted_at_first` (the cameras
+    /// disagree about where the previous frame left the surface, so this frame started from a
+    /// doubtful place), or `information_share` is below [`health::INFORMATION_FLOOR`] (the mesh
+    /// sees next to none of the surface's texture). The previous frame is then in doubt too; the
+    /// whole rule, over a run, is [`health::frames_to_check`]. The frame is solved as any
+    /// other; reported as a warning.
     #[serde(default)]
     pub suspect: bool,
     /// The share of the pixels compared at the solution, finest level, that the robust loss
@@ -865,7 +850,7 @@ impl Tracker {
         }
         // A stalled frame's images are not made the template: the next frame is compared with
         // the last frame that was solved (its positions are what this frame reports).
-        Ok(FrameReport {
+        let mut report = FrameReport {
             iterations,
             cost_before,
             cost_after,
@@ -874,8 +859,7 @@ impl Tracker {
             contradicted_share,
             contradicted_at_first: self.contradicted_at_first,
             information_share,
-            suspect: contradicted_share > self.contradicted_at_first + SUSPECT_RISE
-                || information_share < INFORMATION_FLOOR,
+            suspect: false,
             rejected_share,
             stop,
             predicted,
@@ -883,7 +867,11 @@ impl Tracker {
             timing,
             levels: summaries,
             confidence,
-        })
+        };
+        report.suspect = health::own_concerns(&report)
+            .iter()
+            .any(health::Concern::is_suspect);
+        Ok(report)
     }
 }
 

@@ -7,6 +7,7 @@
 use crate::error::{Error, Result};
 use crate::input::scene::Scene;
 use crate::run::{write_run, FrameDetail, FrameLog, Method, RunFolder, RunOptions};
+use crate::tracker::health::{Checks, FrameCheck};
 use crate::tracker::options::TrackOptions;
 use crate::tracker::sequence::{prepare, Tracker};
 use serde::Serialize;
@@ -29,10 +30,13 @@ pub struct TrackSummary {
     /// Frames solved by this call in which the solver could not lower the cost at all (see
     /// `FrameReport::stalled`), in order.
     pub stalled_frames: Vec<u32>,
-    /// Frames solved by this call that may be wrong: the cameras disagreed about the previous
-    /// frame's surface, or the mesh saw next to none of its texture (see
-    /// `FrameReport::suspect`), in order.
+    /// Frames that may be wrong, in order: the cameras contradicted where the frame left the
+    /// surface (found with the next frame), the frame started from such a solution, or the mesh
+    /// saw next to none of the surface's texture (`health`). With a resumed run, the frame it
+    /// was resumed from may be among them.
     pub suspect_frames: Vec<u32>,
+    /// Every frame to check and why (`health::frames_to_check`), stalled and suspect ones alike.
+    pub checks: Vec<FrameCheck>,
 }
 
 /// Tracks a whole scene into the run folder `out_dir` (see `run` for the layout and the rules
@@ -105,8 +109,7 @@ fn track_into(
     };
     let mut walls = Vec::new();
     let mut iters = Vec::new();
-    let mut stalled_frames = Vec::new();
-    let mut suspect_frames = Vec::new();
+    let mut checks = Checks::default();
     // Reads a frame's images and builds their pyramids; runs while the previous frame is solved.
     let load = |frame: u32| {
         let t = Instant::now();
@@ -140,12 +143,7 @@ fn track_into(
         );
         let (report, seconds) = stepped?;
         iters.push(report.iterations as f64);
-        if report.stalled {
-            stalled_frames.push(frame);
-        }
-        if report.suspect {
-            suspect_frames.push(frame);
-        }
+        checks.add(frame, scene.first, &report);
         if !report.confidence.is_empty() {
             folder.write_confidence(frame, &report.confidence)?;
         }
@@ -167,6 +165,10 @@ fn track_into(
         on_frame(&line);
         pending = next;
     }
+    let checks = checks.into_frames();
+    let pick = |f: fn(&FrameCheck) -> bool| -> Vec<u32> {
+        checks.iter().filter(|c| f(c)).map(|c| c.frame).collect()
+    };
     Ok(TrackSummary {
         frames: (scene.last - scene.first + 1) as usize,
         solved: walls.len(),
@@ -174,8 +176,9 @@ fn track_into(
         total_seconds: 0.0,
         median_frame_seconds: median(&walls),
         median_iterations: median(&iters),
-        stalled_frames,
-        suspect_frames,
+        stalled_frames: pick(FrameCheck::stalled),
+        suspect_frames: pick(FrameCheck::suspect),
+        checks,
     })
 }
 
