@@ -21,6 +21,92 @@ pub(super) struct Figures {
     pub flipbook: Vec<u32>,
     /// How much of the surface the cameras see at the first frame (`tracker::coverage`).
     pub coverage: Coverage,
+    /// Whether the tracker's own measures were plotted (`checks_information`,
+    /// `checks_contradicted`): some run has a tracker log.
+    pub checks_plotted: bool,
+}
+
+/// Rows of the "Frames to check" table shown per run; the rest are counted.
+const CHECK_ROWS: usize = 40;
+
+/// The tracker's own checks: per run, the frames to look at and why, and the plots of the two
+/// measures behind them.
+fn checks_section(o: &mut String, runs: &[RunSummary], plotted: bool) {
+    if runs.iter().all(|r| r.checks.is_none()) {
+        return;
+    }
+    let _ = writeln!(o, "<h2>Frames to check</h2>");
+    let _ = writeln!(
+        o,
+        "<p>What the tracker itself found doubtful, from each run's <code>log.jsonl</code> (no ground truth needed): frames where no step lowered the cost (<b>stalled</b>: the mesh kept the previous frame's shape), frames where the other cameras contradict where the frame left the surface (found when the next frame's templates were taken from it) and the frames that started from there, and frames whose images constrain the mesh less than {:.0} % as much as the first frame's own images do (it sees next to none of the surface's texture). These are shaded in the plots above and below; the first one of each run is among the frames drawn.</p>",
+        100.0 * crate::tracker::INFORMATION_FLOOR
+    );
+    for (i, r) in runs.iter().enumerate() {
+        let swatch = format!(
+            "<span class=\"swatch\" style=\"background:{}\"></span>",
+            crate::report::draw::css(crate::report::colormap::run_colour(i))
+        );
+        match &r.checks {
+            None => {
+                let _ = writeln!(
+                    o,
+                    "<p>{swatch}{}: no tracker log, so no checks (the baseline keeps none).</p>",
+                    esc(&r.name)
+                );
+            }
+            Some(c) if c.is_empty() => {
+                let _ = writeln!(
+                    o,
+                    "<p>{swatch}{}: <b>no frame to check</b>. Every frame's solve moved the mesh, the cameras agreed about where each frame left the surface as well as at the first frame, and the images constrained every frame's mesh at least {:.0} % as much as the first frame's.</p>",
+                    esc(&r.name),
+                    100.0 * crate::tracker::INFORMATION_FLOOR
+                );
+            }
+            Some(c) => {
+                let stalled = c.iter().filter(|f| f.stalled()).count();
+                let suspect = c.iter().filter(|f| f.suspect()).count();
+                let _ = writeln!(
+                    o,
+                    "<p>{swatch}{}: <b>{} frame{} to check</b> ({stalled} stalled, {suspect} suspect), from frame {}.</p>",
+                    esc(&r.name),
+                    c.len(),
+                    if c.len() == 1 { "" } else { "s" },
+                    c[0].frame
+                );
+                let _ = writeln!(
+                    o,
+                    "<table class=\"kv\"><tr><th>frame</th><th>what the tracker found</th></tr>"
+                );
+                for f in c.iter().take(CHECK_ROWS) {
+                    let what = f
+                        .concerns
+                        .iter()
+                        .map(|c| esc(&c.describe()))
+                        .collect::<Vec<_>>()
+                        .join("<br>");
+                    let _ = writeln!(o, "<tr><td>{}</td><td>{what}</td></tr>", f.frame);
+                }
+                if c.len() > CHECK_ROWS {
+                    let _ = writeln!(
+                        o,
+                        "<tr><td colspan=\"2\">and {} more frames (the run's <code>log.jsonl</code> has them all)</td></tr>",
+                        c.len() - CHECK_ROWS
+                    );
+                }
+                let _ = writeln!(o, "</table>");
+            }
+        }
+    }
+    if plotted {
+        let _ = writeln!(
+            o,
+            "<figure><img src=\"checks_information.png\" alt=\"information share per frame, one line per run\"><figcaption>How much the images constrain each frame's solution, as a share of what the first frame's own images give its mesh (<code>information_share</code>); a frame below the dashed line is suspect. Also as <a href=\"checks_information.svg\">SVG</a>.</figcaption></figure>"
+        );
+        let _ = writeln!(
+            o,
+            "<figure><img src=\"checks_contradicted.png\" alt=\"rise of the contradicted share per frame, one line per run\"><figcaption>The share of each frame's finest template (taken from the previous frame's solution) that the other cameras contradict, less that share at the first frame (<code>contradicted_share − contradicted_at_first</code>); above the dashed line the previous frame's solution, and this frame, are suspect. Also as <a href=\"checks_contradicted.svg\">SVG</a>.</figcaption></figure>"
+        );
+    }
 }
 
 const STYLE: &str = "body{font-family:system-ui,-apple-system,'Segoe UI',Roboto,'DejaVu Sans',sans-serif;\
@@ -213,7 +299,7 @@ pub(super) fn page(
     }
     let _ = writeln!(
         o,
-        "<figure><img src=\"{p}.png\" alt=\"{p} per frame, one line per run\"><figcaption>Also as <a href=\"{p}.svg\">SVG</a>. Dashed lines: the frames drawn below.</figcaption></figure>",
+        "<figure><img src=\"{p}.png\" alt=\"{p} per frame, one line per run\"><figcaption>Also as <a href=\"{p}.svg\">SVG</a>. Dashed lines: the frames drawn below; shaded: the frames to check (below).</figcaption></figure>",
         p = plot_stem
     );
     if has_truth {
@@ -286,6 +372,8 @@ pub(super) fn page(
             .collect::<Vec<_>>()
             .join(", ")
     );
+
+    checks_section(&mut o, runs, figs.checks_plotted);
 
     let frame_list = frames
         .iter()

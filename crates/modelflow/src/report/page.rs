@@ -22,9 +22,9 @@ use crate::report::draw::{self, Rgb};
 use crate::report::eval::{self, EvalReport, FrameError};
 use crate::report::flipbook;
 use crate::report::overlay::{self, WireStyle};
-use crate::report::plot::{LinePlot, Series};
+use crate::report::plot::{Band, LinePlot, Series};
 use crate::synth::render::{self, RenderOptions, Surface};
-use crate::tracker::VertexConfidence;
+use crate::tracker::{FrameCheck, VertexConfidence};
 use nalgebra::Point3;
 use rayon::prelude::*;
 use std::path::{Path, PathBuf};
@@ -73,6 +73,9 @@ pub struct RunSummary {
     /// Median wall time per solved frame from the run's log, image reading included (`None`
     /// without a log or lines).
     pub seconds_per_frame: Option<f64>,
+    /// The frames the tracker's own checks flag, and why (`tracker::frames_to_check` over the
+    /// run's `log.jsonl`); `None` when the run has no tracker log (the baseline, a bare folder).
+    pub checks: Option<Vec<FrameCheck>>,
 }
 
 /// What [`write_report`] wrote.
@@ -151,7 +154,8 @@ pub fn write_report(
             ));
         }
     }
-    let frames = chosen_frames(scene, opts.frames.as_deref())?;
+    // The given frames are checked before any run is read.
+    chosen_frames(scene, opts.frames.as_deref(), &[])?;
     let residual_frame = match opts.residual_frame {
         Some(f) if !(scene.first < f && f <= scene.last) => {
             return Err(Error::option(
@@ -175,6 +179,18 @@ pub fn write_report(
         .iter()
         .map(|(_, dir)| seconds_per_frame(dir))
         .collect::<Result<_>>()?;
+    let health: Vec<Option<Health>> = loaded
+        .iter()
+        .map(|r| read_health(scene, &r.dir).map_err(|e| context(&r.name, &r.dir, e)))
+        .collect::<Result<_>>()?;
+    // Drawn by default: first, middle, last, and each run's first frame to check.
+    let first_flagged: Vec<u32> = health
+        .iter()
+        .flatten()
+        .filter_map(|h| h.checks.first().map(|c| c.frame))
+        .collect();
+    let frames = chosen_frames(scene, opts.frames.as_deref(), &first_flagged)?;
+    let bands = check_bands(&health);
 
     let has_truth = scene.ground_truth.is_some();
     let mut files = Vec::new();
@@ -204,6 +220,8 @@ pub fn write_report(
                 })
                 .collect(),
             marks: frames.iter().map(|&f| f as f64).collect(),
+            bands: bands.clone(),
+            levels: Vec::new(),
             width: 960,
             height: 480,
         };
@@ -238,7 +256,7 @@ pub fn write_report(
                 .flat_map(|(i, (rep, r))| {
                     let c = colormap::run_colour(i);
                     let fade = |t: f32| c.map(|v| v + (1.0 - v) * t);
-                    let band: [(&str, f32, Band); 3] = [
+                    let band: [(&str, f32, Statistic); 3] = [
                         ("median", 0.0, |e| e.median),
                         ("90th percentile", 0.35, |e| e.p90),
                         ("max", 0.6, |e| e.max),
@@ -268,13 +286,14 @@ pub fn write_report(
         fsutil::write_atomic(&svg, length_plot.to_svg().as_bytes())?;
         files.push(png);
         files.push(svg);
-        for ((r, rep), s) in loaded.iter().zip(reports).zip(&seconds) {
+        for (((r, rep), s), h) in loaded.iter().zip(reports).zip(&seconds).zip(&health) {
             summaries.push(RunSummary {
                 name: r.name.clone(),
                 dir: r.dir.clone(),
                 error: Some(rep),
                 photometric: None,
                 seconds_per_frame: *s,
+                checks: h.as_ref().map(|h| h.checks.clone()),
             });
         }
     } else {
@@ -305,16 +324,19 @@ pub fn write_report(
                 })
                 .collect(),
             marks: frames.iter().map(|&f| f as f64).collect(),
+            bands: bands.clone(),
+            levels: Vec::new(),
             width: 960,
             height: 480,
         };
-        for ((r, c), s) in loaded.iter().zip(costs).zip(&seconds) {
+        for (((r, c), s), h) in loaded.iter().zip(costs).zip(&seconds).zip(&health) {
             summaries.push(RunSummary {
                 name: r.name.clone(),
                 dir: r.dir.clone(),
                 error: None,
                 photometric: Some(c),
                 seconds_per_frame: *s,
+                checks: h.as_ref().map(|h| h.checks.clone()),
             });
         }
     }
@@ -325,6 +347,17 @@ pub fn write_report(
     fsutil::write_atomic(&plot_svg, plot.to_svg().as_bytes())?;
     files.push(plot_png.clone());
     files.push(plot_svg.clone());
+    let checks_plotted = health.iter().any(Option::is_some);
+    if checks_plotted {
+        for (stem, plot) in health_plots(&loaded, &health, &plot, bands) {
+            let png = out_dir.join(format!("{stem}.png"));
+            let svg = out_dir.join(format!("{stem}.svg"));
+            imageio::write_png(&png, &plot.render())?;
+            fsutil::write_atomic(&svg, plot.to_svg().as_bytes())?;
+            files.push(png);
+            files.push(svg);
+        }
+    }
 
     let truth: Option<Vec<(u32, Mesh)>> = if has_truth {
         Some(
@@ -444,6 +477,7 @@ pub fn write_report(
         figures.flipbook = fb_frames;
     }
     let index = out_dir.join("index.html");
+    figures.checks_plotted = checks_plotted;
     let page = html::page(scene, &summaries, &frames, plot_stem, &figures, opts);
     fsutil::write_atomic(&index, page.as_bytes())?;
     Ok(ReportSummary {
@@ -463,8 +497,9 @@ fn context(name: &str, dir: &Path, e: Error) -> Error {
     }
 }
 
-/// The frames to draw: the given ones (each in the scene), or first, middle and last.
-fn chosen_frames(scene: &Scene, given: Option<&[u32]>) -> Result<Vec<u32>> {
+/// The frames to draw: the given ones (each in the scene), or first, middle, last and `also`
+/// (each run's first frame to check).
+fn chosen_frames(scene: &Scene, given: Option<&[u32]>, also: &[u32]) -> Result<Vec<u32>> {
     let mut frames = match given {
         Some(fs) if !fs.is_empty() => {
             if let Some(f) = fs.iter().find(|f| !scene.frames().contains(f)) {
@@ -476,11 +511,14 @@ fn chosen_frames(scene: &Scene, given: Option<&[u32]>) -> Result<Vec<u32>> {
             }
             fs.to_vec()
         }
-        _ => vec![
+        _ => [
             scene.first,
             scene.first + (scene.last - scene.first) / 2,
             scene.last,
-        ],
+        ]
+        .into_iter()
+        .chain(also.iter().copied().filter(|f| scene.frames().contains(f)))
+        .collect(),
     };
     frames.sort_unstable();
     frames.dedup();
@@ -529,6 +567,129 @@ fn load_run(scene: &Scene, name: &str, dir: &Path) -> Result<Run> {
         dir: dir.to_path_buf(),
         meshes: got,
     })
+}
+
+/// What a run's tracker log says about its own frames.
+struct Health {
+    checks: Vec<FrameCheck>,
+    /// Per logged frame: the information share and the contradicted share's rise over the first
+    /// frame's, both as they are logged (shares, 0 to 1).
+    measures: Vec<(u32, f64, f64)>,
+}
+
+/// The tracker's checks from the run folder's `log.jsonl` (its lines for the scene's frames, the
+/// last line of a frame when a resumed run logged it twice); `None` without tracker lines.
+fn read_health(scene: &Scene, dir: &Path) -> Result<Option<Health>> {
+    let lines = crate::run::read_frame_log(dir)?;
+    let mut by_frame: std::collections::BTreeMap<u32, &crate::tracker::FrameReport> =
+        std::collections::BTreeMap::new();
+    for l in &lines {
+        if let Some(r) = l.model_flow().filter(|_| scene.frames().contains(&l.frame)) {
+            by_frame.insert(l.frame, r);
+        }
+    }
+    if by_frame.is_empty() {
+        return Ok(None);
+    }
+    let checks =
+        crate::tracker::frames_to_check(scene.first, by_frame.iter().map(|(f, r)| (*f, *r)));
+    let measures = by_frame
+        .iter()
+        .map(|(f, r)| {
+            (
+                *f,
+                r.information_share,
+                r.contradicted_share - r.contradicted_at_first,
+            )
+        })
+        .collect();
+    Ok(Some(Health { checks, measures }))
+}
+
+/// Band colours: suspect frames, stalled frames.
+const SUSPECT_BAND: Rgb = [1.0, 0.55, 0.0];
+const STALLED_BAND: Rgb = [0.85, 0.05, 0.05];
+
+/// Shaded bands over the frames any run's checks flag (stalled over suspect), runs of
+/// consecutive frames merged.
+fn check_bands(health: &[Option<Health>]) -> Vec<Band> {
+    let mut kind: std::collections::BTreeMap<u32, bool> = std::collections::BTreeMap::new();
+    for c in health.iter().flatten().flat_map(|h| &h.checks) {
+        *kind.entry(c.frame).or_default() |= c.stalled();
+    }
+    let mut bands: Vec<Band> = Vec::new();
+    for (&f, &stalled) in &kind {
+        let (colour, label) = if stalled {
+            (STALLED_BAND, "stalled frames")
+        } else {
+            (SUSPECT_BAND, "suspect frames")
+        };
+        match bands.last_mut() {
+            Some(b) if b.colour == colour && b.to == f as f64 - 0.5 => b.to = f as f64 + 0.5,
+            _ => bands.push(Band {
+                from: f as f64 - 0.5,
+                to: f as f64 + 0.5,
+                colour,
+                label: label.into(),
+            }),
+        }
+    }
+    bands
+}
+
+/// The tracker's own measures per frame, one line per run with a log, each with the threshold
+/// past which a frame is suspect: how much the images constrain the mesh, and how much the
+/// cameras contradict where the previous frame left the surface.
+fn health_plots(
+    loaded: &[Run],
+    health: &[Option<Health>],
+    like: &LinePlot,
+    bands: Vec<Band>,
+) -> [(&'static str, LinePlot); 2] {
+    let series = |value: fn(&(u32, f64, f64)) -> f64| -> Vec<Series> {
+        loaded
+            .iter()
+            .zip(health)
+            .enumerate()
+            .filter_map(|(i, (r, h))| {
+                h.as_ref().map(|h| Series {
+                    name: r.name.clone(),
+                    colour: colormap::run_colour(i),
+                    points: h
+                        .measures
+                        .iter()
+                        .map(|m| [m.0 as f64, 100.0 * value(m)])
+                        .collect(),
+                })
+            })
+            .collect()
+    };
+    let floor = 100.0 * crate::tracker::INFORMATION_FLOOR;
+    let rise = 100.0 * crate::tracker::SUSPECT_RISE;
+    [
+        (
+            "checks_information",
+            LinePlot {
+                title: "How much the images constrain the mesh".into(),
+                y_label: "information at the solution (% of the first frame's)".into(),
+                series: series(|m| m.1),
+                bands: bands.clone(),
+                levels: vec![(floor, format!("suspect below {floor:.0} %"))],
+                ..like.clone()
+            },
+        ),
+        (
+            "checks_contradicted",
+            LinePlot {
+                title: "Cameras contradicting where the previous frame left the surface".into(),
+                y_label: "contradicted pixels, rise over the first frame (points)".into(),
+                series: series(|m| m.2),
+                bands,
+                levels: vec![(rise, format!("suspect above {rise:.0} points"))],
+                ..like.clone()
+            },
+        ),
+    ]
 }
 
 /// Median wall time per solved frame (image reading included) from a run folder's log;
@@ -728,7 +889,7 @@ fn error_scales(scene: &Scene, runs: &[Run], truth: &[(u32, Mesh)], shared: bool
 }
 
 /// One line of the vertex-error bands plot: a statistic of a frame's vertex errors.
-type Band = fn(&FrameError) -> f64;
+type Statistic = fn(&FrameError) -> f64;
 
 /// One run's mesh at `frame` seen from the first camera (magnified like the overlays), filled
 /// with per-vertex `colours` on a dark background and labelled "run — camera — frame{note}".

@@ -25,12 +25,31 @@ pub struct LinePlot {
     /// x positions marked by a dashed vertical line (e.g. the frames drawn elsewhere in the
     /// report), labelled at the top.
     pub marks: Vec<f64>,
+    /// Shaded x ranges behind the lines (e.g. frames to check), each named once in the legend.
+    pub bands: Vec<Band>,
+    /// Horizontal dashed lines at a y value (e.g. a threshold), labelled inside the plot's right
+    /// edge; the y axis always reaches them.
+    pub levels: Vec<(f64, String)>,
     pub width: u32,
     pub height: u32,
 }
 
+/// A shaded x range `from..to` of a plot, in a light colour named `label` in the legend.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Band {
+    pub from: f64,
+    pub to: f64,
+    pub colour: Rgb,
+    pub label: String,
+}
+
+/// Opacity of the bands over the white plot area.
+const BAND_ALPHA: f32 = 0.22;
+
 /// Colour of the marks.
 const MARK: Rgb = [0.55, 0.55, 0.55];
+/// Colour of the horizontal level lines (thresholds).
+const LEVEL: Rgb = [0.75, 0.2, 0.15];
 
 const TITLE_PX: f32 = 18.0;
 const LABEL_PX: f32 = 14.0;
@@ -157,9 +176,11 @@ impl LinePlot {
         let (xlo, xhi) = finite(0).fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), v| {
             (a.min(v), b.max(v))
         });
-        let (ylo, yhi) = finite(1).fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), v| {
-            (a.min(v), b.max(v))
-        });
+        let (ylo, yhi) = finite(1)
+            .chain(self.levels.iter().map(|l| l.0).filter(|v| v.is_finite()))
+            .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), v| {
+                (a.min(v), b.max(v))
+            });
         // Non-negative quantities start their axis at zero.
         let ylo = if ylo >= 0.0 { 0.0 } else { ylo };
         let mut x = axis(xlo, xhi, false, true);
@@ -174,9 +195,9 @@ impl LinePlot {
             .map(|(_, s)| draw::text_width(s, TICK_PX))
             .fold(0.0, f64::max);
         let legend_w = self
-            .series
+            .legend()
             .iter()
-            .map(|s| draw::text_width(&s.name, LABEL_PX))
+            .map(|(name, _, _)| draw::text_width(name, LABEL_PX))
             .fold(0.0, f64::max)
             + 46.0;
         let (w, h) = (self.width as f64, self.height as f64);
@@ -189,6 +210,34 @@ impl LinePlot {
             y,
             legend_x: area[2] + 16.0,
         }
+    }
+
+    /// The legend's entries: every series (a line), then every band label once (a swatch).
+    fn legend(&self) -> Vec<(String, Rgb, bool)> {
+        let mut items: Vec<(String, Rgb, bool)> = self
+            .series
+            .iter()
+            .map(|s| (s.name.clone(), s.colour, false))
+            .collect();
+        for b in &self.bands {
+            if !items.iter().any(|(n, _, band)| *band && *n == b.label) {
+                items.push((b.label.clone(), b.colour, true));
+            }
+        }
+        items
+    }
+
+    /// Pixel rectangles `[left, right]` of the bands, clipped to the plot area.
+    fn band_spans(&self, lay: &Layout) -> Vec<(f64, f64, Rgb)> {
+        let [l, _, r, _] = lay.area;
+        self.bands
+            .iter()
+            .filter_map(|b| {
+                let x0 = lay.px([b.from, lay.y.lo])[0].max(l);
+                let x1 = lay.px([b.to, lay.y.lo])[0].min(r);
+                (x1 > x0).then_some((x0, x1, b.colour))
+            })
+            .collect()
     }
 
     /// Pixel polylines of each series, split where `y` is not finite.
@@ -236,7 +285,30 @@ impl LinePlot {
             draw::line(&mut img, [x, b], [x, b + 5.0], INK, 1.0, 1.0);
             draw::text(&mut img, s, x, b + 16.0, TICK_PX, INK, Anchor::Centre);
         }
+        for (x0, x1, c) in self.band_spans(&lay) {
+            draw::fill_rect(&mut img, x0, t, x1, b, c, BAND_ALPHA);
+        }
         draw::stroke_rect(&mut img, l, t, r, b, INK, 1.0);
+        for (v, label) in &self.levels {
+            let y = lay.px([lay.x.lo, *v])[1];
+            if !(t..=b).contains(&y) {
+                continue;
+            }
+            let mut x = l;
+            while x < r {
+                draw::line(&mut img, [x, y], [(x + 6.0).min(r), y], LEVEL, 1.5, 1.0);
+                x += 10.0;
+            }
+            draw::text(
+                &mut img,
+                label,
+                r - 6.0,
+                y - 9.0,
+                TICK_PX,
+                LEVEL,
+                Anchor::Right,
+            );
+        }
         for &m in &self.marks {
             let x = lay.px([m, lay.y.lo])[0];
             if x < l || x > r {
@@ -293,11 +365,15 @@ impl LinePlot {
             LABEL_PX,
             INK,
         );
-        for (i, s) in self.series.iter().enumerate() {
+        for (i, (name, colour, band)) in self.legend().iter().enumerate() {
             let y = t + 12.0 + 22.0 * i as f64;
             let x = lay.legend_x;
-            draw::line(&mut img, [x, y], [x + 26.0, y], s.colour, 2.5, 1.0);
-            draw::text(&mut img, &s.name, x + 34.0, y, LABEL_PX, INK, Anchor::Left);
+            if *band {
+                draw::fill_rect(&mut img, x, y - 7.0, x + 26.0, y + 7.0, *colour, BAND_ALPHA);
+            } else {
+                draw::line(&mut img, [x, y], [x + 26.0, y], *colour, 2.5, 1.0);
+            }
+            draw::text(&mut img, name, x + 34.0, y, LABEL_PX, INK, Anchor::Left);
         }
         img
     }
@@ -350,12 +426,39 @@ impl LinePlot {
                 xml_escape(s)
             );
         }
+        for (x0, x1, c) in self.band_spans(&lay) {
+            let _ = writeln!(
+                o,
+                r#"<rect x="{x0:.1}" y="{t:.1}" width="{:.1}" height="{:.1}" fill="{}" fill-opacity="{BAND_ALPHA}" class="band"/>"#,
+                x1 - x0,
+                b - t,
+                draw::css(c)
+            );
+        }
         let _ = writeln!(
             o,
             r#"<rect x="{l:.1}" y="{t:.1}" width="{:.1}" height="{:.1}" fill="none" stroke="{ink}"/>"#,
             r - l,
             b - t
         );
+        for (v, label) in &self.levels {
+            let y = lay.px([lay.x.lo, *v])[1];
+            if !(t..=b).contains(&y) {
+                continue;
+            }
+            let lc = draw::css(LEVEL);
+            let _ = writeln!(
+                o,
+                r#"<line x1="{l:.1}" y1="{y:.1}" x2="{r:.1}" y2="{y:.1}" stroke="{lc}" stroke-width="1.5" stroke-dasharray="6 4"/>"#
+            );
+            let _ = writeln!(
+                o,
+                r#"<text x="{:.1}" y="{:.1}" font-size="{TICK_PX}" text-anchor="end" dominant-baseline="central" fill="{lc}">{}</text>"#,
+                r - 6.0,
+                y - 9.0,
+                xml_escape(label)
+            );
+        }
         for &m in &self.marks {
             let x = lay.px([m, lay.y.lo])[0];
             if x < l || x > r {
@@ -422,20 +525,29 @@ impl LinePlot {
             xml_escape(&self.y_label)
         );
         let _ = writeln!(o, r#"<g class="legend">"#);
-        for (i, s) in self.series.iter().enumerate() {
+        for (i, (name, colour, band)) in self.legend().iter().enumerate() {
             let y = t + 12.0 + 22.0 * i as f64;
             let x = lay.legend_x;
-            let _ = writeln!(
-                o,
-                r#"<line x1="{x:.1}" y1="{y:.1}" x2="{:.1}" y2="{y:.1}" stroke="{}" stroke-width="2.5"/>"#,
-                x + 26.0,
-                draw::css(s.colour)
-            );
+            if *band {
+                let _ = writeln!(
+                    o,
+                    r#"<rect x="{x:.1}" y="{:.1}" width="26" height="14" fill="{}" fill-opacity="{BAND_ALPHA}"/>"#,
+                    y - 7.0,
+                    draw::css(*colour)
+                );
+            } else {
+                let _ = writeln!(
+                    o,
+                    r#"<line x1="{x:.1}" y1="{y:.1}" x2="{:.1}" y2="{y:.1}" stroke="{}" stroke-width="2.5"/>"#,
+                    x + 26.0,
+                    draw::css(*colour)
+                );
+            }
             let _ = writeln!(
                 o,
                 r#"<text x="{:.1}" y="{y:.1}" font-size="{LABEL_PX}" dominant-baseline="central" fill="{ink}">{}</text>"#,
                 x + 34.0,
-                xml_escape(&s.name)
+                xml_escape(name)
             );
         }
         let _ = writeln!(o, "</g>\n</svg>");
@@ -514,9 +626,65 @@ pub(crate) mod tests {
                         .collect(),
                 },
             ],
+            bands: Vec::new(),
+            levels: Vec::new(),
             width: 800,
             height: 450,
         }
+    }
+
+    /// A plot of values below 1 with a threshold at 2, and two flagged ranges of one kind.
+    fn flagged() -> LinePlot {
+        let orange = [1.0, 0.55, 0.0];
+        let band = |from: f64, to: f64| Band {
+            from,
+            to,
+            colour: orange,
+            label: "suspect frames".into(),
+        };
+        LinePlot {
+            bands: vec![band(3.5, 5.5), band(8.5, 9.5)],
+            levels: vec![(2.0, "suspect above 2".into())],
+            series: vec![Series {
+                name: "tracker".into(),
+                colour: crate::report::colormap::run_colour(0),
+                points: (0..12).map(|f| [f as f64, 0.05 * f as f64]).collect(),
+            }],
+            ..sample()
+        }
+    }
+
+    #[test]
+    fn flagged_frames_are_shaded_and_a_threshold_is_drawn_even_above_the_data() {
+        let p = flagged();
+        let lay = p.layout();
+        // The y axis reaches the threshold although every value is below 0.6.
+        assert!(lay.y.hi >= 2.0, "{:?}", lay.y);
+        let img = p.render();
+        // Inside a band, away from the line and the grid: white tinted orange; outside: white.
+        let inside = lay.px([4.5, 1.25]);
+        let outside = lay.px([6.5, 1.25]);
+        let px = |q: [f64; 2]| img.get(q[0].round() as usize, q[1].round() as usize);
+        let tint = px(inside);
+        assert!(
+            (tint[0] - 1.0).abs() < 0.02 && tint[2] < 0.9 && tint[1] < tint[0],
+            "{tint:?}"
+        );
+        assert_eq!(px(outside), [1.0, 1.0, 1.0]);
+        // The dashed threshold line is drawn in its colour where a dash falls.
+        let y = lay.px([0.0, 2.0])[1].round() as usize;
+        let x0 = lay.area[0].round() as usize;
+        let on_line = (x0..x0 + 12).any(|x| {
+            let c = img.get(x, y);
+            (c[0] - LEVEL[0]).abs() < 0.1 && (c[1] - LEVEL[1]).abs() < 0.1
+        });
+        assert!(on_line, "no dash of the threshold line at y = {y}");
+        // The SVG has both bands, names the kind once in the legend, and labels the threshold.
+        let svg = p.to_svg();
+        assert_well_formed(&svg);
+        assert_eq!(svg.matches("class=\"band\"").count(), 2);
+        assert_eq!(svg.matches(">suspect frames</text>").count(), 1);
+        assert!(svg.contains(">suspect above 2</text>"));
     }
 
     #[test]

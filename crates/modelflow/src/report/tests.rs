@@ -344,3 +344,77 @@ fn bad_runs_and_logs_are_named() {
         "nothing written on bad input"
     );
 }
+
+/// A tracker log for frames 1..=11 of the sample: every frame fine but for `contradicted` (frame,
+/// share of its templates the other cameras contradict) and `stalled` (a frame out of every view).
+fn tracker_log(dir: &Path, contradicted: (u32, f64), stalled: u32) {
+    let log: String = (1..=11u32)
+        .map(|f| {
+            let share = if f == contradicted.0 { contradicted.1 } else { 0.02 };
+            let (pixels, information) = if f == stalled { (0, 0.0) } else { (5000, 0.7) };
+            format!(
+                "{{\"frame\": {f}, \"seconds\": 0.1, \"load_seconds\": 0, \"wall_seconds\": 0.1, \
+                 \"method\": \"model_flow\", \"iterations\": 9, \"cost_before\": 1e-3, \
+                 \"cost_after\": 1e-4, \"pixels\": {pixels}, \"contradicted_share\": {share}, \
+                 \"contradicted_at_first\": 0.02, \"information_share\": {information}, \
+                 \"stop\": \"converged\", \"predicted\": false, \"stalled\": {}, \
+                 \"timing\": {{\"pyramids\": 0, \"patches\": 0, \"solve\": 0.1}}, \"levels\": []}}\n",
+                f == stalled
+            )
+        })
+        .collect();
+    std::fs::write(dir.join("log.jsonl"), log).unwrap();
+}
+
+#[test]
+fn frames_the_tracker_doubts_are_listed_shaded_plotted_and_drawn() {
+    let scene = Scene::load(Path::new(SAMPLE)).unwrap();
+    let tmp = tempfile::tempdir().unwrap();
+    let (tracked, clean, baseline, out) = (
+        tmp.path().join("tracked"),
+        tmp.path().join("clean"),
+        tmp.path().join("baseline"),
+        tmp.path().join("report"),
+    );
+    // Frame 5's templates show the cameras contradicting frame 4's solution; frame 8 stalls.
+    make_run(&scene, &tracked, 0.0, None);
+    tracker_log(&tracked, (5, 0.4), 8);
+    make_run(&scene, &clean, 0.0, None);
+    tracker_log(&clean, (0, 0.0), 0);
+    make_run(&scene, &baseline, 0.0, Some(&[0.1; 11]));
+    let runs = vec![
+        ("tracked".to_string(), tracked),
+        ("clean".to_string(), clean),
+        ("baseline".to_string(), baseline),
+    ];
+    let summary = write_report(&scene, &runs, &ReportOptions::default(), &out).unwrap();
+    let checks = summary.runs[0].checks.as_ref().unwrap();
+    let frames: Vec<u32> = checks.iter().map(|c| c.frame).collect();
+    assert_eq!(frames, [4, 5, 8]);
+    assert!(checks[2].stalled() && checks[0].suspect() && !checks[0].stalled());
+    assert_eq!(summary.runs[1].checks.as_deref(), Some(&[][..]));
+    assert!(summary.runs[2].checks.is_none());
+    // The first frame to check is drawn beside the first, middle and last.
+    assert_eq!(summary.frames, [0, 4, 5, 11]);
+    let html = std::fs::read_to_string(&summary.index).unwrap();
+    let links = check_links(&out, &html);
+    for l in [
+        "checks_information.png",
+        "checks_contradicted.svg",
+        "overlay_f0004_c0_cam0.png",
+    ] {
+        assert!(links.contains(&l.to_string()), "{l} not linked");
+    }
+    assert!(html.contains("<b>3 frames to check</b> (1 stalled, 3 suspect), from frame 4."));
+    assert!(html.contains(
+        "the other cameras contradict 40 % of where this frame left the surface, against 2 % at the first frame"
+    ));
+    assert!(html.contains("clean: <b>no frame to check</b>"));
+    assert!(html.contains("baseline: no tracker log"));
+    // The error plot shades the flagged frames: 4–5 suspect, 8 stalled.
+    let svg = std::fs::read_to_string(out.join("error.svg")).unwrap();
+    assert_eq!(svg.matches("class=\"band\"").count(), 2);
+    assert!(svg.contains(">suspect frames</text>") && svg.contains(">stalled frames</text>"));
+    let svg = std::fs::read_to_string(out.join("checks_contradicted.svg")).unwrap();
+    assert!(svg.contains(">suspect above 10 points</text>"));
+}
