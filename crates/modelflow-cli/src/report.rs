@@ -21,7 +21,8 @@ pub struct Args {
     /// The report folder (created if missing); index.html is written there.
     #[arg(long)]
     out: PathBuf,
-    /// Frames to draw overlays for, comma separated (default: first, middle, last).
+    /// Frames to draw overlays for, comma separated (default: first, middle, last, and each
+    /// run's first frame to check).
     #[arg(long, value_delimiter = ',')]
     overlay_frames: Option<Vec<u32>>,
     /// Degrees the oblique camera is turned about the vertical axis (-180 to 180).

@@ -32,7 +32,8 @@ use std::path::{Path, PathBuf};
 /// What the report shows.
 #[derive(Clone, Debug, PartialEq)]
 pub struct ReportOptions {
-    /// Frames to draw overlays, oblique views and error maps for; `None`: first, middle, last.
+    /// Frames to draw overlays, oblique views and error maps for; `None`: first, middle, last, and each
+    /// run's first frame to check (`RunSummary::checks`).
     pub frames: Option<Vec<u32>>,
     /// How far the oblique camera is turned about the vertical axis through the mesh centroid.
     pub oblique_degrees: f64,
