@@ -569,22 +569,23 @@ impl Tracker {
         self.check_prepared(&prepared)?;
         let levels = self.opts.levels;
         let next = prepared.pyramids;
-        let mut timing = StepTiming {
-            pyramids: prepared.seconds,
-            ..Default::default()
+        let mut out = Outcome {
+            summaries: Vec::with_capacity(levels),
+            predicted: false,
+            cost_before: 0.0,
+            cost_after: 0.0,
+            pixels: 0,
+            contradicted: 0,
+            contradicted_share: 0.0,
+            rejected_share: 0.0,
+            stop: StopReason::NoData,
+            confidence: Vec::new(),
+            timing: StepTiming {
+                pyramids: prepared.seconds,
+                ..Default::default()
+            },
         };
-        let ncam = self.cameras.len();
         let mut x = self.prev.positions.clone();
-        let mut summaries = Vec::with_capacity(levels);
-        let mut predicted = false;
-        let mut cost_before = 0.0;
-        let mut cost_after = 0.0;
-        let mut pixels = 0;
-        let mut contradicted = 0;
-        let mut contradicted_share = 0.0;
-        let mut rejected_share = 0.0;
-        let mut stop = StopReason::NoData;
-        let mut confidence = Vec::new();
         let offsets: Vec<f64> = self.cameras.iter().map(|c| c.time_offset).collect();
         let lagged = offsets.iter().any(|&d| d != 0.0);
         // The constant-velocity prediction when there is a velocity, the previous shape
@@ -627,200 +628,56 @@ impl Tracker {
         };
         let mut ahead = None;
         for level in (finest..levels).rev() {
-            let ((mut set, dropped), built_seconds) = match ahead.take() {
+            let ((template, dropped), built_seconds) = match ahead.take() {
                 Some(b) => b,
                 None => build(level),
             };
-            timing.patches += built_seconds;
+            out.timing.patches += built_seconds;
             let tp = Instant::now();
             if level == finest {
-                contradicted = dropped;
-                let taken = set.pixels.len() + dropped;
-                contradicted_share = if taken > 0 {
+                out.contradicted = dropped;
+                let taken = template.pixels.len() + dropped;
+                out.contradicted_share = if taken > 0 {
                     dropped as f64 / taken as f64
                 } else {
                     0.0
                 };
             }
-            if let Some(anchor) = self.anchor.get(level) {
-                // Anchor patches only where the triangle is seen in the previous frame too
-                // (otherwise it has turned away or been covered since the first frame).
-                let cover = set.coverage(self.triangles.len(), ncam);
-                for p in &anchor.patches {
-                    if cover[p.triangle as usize * ncam + p.camera as usize] {
-                        let start = set.pixels.len() as u32;
-                        set.pixels
-                            .extend_from_slice(&anchor.pixels[p.start as usize..p.end as usize]);
-                        set.patches.push(crate::tracker::patch::Patch {
-                            start,
-                            end: set.pixels.len() as u32,
-                            ..*p
-                        });
-                    }
-                }
-            }
-            // The cameras compared with each other at the mesh where this level starts.
-            let stereo = self.opts.stereo > 0.0
-                && ncam > 1
-                && stereo_levels(levels, finest).contains(&level);
-            let stereo_x0 = if stereo { x.clone() } else { Vec::new() };
-            if stereo {
-                merge_into(
-                    &mut set,
-                    self.stereo_patches(&stereo_x0, frame, level, &next),
-                );
-            }
+            let (mut set, stereo_x0) = self.level_patches(frame, level, template, &x, &next);
             let by_triangle = set.by_triangle();
-            timing.patches += tp.elapsed().as_secs_f64();
+            out.timing.patches += tp.elapsed().as_secs_f64();
+            let input = LevelInput {
+                frame,
+                level,
+                set: &set,
+                by_triangle: &by_triangle,
+                stereo_x0: stereo_x0.as_deref(),
+                next: &next,
+                lag: (lagged && self.before_prev.is_some()).then_some(Lag {
+                    offsets: &offsets,
+                    previous: &self.prev.positions,
+                    gap: frame.saturating_sub(self.prev.frame).max(1) as f64,
+                }),
+            };
             let (solved, built) = rayon::join(
-                || -> Result<()> {
-                    let ts = Instant::now();
-                    // Every solve but the last one runs with the convex Huber loss; with `Loss::Tukey`
-                    // a last free solve from the Huber solution rejects what it cannot explain.
-                    let robust = SolverOptions {
-                        interpolation: self.used.interpolation_per_level[level],
-                        ..self.opts.solver
-                    };
-                    let refine = robust.loss != Loss::Huber && level == finest;
-                    // The Huber solves sample bilinearly, also at full resolution when a refine
-                    // follows: they bring the mesh to within a fraction of a pixel, and the refine,
-                    // in the chosen interpolation, decides the solution (docs/tracker.md, "Levels").
-                    // An approach stage (a finer level or the refine follows, and it is not the
-                    // coarsest level, where large motion is caught) stops at the looser decrease.
-                    let approach = level + 1 < levels && (refine || level > finest);
-                    let sopts = SolverOptions {
-                        loss: Loss::Huber,
-                        interpolation: if refine {
-                            Interpolation::Linear
-                        } else {
-                            robust.interpolation
-                        },
-                        min_relative_decrease: if approach {
-                            robust
-                                .min_relative_decrease
-                                .max(self.opts.approach_decrease)
-                        } else {
-                            robust.min_relative_decrease
-                        },
-                        ..robust
-                    };
-                    let mut problem = Problem {
-                        regularisers: &self.regularisers,
-                        cancel: self.cancel.as_deref(),
-                        moving_source: stereo.then_some(&stereo_x0[..]),
-                        // Until a velocity is known the templates are taken as the cameras saw them
-                        // too, which for a steady motion is exact on both sides.
-                        lag: (lagged && self.before_prev.is_some()).then_some(Lag {
-                            offsets: &offsets,
-                            previous: &self.prev.positions,
-                            gap: frame.saturating_sub(self.prev.frame).max(1) as f64,
-                        }),
-                        ..Problem::photometric(
-                            &self.triangles,
-                            &set,
-                            &by_triangle,
-                            next.iter().map(|p| &p.levels[level]).collect(),
-                            self.cameras
-                                .iter()
-                                .map(|c| level_projection(c.at(frame), level))
-                                .collect(),
-                            &self.pattern,
-                        )
-                    };
-                    // On the GPU: this level's patches, pixels and images go up once, and every
-                    // evaluation of the solves below runs there.
-                    let uploaded = match &self.gpu {
-                        Some(g) => Some(g.upload(&problem)?),
-                        None => None,
-                    };
-                    problem.gpu = uploaded.as_ref();
-                    if level == levels - 1 && self.opts.predict {
-                        if let Some(pp) = &self.before_prev {
-                            let guess: Vec<Point3<f64>> =
-                                x.iter().zip(pp).map(|(a, b)| a + (a - b)).collect();
-                            if problem.cost(&guess, &sopts) < problem.cost(&x, &sopts) {
-                                x = guess;
-                                predicted = true;
-                            }
-                        }
-                    }
-                    if level == finest {
-                        cost_before = problem.cost(&self.prev.positions, &sopts);
-                    }
-                    // A cancelled solve ends the step: the tracker stays at the previous frame and
-                    // nothing of this step is kept.
-                    let last_complete = self.prev.frame;
-                    let solve = |x: &[Point3<f64>], lin, o: &SolverOptions, motion, median| {
-                        let out = problem.solve_stage(x, lin, o, motion, median);
-                        if out.1.stop == StopReason::Cancelled {
-                            Err(Error::Interrupted { last_complete })
-                        } else {
-                            Ok(out)
-                        }
-                    };
-                    let mut linearised = None;
-                    // The rigid stage at the coarsest level only: that is where a large motion is caught;
-                    // at the finer levels the coarser solution already holds it, and a rigid stage there
-                    // found next to nothing (0.7 accepted steps per frame, 2 evaluations each).
-                    if self.opts.rigid_first && level == levels - 1 {
-                        let (sol, summary, lin) = solve(&x, None, &sopts, Motion::Rigid, false)?;
-                        x = sol;
-                        linearised = Some(lin);
-                        summaries.push(summary);
-                    }
-                    // Before a refine, the Huber solve takes the residuals' median at its result as it
-                    // goes, which sets the refine's threshold without a pass of its own.
-                    let (sol, mut summary, mut lin) =
-                        solve(&x, linearised, &sopts, Motion::Free, refine)?;
-                    x = sol;
-                    if refine {
-                        let (sol, refined, refined_lin) =
-                            solve(&x, Some(lin), &robust, Motion::Free, false)?;
-                        x = sol;
-                        lin = refined_lin;
-                        summaries.push(std::mem::replace(&mut summary, refined));
-                    }
-                    if level == finest {
-                        cost_after = summary.final_cost;
-                        pixels = summary.pixels;
-                        stop = summary.stop;
-                        let tc = Instant::now();
-                        // Read from the last solve's linearisation, made at `x` with `robust`.
-                        confidence = problem.confidence(&lin);
-                        rejected_share = problem.rejected_share(&lin);
-                        timing.confidence = tc.elapsed().as_secs_f64();
-                    }
-                    summaries.push(summary);
-                    // The confidence is timed apart.
-                    let own = if level == finest {
-                        timing.confidence
-                    } else {
-                        0.0
-                    };
-                    timing.solve += ts.elapsed().as_secs_f64() - own;
-                    // A failure on the device was answered by the CPU within the solve; the frame is
-                    // still refused, so that a broken GPU path is never silent.
-                    if let Some(e) = uploaded.as_ref().and_then(|u| u.failure()) {
-                        return Err(e);
-                    }
-                    Ok(())
-                },
+                || self.solve_level(&input, &mut x, &mut out),
                 || (level > finest).then(|| build(level - 1)),
             );
             solved?;
             ahead = built;
         }
-        let iterations = summaries.iter().map(|s| s.iterations.len()).sum();
-        let information: f64 = confidence.iter().map(|c| c.information).sum();
+        let iterations = out.summaries.iter().map(|s| s.iterations.len()).sum();
+        let information: f64 = out.confidence.iter().map(|c| c.information).sum();
         let information_share = if self.information_at_first > 0.0 {
             information / self.information_at_first
         } else {
             1.0
         };
+        let summaries = out.summaries;
         // No pixel compared at full resolution (the mesh left every camera's view, or every
         // template pixel was lost): whatever the steps did, only the regularisers moved the
         // mesh, so the frame counts as stalled and keeps the previous frame's shape.
-        let stalled = pixels == 0
+        let stalled = out.pixels == 0
             || (!summaries
                 .iter()
                 .any(|s| s.iterations.iter().any(|i| i.accepted))
@@ -852,27 +709,240 @@ impl Tracker {
         // the last frame that was solved (its positions are what this frame reports).
         let mut report = FrameReport {
             iterations,
-            cost_before,
-            cost_after,
-            pixels,
-            contradicted,
-            contradicted_share,
+            cost_before: out.cost_before,
+            cost_after: out.cost_after,
+            pixels: out.pixels,
+            contradicted: out.contradicted,
+            contradicted_share: out.contradicted_share,
             contradicted_at_first: self.contradicted_at_first,
             information_share,
             suspect: false,
-            rejected_share,
-            stop,
-            predicted,
+            rejected_share: out.rejected_share,
+            stop: out.stop,
+            predicted: out.predicted,
             stalled,
-            timing,
+            timing: out.timing,
             levels: summaries,
-            confidence,
+            confidence: out.confidence,
         };
         report.suspect = health::own_concerns(&report)
             .iter()
             .any(health::Concern::is_suspect);
         Ok(report)
     }
+
+    /// A level's patches: the previous frame's `template`, the first frame's anchor where the
+    /// previous frame still sees its triangles, and, with `--stereo` at the levels it is
+    /// compared at, the cameras compared with each other at `x` (the mesh where this level
+    /// starts; returned too, since the solve's moving source needs it).
+    fn level_patches(
+        &self,
+        frame: u32,
+        level: usize,
+        template: PatchSet,
+        x: &[Point3<f64>],
+        next: &[Pyramid],
+    ) -> (PatchSet, Option<Vec<Point3<f64>>>) {
+        let mut set = template;
+        let ncam = self.cameras.len();
+        if let Some(anchor) = self.anchor.get(level) {
+            // Anchor patches only where the triangle is seen in the previous frame too
+            // (otherwise it has turned away or been covered since the first frame).
+            let cover = set.coverage(self.triangles.len(), ncam);
+            for p in &anchor.patches {
+                if cover[p.triangle as usize * ncam + p.camera as usize] {
+                    let start = set.pixels.len() as u32;
+                    set.pixels
+                        .extend_from_slice(&anchor.pixels[p.start as usize..p.end as usize]);
+                    set.patches.push(crate::tracker::patch::Patch {
+                        start,
+                        end: set.pixels.len() as u32,
+                        ..*p
+                    });
+                }
+            }
+        }
+        let stereo = self.opts.stereo > 0.0
+            && ncam > 1
+            && stereo_levels(self.opts.levels, self.opts.finest_level).contains(&level);
+        if !stereo {
+            return (set, None);
+        }
+        let x0 = x.to_vec();
+        merge_into(&mut set, self.stereo_patches(&x0, frame, level, next));
+        (set, Some(x0))
+    }
+
+    /// Solves one level of a frame from `x` (moved to the level's solution): the prediction
+    /// tried at the coarsest level, the rigid stage there, the Huber solve, and at the finest
+    /// level the robust refine and what the frame reports (into `out`).
+    fn solve_level(
+        &self,
+        input: &LevelInput<'_>,
+        x: &mut Vec<Point3<f64>>,
+        out: &mut Outcome,
+    ) -> Result<()> {
+        let LevelInput {
+            frame,
+            level,
+            set,
+            by_triangle,
+            stereo_x0,
+            next,
+            lag,
+        } = *input;
+        let (levels, finest) = (self.opts.levels, self.opts.finest_level);
+        let ts = Instant::now();
+        // Every solve but the last one runs with the convex Huber loss; with `Loss::Tukey`
+        // a last free solve from the Huber solution rejects what it cannot explain.
+        let robust = SolverOptions {
+            interpolation: self.used.interpolation_per_level[level],
+            ..self.opts.solver
+        };
+        let refine = robust.loss != Loss::Huber && level == finest;
+        // The Huber solves sample bilinearly, also at full resolution when a refine
+        // follows: they bring the mesh to within a fraction of a pixel, and the refine,
+        // in the chosen interpolation, decides the solution (docs/tracker.md, "Levels").
+        // An approach stage (a finer level or the refine follows, and it is not the
+        // coarsest level, where large motion is caught) stops at the looser decrease.
+        let approach = level + 1 < levels && (refine || level > finest);
+        let sopts = SolverOptions {
+            loss: Loss::Huber,
+            interpolation: if refine {
+                Interpolation::Linear
+            } else {
+                robust.interpolation
+            },
+            min_relative_decrease: if approach {
+                robust
+                    .min_relative_decrease
+                    .max(self.opts.approach_decrease)
+            } else {
+                robust.min_relative_decrease
+            },
+            ..robust
+        };
+        let mut problem = Problem {
+            regularisers: &self.regularisers,
+            cancel: self.cancel.as_deref(),
+            moving_source: stereo_x0,
+            // Until a velocity is known the templates are taken as the cameras saw them
+            // too, which for a steady motion is exact on both sides.
+            lag,
+            ..Problem::photometric(
+                &self.triangles,
+                set,
+                by_triangle,
+                next.iter().map(|p| &p.levels[level]).collect(),
+                self.cameras
+                    .iter()
+                    .map(|c| level_projection(c.at(frame), level))
+                    .collect(),
+                &self.pattern,
+            )
+        };
+        // On the GPU: this level's patches, pixels and images go up once, and every
+        // evaluation of the solves below runs there.
+        let uploaded = match &self.gpu {
+            Some(g) => Some(g.upload(&problem)?),
+            None => None,
+        };
+        problem.gpu = uploaded.as_ref();
+        if level == levels - 1 && self.opts.predict {
+            if let Some(pp) = &self.before_prev {
+                let guess: Vec<Point3<f64>> = x.iter().zip(pp).map(|(a, b)| a + (a - b)).collect();
+                if problem.cost(&guess, &sopts) < problem.cost(x, &sopts) {
+                    *x = guess;
+                    out.predicted = true;
+                }
+            }
+        }
+        if level == finest {
+            out.cost_before = problem.cost(&self.prev.positions, &sopts);
+        }
+        // A cancelled solve ends the step: the tracker stays at the previous frame and
+        // nothing of this step is kept.
+        let last_complete = self.prev.frame;
+        let solve = |x: &[Point3<f64>], lin, o: &SolverOptions, motion, median| {
+            let out = problem.solve_stage(x, lin, o, motion, median);
+            if out.1.stop == StopReason::Cancelled {
+                Err(Error::Interrupted { last_complete })
+            } else {
+                Ok(out)
+            }
+        };
+        let mut linearised = None;
+        // The rigid stage at the coarsest level only: that is where a large motion is caught;
+        // at the finer levels the coarser solution already holds it, and a rigid stage there
+        // found next to nothing (0.7 accepted steps per frame, 2 evaluations each).
+        if self.opts.rigid_first && level == levels - 1 {
+            let (sol, summary, lin) = solve(x, None, &sopts, Motion::Rigid, false)?;
+            *x = sol;
+            linearised = Some(lin);
+            out.summaries.push(summary);
+        }
+        // Before a refine, the Huber solve takes the residuals' median at its result as it
+        // goes, which sets the refine's threshold without a pass of its own.
+        let (sol, mut summary, mut lin) = solve(x, linearised, &sopts, Motion::Free, refine)?;
+        *x = sol;
+        if refine {
+            let (sol, refined, refined_lin) = solve(x, Some(lin), &robust, Motion::Free, false)?;
+            *x = sol;
+            lin = refined_lin;
+            out.summaries.push(std::mem::replace(&mut summary, refined));
+        }
+        // The confidence is timed apart.
+        let mut own = 0.0;
+        if level == finest {
+            out.cost_after = summary.final_cost;
+            out.pixels = summary.pixels;
+            out.stop = summary.stop;
+            let tc = Instant::now();
+            // Read from the last solve's linearisation, made at `x` with `robust`.
+            out.confidence = problem.confidence(&lin);
+            out.rejected_share = problem.rejected_share(&lin);
+            own = tc.elapsed().as_secs_f64();
+            out.timing.confidence = own;
+        }
+        out.summaries.push(summary);
+        out.timing.solve += ts.elapsed().as_secs_f64() - own;
+        // A failure on the device was answered by the CPU within the solve; the frame is
+        // still refused, so that a broken GPU path is never silent.
+        if let Some(e) = uploaded.as_ref().and_then(|u| u.failure()) {
+            return Err(e);
+        }
+        Ok(())
+    }
+}
+
+/// What one level's solve needs besides the tracker: the frame, its patches and images, and the
+/// cameras' lag.
+#[derive(Clone, Copy)]
+struct LevelInput<'a> {
+    frame: u32,
+    level: usize,
+    set: &'a PatchSet,
+    by_triangle: &'a [(u32, std::ops::Range<usize>)],
+    /// The mesh the `--stereo` comparisons were taken at (their moving source); `None`: none.
+    stereo_x0: Option<&'a [Point3<f64>]>,
+    next: &'a [Pyramid],
+    lag: Option<Lag<'a>>,
+}
+
+/// What a frame's levels have found so far: the [`FrameReport`]'s figures before the frame's
+/// verdicts (stalled, information, suspect) are drawn from them.
+struct Outcome {
+    summaries: Vec<SolveSummary>,
+    predicted: bool,
+    cost_before: f64,
+    cost_after: f64,
+    pixels: usize,
+    contradicted: usize,
+    contradicted_share: f64,
+    rejected_share: f64,
+    stop: StopReason,
+    confidence: Vec<VertexConfidence>,
+    timing: StepTiming,
 }
 
 /// One frame's images made ready for [`Tracker::step_prepared`]: each camera's smoothed pyramid.
