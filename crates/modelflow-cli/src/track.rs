@@ -365,6 +365,15 @@ pub fn run_scene(
         );
     });
     progress.finish();
+    // The last frame is judged after the loop (no next frame's report does it).
+    if let Ok(summary) = &result {
+        let last = summary.checks.iter().filter(|c| c.frame == scene.last);
+        for c in last.flat_map(|c| &c.concerns) {
+            if matches!(c, modelflow::tracker::Concern::Contradicted { .. }) {
+                eprintln!("warning: frame {}: {}", scene.last, c.describe());
+            }
+        }
+    }
     result.map_err(|e| {
         let interrupted = matches!(e, modelflow::Error::Interrupted { .. });
         let e = anyhow::Error::new(e);

@@ -260,6 +260,57 @@ fn a_frame_the_cameras_disagree_about_is_named_and_counted() {
     );
 }
 
+#[test]
+fn a_slip_in_the_last_frame_is_named_too() {
+    // The same slip, with frame 1 the shot's last: no next frame's templates judge it, so the
+    // tracker takes the same check once the shot is done, says so, records it in run.json, and
+    // the report lists it.
+    let dir = tempfile::tempdir().unwrap();
+    let opts = SynthOptions {
+        width: 320,
+        height: 240,
+        frames: 2,
+        shake: 70.0,
+        supersample: 1,
+        ..SynthOptions::default()
+    };
+    let scene = write_dataset(&opts, &dir.path().join("footage"), &|_, _| {}).unwrap();
+    let run = dir.path().join("run");
+    let err = track_ok(&scene, &run);
+    assert!(
+        err.contains("warning: frame 1: the other cameras contradict 35 % of where this frame left the surface"),
+        "{err}"
+    );
+    assert!(
+        err.contains("1 SUSPECT (the cameras disagreed about the surface, or it showed next to no texture): frames 1)"),
+        "{err}"
+    );
+    let manifest: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(run.join("run.json")).unwrap()).unwrap();
+    let check = &manifest["last_frame_check"];
+    assert_eq!(check["frame"], 1, "{manifest}");
+    assert!(
+        check["contradicted_share"].as_f64().unwrap() > 0.3,
+        "{manifest}"
+    );
+    let report = dir.path().join("report");
+    let o = Command::new(env!("CARGO_BIN_EXE_modelflow"))
+        .args(["report", "--no-flipbook", "--scene"])
+        .arg(&scene)
+        .arg("--run")
+        .arg(format!("tracked={}", run.display()))
+        .arg("--out")
+        .arg(&report)
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let page = std::fs::read_to_string(report.join("index.html")).unwrap();
+    assert!(
+        page.contains("<b>1 frame to check</b> (0 stalled, 1 suspect), from frame 1."),
+        "{page}"
+    );
+}
+
 /// `--device gpu` where no GPU can be used stops before anything is written and says what is
 /// missing (the driver, or CUDA's NVRTC library); where one can, the run is the CPU's.
 #[test]

@@ -13,7 +13,7 @@
 
 use super::layout::{self, confidence_file, frame_file, LOG, MANIFEST};
 use super::log::{read_log, FrameLog, LogWriter};
-use super::manifest::{now, Manifest, Method, Options, Resumption, Status};
+use super::manifest::{now, LastFrameCheck, Manifest, Method, Options, Resumption, Status};
 use crate::base::mesh::Mesh;
 use crate::error::{Error, Result};
 use crate::input::meshio::{read_mesh_with, Checks};
@@ -250,6 +250,12 @@ impl RunFolder {
     pub fn read_positions(&self, frame: u32) -> Result<Vec<Point3<f64>>> {
         let path = self.dir.join(frame_file(frame));
         Ok(read_mesh_with(&path, Checks::Structure)?.positions)
+    }
+
+    /// Records the tracker's check on the last frame, written into the manifest when the run
+    /// finishes.
+    pub fn record_last_frame_check(&mut self, check: LastFrameCheck) {
+        self.manifest.last_frame_check = Some(check);
     }
 
     /// Records how the run ended in the manifest.

@@ -91,6 +91,23 @@ pub struct Manifest {
     /// Each time the run was continued with `--resume`.
     #[serde(default)]
     pub resumed: Vec<Resumption>,
+    /// The tracker's cross-camera check on the last frame's solution, which no next frame's log
+    /// line judges (`tracker::health`); `None` for the baseline, a run that did not end
+    /// complete, or one written before it existed.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub last_frame_check: Option<LastFrameCheck>,
+}
+
+/// The cross-camera check on a run's last frame, as a next frame's templates would have taken
+/// it (`Tracker::contradicted_now`).
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct LastFrameCheck {
+    pub frame: u32,
+    /// The share of the template taken from that frame's solution that the other cameras
+    /// contradict (0 to 1), as a log line's `contradicted_share`.
+    pub contradicted_share: f64,
+    /// The same share at the first frame, as a log line's `contradicted_at_first`.
+    pub contradicted_at_first: f64,
 }
 
 impl Manifest {
@@ -120,6 +137,7 @@ impl Manifest {
             last_complete: None,
             frames_completed: 0,
             resumed: Vec::new(),
+            last_frame_check: None,
         })
     }
 

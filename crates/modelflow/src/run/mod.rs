@@ -17,5 +17,6 @@ pub use layout::{
 };
 pub use log::{read_frame_log, FrameDetail, FrameLog};
 pub use manifest::{
-    inputs_checksum, Manifest, Method, Options, Resumption, SceneRecord, Status, RUN_FORMAT,
+    inputs_checksum, LastFrameCheck, Manifest, Method, Options, Resumption, SceneRecord, Status,
+    RUN_FORMAT,
 };

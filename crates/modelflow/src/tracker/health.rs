@@ -6,8 +6,10 @@
 //! from it (the cameras compared at that solution, in that frame's images). So a slip shows one
 //! frame late: the report of frame `t + 1` says that the cameras contradict where frame `t` left
 //! the surface. Both are flagged: `t` because its solution is contradicted, `t + 1` because it
-//! started from there. The last frame of a shot has no next frame to judge it; only its own
-//! information share does.
+//! started from there. The last frame of a shot has no next frame to judge it: `track_scene`
+//! takes the same check once the shot is done (`Tracker::contradicted_now`, one template's
+//! building), adds it with [`Checks::judge`] and keeps it in the manifest (`last_frame_check`),
+//! where the report reads it.
 //!
 //! Knows the reports' fields and the thresholds; nothing of images, files or the solver.
 
@@ -144,20 +146,35 @@ impl Checks {
     /// ([`Concern::Contradicted`]). Returns the concerns added, by frame (the previous frame's
     /// first), for warnings.
     pub fn add(&mut self, frame: u32, first: u32, r: &FrameReport) -> Vec<(u32, Concern)> {
-        let mut added = Vec::new();
-        if contradicts_previous(r) && frame > first + 1 {
-            let c = Concern::Contradicted {
-                share: r.contradicted_share,
-                at_first: r.contradicted_at_first,
-            };
-            self.push(frame - 1, c);
-            added.push((frame - 1, c));
-        }
+        let mut added: Vec<(u32, Concern)> = frame
+            .checked_sub(1)
+            .and_then(|prev| self.judge(prev, first, r.contradicted_share, r.contradicted_at_first))
+            .into_iter()
+            .collect();
         for c in own_concerns(r) {
             self.push(frame, c);
             added.push((frame, c));
         }
         added
+    }
+
+    /// Adds the cross-camera check's verdict on frame `frame`'s solution (`share` contradicted,
+    /// against `at_first` at the first frame), as the next frame's report or, for a shot's last
+    /// frame, `Tracker::contradicted_now` gives it. Returns the concern when it flags the frame
+    /// (never `first`, the given mesh).
+    pub fn judge(
+        &mut self,
+        frame: u32,
+        first: u32,
+        share: f64,
+        at_first: f64,
+    ) -> Option<(u32, Concern)> {
+        if frame <= first || share <= at_first + SUSPECT_RISE {
+            return None;
+        }
+        let c = Concern::Contradicted { share, at_first };
+        self.push(frame, c);
+        Some((frame, c))
     }
 
     fn push(&mut self, frame: u32, c: Concern) {
@@ -193,8 +210,9 @@ impl Checks {
     }
 }
 
-/// The frames to check of a whole run, from its reports in frame order (`log.jsonl`'s lines);
-/// `first` is the scene's first frame (the given mesh, never flagged).
+/// The frames to check of a run, from its reports in frame order (`log.jsonl`'s lines); `first`
+/// is the scene's first frame (the given mesh, never flagged). The last frame's verdict is not
+/// in the reports: add it with [`Checks::judge`] (the manifest's `last_frame_check`).
 pub fn frames_to_check<'a>(
     first: u32,
     reports: impl IntoIterator<Item = (u32, &'a FrameReport)>,

@@ -544,12 +544,7 @@ impl Tracker {
                     true,
                 );
                 if l == self.opts.finest_level {
-                    let taken = set.pixels.len() + dropped;
-                    share = if taken > 0 {
-                        dropped as f64 / taken as f64
-                    } else {
-                        0.0
-                    };
+                    share = share_of(dropped, set.pixels.len());
                 }
                 set
             })
@@ -615,15 +610,7 @@ impl Tracker {
         // the patches are the same whichever thread builds them.
         let build = |level: usize| {
             let tp = Instant::now();
-            let cb = level == 0 && this.opts.checkerboard;
-            let weight = if cb { 2.0 } else { 1.0 };
-            let before = this.before_prev.as_deref().map(|b| {
-                (
-                    b,
-                    this.prev.frame.saturating_sub(this.before_frame).max(1) as f64,
-                )
-            });
-            let built = this.template_patches(&this.prev, before, level, weight, cb);
+            let built = this.previous_template(level);
             (built, tp.elapsed().as_secs_f64())
         };
         let mut ahead = None;
@@ -636,12 +623,7 @@ impl Tracker {
             let tp = Instant::now();
             if level == finest {
                 out.contradicted = dropped;
-                let taken = template.pixels.len() + dropped;
-                out.contradicted_share = if taken > 0 {
-                    dropped as f64 / taken as f64
-                } else {
-                    0.0
-                };
+                out.contradicted_share = share_of(dropped, template.pixels.len());
             }
             let (mut set, stereo_x0) = self.level_patches(frame, level, template, &x, &next);
             let by_triangle = set.by_triangle();
@@ -729,6 +711,33 @@ impl Tracker {
             .iter()
             .any(health::Concern::is_suspect);
         Ok(report)
+    }
+
+    /// The previous frame's template at `level` (the checkerboard at full resolution, at twice
+    /// the weight, when the options say so), and how many of its pixels the other cameras
+    /// contradicted (left out).
+    fn previous_template(&self, level: usize) -> (PatchSet, usize) {
+        let cb = level == 0 && self.opts.checkerboard;
+        let weight = if cb { 2.0 } else { 1.0 };
+        let before = self.before_prev.as_deref().map(|b| {
+            (
+                b,
+                self.prev.frame.saturating_sub(self.before_frame).max(1) as f64,
+            )
+        });
+        self.template_patches(&self.prev, before, level, weight, cb)
+    }
+
+    /// The cross-camera check on the current solution, taken as the next frame's finest
+    /// template would take it: the share of its pixels the other cameras contradict, and that
+    /// share at the first frame. This is what judges a shot's last frame, which no next frame's
+    /// report does (`health`); one template's building, no solve.
+    pub fn contradicted_now(&self) -> (f64, f64) {
+        let (set, dropped) = self.previous_template(self.opts.finest_level);
+        (
+            share_of(dropped, set.pixels.len()),
+            self.contradicted_at_first,
+        )
     }
 
     /// A level's patches: the previous frame's `template`, the first frame's anchor where the
@@ -912,6 +921,16 @@ impl Tracker {
             return Err(e);
         }
         Ok(())
+    }
+}
+
+/// `dropped` pixels as a share of those a template took (`kept` + `dropped`); 0 when it took none.
+fn share_of(dropped: usize, kept: usize) -> f64 {
+    let taken = kept + dropped;
+    if taken > 0 {
+        dropped as f64 / taken as f64
+    } else {
+        0.0
     }
 }
 

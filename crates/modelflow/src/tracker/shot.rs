@@ -6,7 +6,7 @@
 
 use crate::error::{Error, Result};
 use crate::input::scene::Scene;
-use crate::run::{write_run, FrameDetail, FrameLog, Method, RunFolder, RunOptions};
+use crate::run::{write_run, FrameDetail, FrameLog, LastFrameCheck, Method, RunFolder, RunOptions};
 use crate::tracker::health::{Checks, FrameCheck};
 use crate::tracker::options::TrackOptions;
 use crate::tracker::sequence::{prepare, Tracker};
@@ -110,6 +110,7 @@ fn track_into(
     let mut walls = Vec::new();
     let mut iters = Vec::new();
     let mut checks = Checks::default();
+    let mut last_solved = None;
     // Reads a frame's images and builds their pyramids; runs while the previous frame is solved.
     let load = |frame: u32| {
         let t = Instant::now();
@@ -144,6 +145,7 @@ fn track_into(
         let (report, seconds) = stepped?;
         iters.push(report.iterations as f64);
         checks.add(frame, scene.first, &report);
+        last_solved = Some(frame);
         if !report.confidence.is_empty() {
             folder.write_confidence(frame, &report.confidence)?;
         }
@@ -164,6 +166,16 @@ fn track_into(
         walls.push(wall_seconds);
         on_frame(&line);
         pending = next;
+    }
+    // The last frame has no next frame whose templates judge it: the same check, taken now.
+    if let Some(last) = last_solved {
+        let (share, at_first) = tracker.contradicted_now();
+        checks.judge(last, scene.first, share, at_first);
+        folder.record_last_frame_check(LastFrameCheck {
+            frame: last,
+            contradicted_share: share,
+            contradicted_at_first: at_first,
+        });
     }
     let checks = checks.into_frames();
     let pick = |f: fn(&FrameCheck) -> bool| -> Vec<u32> {
