@@ -1,8 +1,8 @@
 //! Reading and writing image files as [`RgbImage`]: PNG (8/16-bit, grey or colour, with or
-//! without alpha), JPEG, TIFF (8/16-bit) and OpenEXR in; PNG (8- or 16-bit) out. Integer samples
-//! are scaled to [0, 1] (8-bit by 1/255, 16-bit by 1/65535); float samples are kept as they are;
-//! alpha is dropped. Decoding is the `image` crate's; this module fixes the value convention and
-//! names the file in every error.
+//! without alpha), JPEG, TIFF (8/16-bit), OpenEXR and DPX (8/10/12/16-bit) in; PNG (8- or 16-bit)
+//! out. Integer samples are scaled to [0, 1] (by 1/255, 1/1023, 1/4095, 1/65535); float samples
+//! are kept as they are; alpha is dropped. Decoding is the `image` crate's but for DPX
+//! (`input::dpx`); this module fixes the value convention and names the file in every error.
 
 use crate::base::image::RgbImage;
 use crate::error::{Error, Result};
@@ -53,6 +53,13 @@ fn open(path: &Path) -> Result<ImageReader<std::io::BufReader<std::fs::File>>> {
 pub fn read_rgb(path: &Path) -> Result<RgbImage> {
     crate::fsutil::require_file(path, "image")?;
     let reader = open(path)?;
+    if reader.format().is_none() {
+        // Not a format `image` knows from its first bytes: DPX, or an error from `image`.
+        let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
+        if super::dpx::is_dpx(&bytes) {
+            return super::dpx::decode(path, &bytes);
+        }
+    }
     let img = if reader.format() == Some(image::ImageFormat::Jpeg) {
         // Read once: checked for completeness, then decoded from memory.
         let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
@@ -110,9 +117,21 @@ pub fn read_rgb(path: &Path) -> Result<RgbImage> {
 
 /// Width and height of an image file, from its header only (fast: no pixel is decoded).
 pub fn image_size(path: &Path) -> Result<(u32, u32)> {
-    open(path)?
-        .into_dimensions()
-        .map_err(|e| decode_error(path, e))
+    let reader = open(path)?;
+    if reader.format().is_none() {
+        use std::io::Read;
+        let mut head = Vec::with_capacity(super::dpx::HEADER_LEN);
+        let file = std::fs::File::open(path).map_err(|e| Error::io(path, e))?;
+        let len = file.metadata().map_err(|e| Error::io(path, e))?.len() as usize;
+        file.take(super::dpx::HEADER_LEN as u64)
+            .read_to_end(&mut head)
+            .map_err(|e| Error::io(path, e))?;
+        if super::dpx::is_dpx(&head) {
+            let l = super::dpx::layout(path, &head, len)?;
+            return Ok((l.width as u32, l.height as u32));
+        }
+    }
+    reader.into_dimensions().map_err(|e| decode_error(path, e))
 }
 
 fn quantise<const MAX: u32>(v: f32) -> f32 {

@@ -5,6 +5,7 @@
 //! names the file and the field or line at fault. Nothing here tracks, renders or scores.
 
 pub mod calib;
+pub(crate) mod dpx;
 pub(crate) mod imageio;
 pub(crate) mod meshio;
 pub(crate) mod scene;
