@@ -60,6 +60,10 @@ pub struct Args {
     /// frame's time; each image is the mean of 8 renders over it.
     #[arg(long, default_value_t = 0.0)]
     motion_blur: f64,
+    /// The object turned in the hand: degrees per frame about the first camera's image vertical
+    /// through its centre (0 to 90), on top of the preset's motion and --shake.
+    #[arg(long, default_value_t = 0.0)]
+    turn: f64,
 }
 
 pub fn run(args: Args) -> anyhow::Result<()> {
@@ -84,6 +88,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         cloth_grid: args.cloth_grid,
         sync_error: args.sync_error,
         motion_blur: args.motion_blur,
+        turn: args.turn,
         ..SynthOptions::preset(&args.preset)?
     };
     let start = std::time::Instant::now();

@@ -75,6 +75,11 @@ pub struct TrackArgs {
     /// of it; the coarsest level and the last solve use --min-decrease (0 = off; 0 to below 1).
     #[arg(long, default_value_t = TrackOptions::default().approach_decrease)]
     pub approach_decrease: f64,
+    /// Weight, relative to the first-frame anchor's, of the first frame's view lent to cameras
+    /// that see a triangle now but did not then (an object turned in front of the rig): keeps
+    /// the sides that come into view from drifting (0 = off; 0 to 10).
+    #[arg(long, default_value_t = TrackOptions::default().lent_anchor)]
+    pub lent_anchor: f64,
     /// Huber threshold on the RGB residual (image values 0..1; above 0, at most 10).
     #[arg(long, default_value_t = TrackOptions::default().solver.huber)]
     pub huber: f64,
@@ -171,6 +176,7 @@ impl TrackArgs {
             consensus: self.consensus,
             stereo: self.stereo,
             approach_decrease: self.approach_decrease,
+            lent_anchor: self.lent_anchor,
             blur: self.blur,
             checkerboard: !self.all_pixels,
             rigid_first: !self.no_rigid_stage,

@@ -23,7 +23,9 @@
 //! plane, with a chord of `shake` pixels at its centre in that camera, while rolling about that
 //! camera's axis by a quarter of that motion at its rim. It starts from rest at frame 0, so the
 //! first mesh does not change. This makes large per-frame motion (the tracker's capture range)
-//! without making the deformation itself faster.
+//! without making the deformation itself faster. `turn` turns the object in the hand instead:
+//! degrees per frame about the first camera's image vertical through the object's centre, so
+//! that sides come into view and others leave it (a rotation the cameras see out of plane).
 //!
 //! The texture is a function of the material (rest-pose) coordinates, so it sticks to the
 //! surface. Everything is deterministic for a seed (the seed chooses the texture and the image
@@ -134,6 +136,10 @@ pub struct SynthOptions {
     /// instant): each image is the mean of renders spread over it, so moving texture smears
     /// along its motion.
     pub motion_blur: f64,
+    /// A hand-held object turned in the hand: degrees per frame about the first camera's image
+    /// vertical through the object's centre, on top of the preset's motion and `shake` (0:
+    /// none); it starts from rest at frame 0. Sides come into view and others leave it.
+    pub turn: f64,
 }
 
 /// Renders averaged per image for [`SynthOptions::motion_blur`].
@@ -156,6 +162,7 @@ impl Default for SynthOptions {
             cloth_grid: CLOTH_N,
             sync_error: 0.0,
             motion_blur: 0.0,
+            turn: 0.0,
         }
     }
 }
@@ -200,6 +207,13 @@ impl SynthOptions {
                 "--shake",
                 self.shake,
                 "0 to 1000 pixels per frame",
+            ));
+        }
+        if !(self.turn.is_finite() && (0.0..=90.0).contains(&self.turn)) {
+            return Err(Error::option(
+                "--turn",
+                self.turn,
+                "0 to 90 degrees per frame",
             ));
         }
         if !(self.sync_error.is_finite() && (0.0..=1.0).contains(&self.sync_error)) {
@@ -610,6 +624,9 @@ impl Synthetic {
             Preset::Blob => blob(opts),
             Preset::Irregular => irregular(opts),
         };
+        if opts.turn > 0.0 {
+            s.turn(opts.turn);
+        }
         if opts.shake > 0.0 {
             s.shake(opts.shake);
         }
@@ -635,6 +652,24 @@ impl Synthetic {
 
     pub fn frames(&self) -> u32 {
         self.truth.len() as u32
+    }
+
+    /// Turns the object by `degrees` per frame about the first camera's image vertical through
+    /// its first frame's centre (see the module documentation).
+    fn turn(&mut self, degrees: f64) {
+        let first = &self.truth[0];
+        let centre =
+            Point3::from(first.iter().map(|p| p.coords).sum::<Vector3<f64>>() / first.len() as f64);
+        let r = &self.krt[0].1;
+        // The camera's y axis (image down) in the world: its second row of R.
+        let down = Unit::new_normalize(Vector3::new(r[(1, 0)], r[(1, 1)], r[(1, 2)]));
+        // Frame 0 stays as it is, to the bit: the scene's mesh.
+        for (f, frame) in self.truth.iter_mut().enumerate().skip(1) {
+            let rot = Rotation3::from_axis_angle(&down, (degrees * f as f64).to_radians());
+            for p in frame.iter_mut() {
+                *p = centre + rot * (*p - centre);
+            }
+        }
     }
 
     /// Adds the hand-held motion of `px` pixels per frame (see the module documentation).
@@ -1074,6 +1109,47 @@ mod tests {
             occluded > 10,
             "only {occluded} front-facing vertices hidden"
         );
+    }
+
+    #[test]
+    fn turn_turns_the_object_about_the_first_cameras_vertical_and_leaves_the_first_mesh() {
+        let plain = Synthetic::generate(&opts(Preset::Blob, 4)).unwrap();
+        let turned = Synthetic::generate(&SynthOptions {
+            turn: 10.0,
+            ..opts(Preset::Blob, 4)
+        })
+        .unwrap();
+        assert_eq!(plain.mesh, turned.mesh);
+        assert!(plain.truth[0] == turned.truth[0], "frame 0 moved");
+        // Frame 3: the preset's own motion turned by 30° about the first camera's image
+        // vertical through the first frame's centre.
+        let first = &plain.truth[0];
+        let centre =
+            Point3::from(first.iter().map(|p| p.coords).sum::<Vector3<f64>>() / first.len() as f64);
+        let r = &plain.krt[0].1;
+        let down = Unit::new_normalize(Vector3::new(r[(1, 0)], r[(1, 1)], r[(1, 2)]));
+        let rot = Rotation3::from_axis_angle(&down, 30f64.to_radians());
+        let worst = plain.truth[3]
+            .iter()
+            .zip(&turned.truth[3])
+            .map(|(p, q)| (centre + rot * (p - centre) - q).norm())
+            .fold(0.0, f64::max);
+        assert!(worst < 1e-12, "{worst}");
+        // The object does turn: its rim moves by about a sixth of the mesh's size.
+        let moved = plain.truth[3]
+            .iter()
+            .zip(&turned.truth[3])
+            .map(|(p, q)| (p - q).norm())
+            .fold(0.0, f64::max);
+        assert!(moved > 0.12 * plain.mesh.bbox_diagonal(), "{moved}");
+        assert!(SynthOptions {
+            turn: 91.0,
+            ..opts(Preset::Blob, 4)
+        }
+        .validate()
+        .unwrap_err()
+        .to_string()
+        .contains("--turn"));
     }
 
     #[test]

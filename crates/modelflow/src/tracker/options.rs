@@ -67,6 +67,13 @@ pub struct TrackOptions {
     /// stage to `min_relative_decrease`, as runs made before it existed did).
     #[serde(default)]
     pub approach_decrease: f64,
+    /// Weight, relative to the anchor's own, of the first frame's view lent to the cameras that
+    /// see a triangle now but did not at the first frame (`Tracker::lend_anchor`): each such
+    /// (triangle, camera) is compared with the first frame's best view of the triangle from
+    /// another camera, so an object turning in front of the rig does not drift where the
+    /// cameras see sides they did not see at first. 0 = off (runs made before it existed).
+    #[serde(default)]
+    pub lent_anchor: f64,
 }
 
 fn default_consensus() -> f64 {
@@ -94,6 +101,7 @@ impl Default for TrackOptions {
             consensus: default_consensus(),
             stereo: 0.0,
             approach_decrease: 0.03,
+            lent_anchor: 1.0,
         }
     }
 }
@@ -235,6 +243,13 @@ impl TrackOptions {
                 low: (0.0, true),
                 high: (1.0, false),
                 why: "a fraction of the cost; 0 = off",
+            },
+            Range {
+                option: "--lent-anchor",
+                value: self.lent_anchor,
+                low: (0.0, true),
+                high: (10.0, true),
+                why: "a weight relative to the anchor's; 0 = off",
             },
             Range {
                 option: "--huber",

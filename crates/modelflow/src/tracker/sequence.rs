@@ -713,6 +713,54 @@ impl Tracker {
         Ok(report)
     }
 
+    /// The first frame's view lent to the cameras that see a triangle now but did not then
+    /// (`TrackOptions::lent_anchor`): for every (triangle, camera) pair the previous frame's
+    /// template `cover`s and `anchor` has no patch of its own for, a copy of the triangle's
+    /// anchor patch with the most pixels (the first frame's best view of it), warped into this
+    /// camera, at `lent_anchor` times the anchor's weight. An object turning in front of the
+    /// rig shows each camera sides that another camera saw at the first frame; without their
+    /// first-frame appearance those sides are compared with the previous frame only, and drift.
+    /// The patch keeps `source == camera`: its pixels are fixed, as any template's are (a
+    /// different `source` would make it a moving source under `--stereo`); its own brightness
+    /// gain absorbs the two cameras' exposure and the shading between their viewpoints.
+    fn lend_anchor(&self, anchor: &PatchSet, cover: &[bool], set: &mut PatchSet) {
+        let (ntri, ncam) = (self.triangles.len(), self.cameras.len());
+        let own = anchor.coverage(ntri, ncam);
+        // The first frame's best view of each triangle: its anchor patch with the most pixels
+        // (the lowest camera among equals).
+        let mut best: Vec<Option<usize>> = vec![None; ntri];
+        for (i, p) in anchor.patches.iter().enumerate() {
+            let b = &mut best[p.triangle as usize];
+            let size = |i: usize| anchor.patches[i].end - anchor.patches[i].start;
+            if b.is_none_or(|j| size(j) < p.end - p.start) {
+                *b = Some(i);
+            }
+        }
+        let weight = self.opts.lent_anchor as f32;
+        for (t, b) in best.iter().enumerate() {
+            let Some(p) = b.map(|i| anchor.patches[i]) else {
+                continue;
+            };
+            for d in 0..ncam {
+                let k = t * ncam + d;
+                if !cover[k] || own[k] {
+                    continue;
+                }
+                let start = set.pixels.len() as u32;
+                set.pixels
+                    .extend_from_slice(&anchor.pixels[p.start as usize..p.end as usize]);
+                set.patches.push(crate::tracker::patch::Patch {
+                    start,
+                    end: set.pixels.len() as u32,
+                    camera: d as u16,
+                    source: d as u16,
+                    weight: p.weight * weight,
+                    ..p
+                });
+            }
+        }
+    }
+
     /// The previous frame's template at `level` (the checkerboard at full resolution, at twice
     /// the weight, when the options say so), and how many of its pixels the other cameras
     /// contradicted (left out).
@@ -769,6 +817,9 @@ impl Tracker {
                         ..*p
                     });
                 }
+            }
+            if self.opts.lent_anchor > 0.0 {
+                self.lend_anchor(anchor, &cover, &mut set);
             }
         }
         let stereo = self.opts.stereo > 0.0
