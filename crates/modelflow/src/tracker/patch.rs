@@ -156,6 +156,18 @@ impl PatchSet {
         out
     }
 
+    /// Appends patch `p`, whose pixels are `from.pixels[p.start..p.end]`, with a copy of them.
+    pub fn push_copy(&mut self, from: &PatchSet, p: Patch) {
+        let start = self.pixels.len() as u32;
+        self.pixels
+            .extend_from_slice(&from.pixels[p.start as usize..p.end as usize]);
+        self.patches.push(Patch {
+            start,
+            end: self.pixels.len() as u32,
+            ..p
+        });
+    }
+
     /// `covered[triangle * cameras + camera]`: whether that pair has a patch.
     pub fn coverage(&self, triangles: usize, cameras: usize) -> Vec<bool> {
         let mut c = vec![false; triangles * cameras];

@@ -746,17 +746,15 @@ impl Tracker {
                 if !cover[k] || own[k] {
                     continue;
                 }
-                let start = set.pixels.len() as u32;
-                set.pixels
-                    .extend_from_slice(&anchor.pixels[p.start as usize..p.end as usize]);
-                set.patches.push(crate::tracker::patch::Patch {
-                    start,
-                    end: set.pixels.len() as u32,
-                    camera: d as u16,
-                    source: d as u16,
-                    weight: p.weight * weight,
-                    ..p
-                });
+                set.push_copy(
+                    anchor,
+                    crate::tracker::patch::Patch {
+                        camera: d as u16,
+                        source: d as u16,
+                        weight: p.weight * weight,
+                        ..p
+                    },
+                );
             }
         }
     }
@@ -808,14 +806,7 @@ impl Tracker {
             let cover = set.coverage(self.triangles.len(), ncam);
             for p in &anchor.patches {
                 if cover[p.triangle as usize * ncam + p.camera as usize] {
-                    let start = set.pixels.len() as u32;
-                    set.pixels
-                        .extend_from_slice(&anchor.pixels[p.start as usize..p.end as usize]);
-                    set.patches.push(crate::tracker::patch::Patch {
-                        start,
-                        end: set.pixels.len() as u32,
-                        ..*p
-                    });
+                    set.push_copy(anchor, *p);
                 }
             }
             if self.opts.lent_anchor > 0.0 {
