@@ -85,6 +85,13 @@ def track_scene(
 def evaluate(scene: Scene, run: _Path) -> Dict[str, Any]:
     """Scores a run folder against the scene's ground truth (per-frame and mean RMS error)."""
 
+def frames_to_check(scene: Scene, run: _Path) -> Optional[List[Dict[str, Any]]]:
+    """The frames of the scene's range that the tracker's own checks flag in the run folder, and
+    why: [{"frame": N, "concerns": [{"kind": "stalled" | "contradicted" |
+    "started_contradicted" | "little_texture", ...their figures}]}], as `track` warned and the
+    report lists them; [] when none is; None when the folder has no tracker log (the
+    baseline's)."""
+
 def export(run: _Path, out: _Path, fps: float = 24.0) -> List[str]:
     """Writes a run folder as .usda, .glb, .pc2 or .mdd (from `out`'s extension)."""
 

@@ -362,6 +362,19 @@ fn evaluate<'py>(py: Python<'py>, scene: &Scene, run: PathBuf) -> PyResult<Bound
     to_py(py, &report)
 }
 
+/// The frames of the scene's range that the tracker's checks flag in the run folder `run`, and
+/// why (as `track` said while it ran and the report lists them): a list of {"frame": N,
+/// "concerns": [...]}, or None when the folder has no tracker log.
+#[pyfunction]
+fn frames_to_check<'py>(
+    py: Python<'py>,
+    scene: &Scene,
+    run: PathBuf,
+) -> PyResult<Bound<'py, PyAny>> {
+    let checks = mf::frames_to_check(&run, scene.inner.first, scene.inner.last).map_err(err)?;
+    to_py(py, &checks)
+}
+
 /// Writes a run folder as one animated file for a 3D package; the format comes from `out`'s
 /// extension (.usda, .glb, .pc2, .mdd). Returns the files written.
 #[pyfunction]
@@ -483,6 +496,7 @@ fn modelflow_py(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<Tracker>()?;
     m.add_function(wrap_pyfunction!(track_scene, m)?)?;
     m.add_function(wrap_pyfunction!(evaluate, m)?)?;
+    m.add_function(wrap_pyfunction!(frames_to_check, m)?)?;
     m.add_function(wrap_pyfunction!(export, m)?)?;
     m.add_function(wrap_pyfunction!(read_run, m)?)?;
     m.add_function(wrap_pyfunction!(coverage, m)?)?;

@@ -73,6 +73,7 @@ def test_track_scene_evaluate_and_export(cli_run, tmp_path):
     assert summary["frames"] == 12 and summary["stalled_frames"] == []
     assert summary["suspect_frames"] == []
     assert summary["checks"] == []
+    assert modelflow.frames_to_check(s, tmp_path / "run") == []
     ours = modelflow.read_run(tmp_path / "run")
     theirs = modelflow.read_run(cli_run)
     assert sorted(ours) == list(range(12))

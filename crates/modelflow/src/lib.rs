@@ -34,6 +34,8 @@ pub use baseline::BaselineOptions;
 pub use error::{Error, Result};
 pub use input::Scene;
 pub use report::{evaluate, write_report, EvalReport, ReportOptions};
-pub use run::{read_frame_log, read_run, FrameLog, Manifest, OpenMode, RunOptions};
+pub use run::{
+    frames_to_check, read_frame_log, read_run, FrameLog, Manifest, OpenMode, RunOptions,
+};
 pub use synth::{write_dataset, SynthOptions, Synthetic};
 pub use tracker::{track_scene, TrackOptions, Tracker};

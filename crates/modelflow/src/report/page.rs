@@ -74,7 +74,7 @@ pub struct RunSummary {
     /// Median wall time per solved frame from the run's log, image reading included (`None`
     /// without a log or lines).
     pub seconds_per_frame: Option<f64>,
-    /// The frames the tracker's own checks flag, and why (`tracker::frames_to_check` over the
+    /// The frames the tracker's own checks flag, and why (`run::frames_to_check` over the
     /// run's `log.jsonl`); `None` when the run has no tracker log (the baseline, a bare folder).
     pub checks: Option<Vec<FrameCheck>>,
 }
@@ -578,61 +578,28 @@ struct Health {
     measures: Vec<(u32, f64, f64)>,
 }
 
-/// The tracker's checks from the run folder's `log.jsonl` (its lines for the scene's frames, the
-/// last line of a frame when a resumed run logged it twice) and, for the scene's last frame, the
-/// verdict on it: the next frame's line when the run goes on past the scene (a report on part
-/// of a shot), or else the manifest's `last_frame_check`. `None` without tracker lines.
+/// The tracker's checks on the scene's frames (`run::frames_to_check`) and its measures per
+/// logged frame (the last line of a frame a resumed run logged twice); `None` without tracker
+/// lines.
 fn read_health(scene: &Scene, dir: &Path) -> Result<Option<Health>> {
-    let lines = crate::run::read_frame_log(dir)?;
-    let mut by_frame: std::collections::BTreeMap<u32, &crate::tracker::FrameReport> =
-        std::collections::BTreeMap::new();
-    let mut after = None;
-    for l in &lines {
-        if let Some(r) = l.model_flow() {
-            if scene.frames().contains(&l.frame) {
-                by_frame.insert(l.frame, r);
-            } else if l.frame == scene.last + 1 {
-                after = Some(r);
-            }
-        }
-    }
-    if by_frame.is_empty() {
+    let Some(checks) = crate::run::frames_to_check(dir, scene.first, scene.last)? else {
         return Ok(None);
-    }
-    let mut checks = crate::tracker::Checks::default();
-    for (f, r) in &by_frame {
-        checks.add(*f, scene.first, r);
-    }
-    let verdict = match after {
-        Some(r) => Some((r.contradicted_share, r.contradicted_at_first)),
-        None => {
-            let manifest = dir.join(crate::run::MANIFEST);
-            let last = if manifest.is_file() {
-                crate::run::Manifest::read(&manifest)?.last_frame_check
-            } else {
-                None
-            };
-            last.filter(|c| c.frame == scene.last)
-                .map(|c| (c.contradicted_share, c.contradicted_at_first))
-        }
     };
-    if let Some((share, at_first)) = verdict {
-        checks.judge(scene.last, scene.first, share, at_first);
+    let lines = crate::run::read_frame_log(dir)?;
+    let mut by_frame = std::collections::BTreeMap::new();
+    for l in &lines {
+        if let Some(r) = l.model_flow().filter(|_| scene.frames().contains(&l.frame)) {
+            by_frame.insert(
+                l.frame,
+                (
+                    r.information_share,
+                    r.contradicted_share - r.contradicted_at_first,
+                ),
+            );
+        }
     }
-    let measures = by_frame
-        .iter()
-        .map(|(f, r)| {
-            (
-                *f,
-                r.information_share,
-                r.contradicted_share - r.contradicted_at_first,
-            )
-        })
-        .collect();
-    Ok(Some(Health {
-        checks: checks.into_frames(),
-        measures,
-    }))
+    let measures = by_frame.into_iter().map(|(f, (i, c))| (f, i, c)).collect();
+    Ok(Some(Health { checks, measures }))
 }
 
 /// Band colours: suspect frames, stalled frames.

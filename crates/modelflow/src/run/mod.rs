@@ -3,13 +3,16 @@
 //! `run.json`), the manifest (`manifest`), the log schema (`log`), and the rules for opening a
 //! folder (`folder`): it never destroys a file it did not write, never mixes two runs in one
 //! folder, and resumes an interrupted run from its last complete frame. See
-//! `docs/run-folder.md`. Knows nothing of how frames are solved.
+//! `docs/run-folder.md`; `checks` reads back the frames the tracker's rules flag. Knows nothing
+//! of how frames are solved.
 
+mod checks;
 mod folder;
 mod layout;
 mod log;
 mod manifest;
 
+pub use checks::frames_to_check;
 pub use folder::{write_run, OpenMode, Opened, RunFolder, RunOptions};
 pub use layout::{
     confidence_file, frame_file, frame_number, read_confidence, read_run, write_confidence, LOG,

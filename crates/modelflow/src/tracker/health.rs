@@ -213,7 +213,7 @@ impl Checks {
 /// The frames to check of a run, from its reports in frame order (`log.jsonl`'s lines); `first`
 /// is the scene's first frame (the given mesh, never flagged). The last frame's verdict is not
 /// in the reports: add it with [`Checks::judge`] (the manifest's `last_frame_check`).
-pub fn frames_to_check<'a>(
+pub fn check_reports<'a>(
     first: u32,
     reports: impl IntoIterator<Item = (u32, &'a FrameReport)>,
 ) -> Vec<FrameCheck> {
@@ -252,7 +252,7 @@ mod tests {
             (5, report(0.05, 0.0, true)),
             (6, ok),
         ];
-        let checks = frames_to_check(0, reps.iter().map(|(f, r)| (*f, r)));
+        let checks = check_reports(0, reps.iter().map(|(f, r)| (*f, r)));
         let frames: Vec<u32> = checks.iter().map(|c| c.frame).collect();
         assert_eq!(frames, [2, 3, 4, 5]);
         assert_eq!(
@@ -295,10 +295,10 @@ mod tests {
         let at = report(0.05 + SUSPECT_RISE, 0.5, false);
         assert!(!contradicts_previous(&at));
         let above = report(0.05 + SUSPECT_RISE + 1e-6, 0.5, false);
-        let checks = frames_to_check(10, [(11, &above)]);
+        let checks = check_reports(10, [(11, &above)]);
         assert_eq!(checks.len(), 1);
         assert_eq!(checks[0].frame, 11);
         // At the information floor itself a frame is not suspect.
-        assert!(frames_to_check(10, [(11, &report(0.05, INFORMATION_FLOOR, false))]).is_empty());
+        assert!(check_reports(10, [(11, &report(0.05, INFORMATION_FLOOR, false))]).is_empty());
     }
 }

@@ -32,7 +32,7 @@ pub use align::{
 };
 pub use coverage::{coverage, Coverage};
 pub use gpu::{Gpu, GpuStats};
-pub use health::{frames_to_check, Checks, Concern, FrameCheck, INFORMATION_FLOOR, SUSPECT_RISE};
+pub use health::{check_reports, Checks, Concern, FrameCheck, INFORMATION_FLOOR, SUSPECT_RISE};
 pub use options::{OptionsUsed, TrackOptions};
 pub use regularise::Regularisation;
 pub use sequence::{prepare, FrameReport, Prepared, StepTiming, Tracker};

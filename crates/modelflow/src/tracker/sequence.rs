@@ -70,7 +70,7 @@ pub struct FrameReport {
     /// disagree about where the previous frame left the surface, so this frame started from a
     /// doubtful place), or `information_share` is below [`health::INFORMATION_FLOOR`] (the mesh
     /// sees next to none of the surface's texture). The previous frame is then in doubt too; the
-    /// whole rule, over a run, is [`health::frames_to_check`]. The frame is solved as any
+    /// whole rule is [`health::check_reports`] over reports, `run::frames_to_check` over a run folder. The frame is solved as any
     /// other; reported as a warning.
     #[serde(default)]
     pub suspect: bool,

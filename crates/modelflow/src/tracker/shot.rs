@@ -35,7 +35,7 @@ pub struct TrackSummary {
     /// saw next to none of the surface's texture (`health`). With a resumed run, the frame it
     /// was resumed from may be among them.
     pub suspect_frames: Vec<u32>,
-    /// Every frame to check and why (`health::frames_to_check`), stalled and suspect ones alike.
+    /// Every frame to check and why (`health`; `run::frames_to_check` reads them back from the folder), stalled and suspect ones alike.
     pub checks: Vec<FrameCheck>,
 }
 
