@@ -582,10 +582,10 @@ struct Health {
 /// logged frame (the last line of a frame a resumed run logged twice); `None` without tracker
 /// lines.
 fn read_health(scene: &Scene, dir: &Path) -> Result<Option<Health>> {
-    let Some(checks) = crate::run::frames_to_check(dir, scene.first, scene.last)? else {
+    let lines = crate::run::read_frame_log(dir)?;
+    let Some(checks) = crate::run::checks_in(dir, &lines, scene.first, scene.last)? else {
         return Ok(None);
     };
-    let lines = crate::run::read_frame_log(dir)?;
     let mut by_frame = std::collections::BTreeMap::new();
     for l in &lines {
         if let Some(r) = l.model_flow().filter(|_| scene.frames().contains(&l.frame)) {

@@ -2,7 +2,7 @@
 //! `last_frame_check` through the tracker's rules (`tracker::health`), for any range of frames
 //! in it. What `track` said while it ran, available afterwards to the report and to programs.
 
-use super::{read_frame_log, Manifest, MANIFEST};
+use super::{read_frame_log, FrameLog, Manifest, MANIFEST};
 use crate::error::Result;
 use crate::tracker::{Checks, FrameCheck, FrameReport};
 use std::collections::BTreeMap;
@@ -15,10 +15,19 @@ use std::path::Path;
 /// line. `None` when the folder has no tracker log line in the range (the baseline's, a bare
 /// folder of meshes).
 pub fn frames_to_check(dir: &Path, first: u32, last: u32) -> Result<Option<Vec<FrameCheck>>> {
-    let lines = read_frame_log(dir)?;
+    checks_in(dir, &read_frame_log(dir)?, first, last)
+}
+
+/// [`frames_to_check`] with the folder's log lines already read.
+pub(crate) fn checks_in(
+    dir: &Path,
+    lines: &[FrameLog],
+    first: u32,
+    last: u32,
+) -> Result<Option<Vec<FrameCheck>>> {
     let mut by_frame: BTreeMap<u32, &FrameReport> = BTreeMap::new();
     let mut after = None;
-    for l in &lines {
+    for l in lines {
         if let Some(r) = l.model_flow() {
             if (first..=last).contains(&l.frame) {
                 by_frame.insert(l.frame, r);

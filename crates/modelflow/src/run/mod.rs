@@ -12,6 +12,7 @@ mod layout;
 mod log;
 mod manifest;
 
+pub(crate) use checks::checks_in;
 pub use checks::frames_to_check;
 pub use folder::{write_run, OpenMode, Opened, RunFolder, RunOptions};
 pub use layout::{

@@ -654,12 +654,16 @@ impl Synthetic {
         self.truth.len() as u32
     }
 
+    /// The mean of the first frame's vertices: what `turn` and `shake` move the object about.
+    fn first_centre(&self) -> Point3<f64> {
+        let first = &self.truth[0];
+        Point3::from(first.iter().map(|p| p.coords).sum::<Vector3<f64>>() / first.len() as f64)
+    }
+
     /// Turns the object by `degrees` per frame about the first camera's image vertical through
     /// its first frame's centre (see the module documentation).
     fn turn(&mut self, degrees: f64) {
-        let first = &self.truth[0];
-        let centre =
-            Point3::from(first.iter().map(|p| p.coords).sum::<Vector3<f64>>() / first.len() as f64);
+        let centre = self.first_centre();
         let r = &self.krt[0].1;
         // The camera's y axis (image down) in the world: its second row of R.
         let down = Unit::new_normalize(Vector3::new(r[(1, 0)], r[(1, 1)], r[(1, 2)]));
@@ -676,8 +680,7 @@ impl Synthetic {
     fn shake(&mut self, px: f64) {
         const PERIOD: f64 = 12.0;
         let first = &self.truth[0];
-        let centre =
-            Point3::from(first.iter().map(|p| p.coords).sum::<Vector3<f64>>() / first.len() as f64);
+        let centre = self.first_centre();
         let radius = first
             .iter()
             .map(|p| (p - centre).norm())
