@@ -108,7 +108,12 @@ impl FrameCheck {
 /// Whether a report's templates, taken from the previous frame's solution, show the cameras
 /// contradicting that solution (a rise of more than [`SUSPECT_RISE`] over the first frame's level).
 pub fn contradicts_previous(r: &FrameReport) -> bool {
-    r.contradicted_share > r.contradicted_at_first + SUSPECT_RISE
+    rose(r.contradicted_share, r.contradicted_at_first)
+}
+
+/// The one threshold: a contradicted `share` more than [`SUSPECT_RISE`] above `at_first`.
+fn rose(share: f64, at_first: f64) -> bool {
+    share > at_first + SUSPECT_RISE
 }
 
 /// The concerns a frame's own report shows (not yet the next frame's verdict on it).
@@ -169,7 +174,7 @@ impl Checks {
         share: f64,
         at_first: f64,
     ) -> Option<(u32, Concern)> {
-        if frame <= first || share <= at_first + SUSPECT_RISE {
+        if frame <= first || !rose(share, at_first) {
             return None;
         }
         let c = Concern::Contradicted { share, at_first };

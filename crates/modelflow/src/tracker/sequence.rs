@@ -728,11 +728,11 @@ impl Tracker {
         let own = anchor.coverage(ntri, ncam);
         // The first frame's best view of each triangle: its anchor patch with the most pixels
         // (the lowest camera among equals).
+        let size = |p: &crate::tracker::patch::Patch| p.end - p.start;
         let mut best: Vec<Option<usize>> = vec![None; ntri];
         for (i, p) in anchor.patches.iter().enumerate() {
             let b = &mut best[p.triangle as usize];
-            let size = |i: usize| anchor.patches[i].end - anchor.patches[i].start;
-            if b.is_none_or(|j| size(j) < p.end - p.start) {
+            if b.is_none_or(|j| size(&anchor.patches[j]) < size(p)) {
                 *b = Some(i);
             }
         }
