@@ -112,6 +112,85 @@ fn shifted_run_scores_the_shift_in_a_table() {
     assert!((v["rms_final_pct"].as_f64().unwrap() - 1.0 / 8f64.sqrt()).abs() < 1e-6);
 }
 
+/// A run folder whose `run.json` says it tracked `first..=last` of the sample (stopped after
+/// `last_complete` when given), with the truth's meshes shifted by 1 cm up to there.
+fn run_folder(first: u32, last: u32, last_complete: Option<u32>) -> tempfile::TempDir {
+    use modelflow::run::{Manifest, Method, Options, Status};
+    let dir = tempfile::tempdir().unwrap();
+    let scene = modelflow::input::Scene::load(&sample().join("scene.json"))
+        .unwrap()
+        .with_frames(first, last)
+        .unwrap();
+    let mut m = Manifest::new(Method::ModelFlow, &scene, vec![], Options::default()).unwrap();
+    m.status = if last_complete.is_some() {
+        Status::Interrupted
+    } else {
+        Status::Complete
+    };
+    m.last_complete = Some(last_complete.unwrap_or(last));
+    std::fs::write(
+        dir.path().join("run.json"),
+        serde_json::to_string_pretty(&m).unwrap(),
+    )
+    .unwrap();
+    for f in first..=last_complete.unwrap_or(last) {
+        let name = format!("{f:04}.obj");
+        let m = read_mesh(&sample().join("truth").join(&name)).unwrap();
+        let moved = m
+            .positions
+            .iter()
+            .map(|p| p + Vector3::new(0.0, 0.006, 0.008))
+            .collect();
+        write_obj(&dir.path().join(&name), &m.with_positions(moved)).unwrap();
+    }
+    dir
+}
+
+#[test]
+fn a_run_of_some_frames_is_scored_over_the_frames_it_tracked() {
+    // `track --frames 3..8`, then `eval` without --frames: the run's frames, said on stderr.
+    let dir = run_folder(3, 8, None);
+    let out = eval(&sample().join("scene.json"), dir.path(), true);
+    assert!(out.status.success(), "{}", text(&out.stderr));
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(v["frames"], 6);
+    assert_eq!(v["per_frame"][0]["frame"], 3);
+    assert!((v["rms_final"].as_f64().unwrap() - 0.01).abs() < 1e-9);
+    let err = text(&out.stderr);
+    assert!(
+        err.contains("evaluating frames 3..=8, the frames") && err.contains("run.json"),
+        "{err}"
+    );
+    // --frames still chooses.
+    let out = modelflow(&[
+        "eval".as_ref(),
+        "--scene".as_ref(),
+        sample().join("scene.json").as_os_str(),
+        "--track".as_ref(),
+        dir.path().as_os_str(),
+        "--frames".as_ref(),
+        "3..5".as_ref(),
+        "--json".as_ref(),
+    ]);
+    assert!(out.status.success(), "{}", text(&out.stderr));
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(v["frames"], 3);
+
+    // An interrupted run: up to its last complete frame.
+    let dir = run_folder(0, 11, Some(6));
+    let out = eval(&sample().join("scene.json"), dir.path(), true);
+    assert!(out.status.success(), "{}", text(&out.stderr));
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(v["frames"], 7);
+    assert!(text(&out.stderr).contains("it stopped there"));
+
+    // A whole-scene run says nothing.
+    let dir = run_folder(0, 11, None);
+    let out = eval(&sample().join("scene.json"), dir.path(), true);
+    assert!(out.status.success(), "{}", text(&out.stderr));
+    assert_eq!(text(&out.stderr), "");
+}
+
 #[test]
 fn missing_frame_fails_with_a_message() {
     let dir = tempfile::tempdir().unwrap();
