@@ -25,7 +25,9 @@ pub struct Args {
 pub fn run(args: Args) -> anyhow::Result<()> {
     let scene = Scene::load(&args.scene)?;
     let chosen = args.select.frames.is_some();
-    let select = with_the_runs_selection(args.select, &args.track, &scene)?;
+    let select = args
+        .select
+        .or_the_runs(&scene, &[&args.track], "evaluating")?;
     let scene = select.apply(scene)?;
     let mut run = read_run(&args.track)?;
     if chosen {
@@ -40,48 +42,6 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         print!("{}", table(&report));
     }
     Ok(())
-}
-
-/// Without `--frames` (`--cameras`), the frames (cameras) the run was asked to track, as its
-/// `run.json` records them, so that `track --frames 10..40` then `eval` scores those frames; an
-/// interrupted run's frames up to its last complete one. A folder without a manifest (meshes
-/// from elsewhere) is scored over the whole scene.
-fn with_the_runs_selection(
-    mut select: crate::select::SelectArgs,
-    track: &std::path::Path,
-    scene: &Scene,
-) -> anyhow::Result<crate::select::SelectArgs> {
-    let path = track.join(modelflow::run::MANIFEST);
-    if !path.is_file() {
-        return Ok(select);
-    }
-    let m = modelflow::run::Manifest::read(&path)?;
-    if select.frames.is_none() {
-        let last = match m.status {
-            modelflow::run::Status::Complete => m.scene.last,
-            _ => m.last_complete.unwrap_or(m.scene.first).min(m.scene.last),
-        };
-        if (m.scene.first, last) != (scene.first, scene.last) {
-            select.frames = Some((m.scene.first, last));
-            eprintln!(
-                "evaluating frames {}..={}, the frames {} tracked ({}; --frames scores others)",
-                m.scene.first,
-                last,
-                track.display(),
-                if last == m.scene.last {
-                    "its run.json"
-                } else {
-                    "its run.json: it stopped there"
-                }
-            );
-        }
-    }
-    if select.cameras.is_none() {
-        if let Some(names) = m.options.given.get("--cameras") {
-            select.cameras = Some(names.split(',').map(str::to_string).collect());
-        }
-    }
-    Ok(select)
 }
 
 fn table(r: &EvalReport) -> String {

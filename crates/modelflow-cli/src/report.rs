@@ -52,7 +52,12 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         }
         runs.push((name.to_string(), PathBuf::from(dir)));
     }
-    let scene = args.select.apply(Scene::load(&args.scene)?)?;
+    let scene = Scene::load(&args.scene)?;
+    let dirs: Vec<&std::path::Path> = runs.iter().map(|(_, d)| d.as_path()).collect();
+    let scene = args
+        .select
+        .or_the_runs(&scene, &dirs, "reporting on")?
+        .apply(scene)?;
     let opts = ReportOptions {
         frames: args.overlay_frames,
         oblique_degrees: args.oblique_degrees,

@@ -63,6 +63,58 @@ impl SelectArgs {
     }
 }
 
+impl SelectArgs {
+    /// Without `--frames` (`--cameras`), the frames (cameras) the `runs` were asked to track, as
+    /// their `run.json` records them (an interrupted run's frames up to its last complete one;
+    /// the frames all of them have, when they differ), so that `track --frames 10..40` then
+    /// `eval` or `report` takes those frames. Runs without a manifest (meshes from elsewhere)
+    /// leave the whole scene. Says on stderr, after `doing`, which frames when they are not the
+    /// scene's.
+    pub fn or_the_runs(
+        mut self,
+        scene: &Scene,
+        runs: &[&std::path::Path],
+        doing: &str,
+    ) -> anyhow::Result<Self> {
+        let mut ranges = Vec::new();
+        let mut cameras = Vec::new();
+        for dir in runs {
+            let path = dir.join(modelflow::run::MANIFEST);
+            if !path.is_file() {
+                return Ok(self);
+            }
+            let m = modelflow::run::Manifest::read(&path)?;
+            let last = match m.status {
+                modelflow::run::Status::Complete => m.scene.last,
+                _ => m.last_complete.unwrap_or(m.scene.first).min(m.scene.last),
+            };
+            ranges.push((m.scene.first, last, last < m.scene.last));
+            cameras.push(m.options.given.get("--cameras").cloned());
+        }
+        let (Some(first), Some(last)) = (
+            ranges.iter().map(|r| r.0).max(),
+            ranges.iter().map(|r| r.1).min(),
+        ) else {
+            return Ok(self);
+        };
+        if self.frames.is_none() && first <= last && (first, last) != (scene.first, scene.last) {
+            self.frames = Some((first, last));
+            let stopped = ranges.iter().any(|r| r.2);
+            eprintln!(
+                "{doing} frames {first}..={last}, the frames {} tracked (run.json{}; --frames chooses others)",
+                if runs.len() == 1 { "the run" } else { "the runs all" },
+                if stopped { ": it stopped there" } else { "" }
+            );
+        }
+        if self.cameras.is_none() && cameras.windows(2).all(|w| w[0] == w[1]) {
+            if let Some(Some(names)) = cameras.first() {
+                self.cameras = Some(names.split(',').map(str::to_string).collect());
+            }
+        }
+        Ok(self)
+    }
+}
+
 pub fn parse_frames(s: &str) -> Result<(u32, u32), String> {
     let bad = || format!("expected A..B with frame numbers A <= B (e.g. 10..40), got {s:?}");
     let (a, b) = s.split_once("..").ok_or_else(bad)?;

@@ -158,7 +158,7 @@ fn a_run_of_some_frames_is_scored_over_the_frames_it_tracked() {
     assert!((v["rms_final"].as_f64().unwrap() - 0.01).abs() < 1e-9);
     let err = text(&out.stderr);
     assert!(
-        err.contains("evaluating frames 3..=8, the frames") && err.contains("run.json"),
+        err.contains("evaluating frames 3..=8, the frames the run tracked (run.json"),
         "{err}"
     );
     // --frames still chooses.

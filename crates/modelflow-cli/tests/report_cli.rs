@@ -101,3 +101,45 @@ fn malformed_run_and_unknown_frame_are_reported() {
     assert!(err.contains("frame 99") && err.contains("0..=11"), "{err}");
     assert!(!out.join("index.html").exists());
 }
+
+#[test]
+fn a_run_of_some_frames_is_reported_over_the_frames_it_tracked() {
+    // `track --frames 2..6` then `report` without --frames: the run's frames, said on stderr.
+    use modelflow::run::{Manifest, Method, Options, Status};
+    let tmp = tempfile::tempdir().unwrap();
+    let run = tmp.path().join("run");
+    std::fs::create_dir(&run).unwrap();
+    let s = modelflow::input::Scene::load(&scene())
+        .unwrap()
+        .with_frames(2, 6)
+        .unwrap();
+    let mut m = Manifest::new(Method::ModelFlow, &s, vec![], Options::default()).unwrap();
+    m.status = Status::Complete;
+    m.last_complete = Some(6);
+    std::fs::write(run.join("run.json"), serde_json::to_string(&m).unwrap()).unwrap();
+    for f in 2..=6 {
+        let name = format!("{f:04}.obj");
+        std::fs::copy(truth().join(&name), run.join(&name)).unwrap();
+    }
+    let out = tmp.path().join("rep");
+    let named = format!("part={}", run.display());
+    let o = modelflow(&[
+        "report".as_ref(),
+        "--scene".as_ref(),
+        scene().as_os_str(),
+        "--run".as_ref(),
+        named.as_ref(),
+        "--out".as_ref(),
+        out.as_os_str(),
+        "--no-flipbook".as_ref(),
+        "--overlay-frames".as_ref(),
+        "4".as_ref(),
+    ]);
+    assert!(o.status.success(), "{}", text(&o.stderr));
+    assert!(
+        text(&o.stderr).contains("reporting on frames 2..=6, the frames the run tracked"),
+        "{}",
+        text(&o.stderr)
+    );
+    assert!(out.join("overlay_f0004_c0_cam0.png").is_file());
+}
