@@ -611,8 +611,32 @@ fn scene_with_ply_mesh_exr_and_tiff_images() {
     assert_eq!(scene.mesh.positions, m.positions);
     assert_eq!(scene.mesh.triangles, m.triangles);
     let imgs = scene.load_images(2).unwrap();
-    assert_eq!(imgs[0].get(10, 3), [0.5, 2.5, 2.0]);
+    // The EXR's values are scene-linear (`"transfer": "auto"`): encoded with the sRGB curve;
+    // the TIFF's integers are kept as stored.
+    let srgb = modelflow::input::transfer::srgb_encode;
+    assert_eq!(imgs[0].get(10, 3), [srgb(0.5), srgb(2.5), srgb(2.0)]);
+    assert!((imgs[0].get(10, 3)[0] - 0.735_357).abs() < 1e-5);
     assert_eq!(imgs[1].get(10, 3), [3000.0 / 65535.0, 1.0, 0.0]);
+
+    // Said otherwise in the scene: the EXR as stored, the TIFF's values taken as linear.
+    use modelflow::input::transfer::Transfer;
+    file.cameras[0].transfer = Transfer::Encoded;
+    file.cameras[1].transfer = Transfer::Linear;
+    file.write(&path).unwrap();
+    let text = std::fs::read_to_string(&path).unwrap();
+    assert!(text.contains("\"transfer\": \"encoded\""), "{text}");
+    let imgs = Scene::load(&path).unwrap().load_images(2).unwrap();
+    assert_eq!(imgs[0].get(10, 3), [0.5, 2.5, 2.0]);
+    assert_eq!(imgs[1].get(10, 3), [srgb(3000.0 / 65535.0), srgb(1.0), 0.0]);
+
+    // An unknown value names the camera, the field and the choices.
+    let bad = text.replace("\"transfer\": \"encoded\"", "\"transfer\": \"log\"");
+    std::fs::write(&path, bad).unwrap();
+    let msg = load_err(&path);
+    assert_names(
+        &msg,
+        &["scene.json", "cameras[0]", "auto", "linear", "encoded"],
+    );
 }
 
 #[test]

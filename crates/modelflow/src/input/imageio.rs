@@ -51,13 +51,19 @@ fn open(path: &Path) -> Result<ImageReader<std::io::BufReader<std::fs::File>>> {
 
 /// Reads an image file as RGB `f32` (see the module doc for the value convention).
 pub fn read_rgb(path: &Path) -> Result<RgbImage> {
+    read_rgb_stored(path).map(|(img, _)| img)
+}
+
+/// [`read_rgb`], and whether the file stored floating-point values (OpenEXR, float TIFF):
+/// those are scene-linear unless the scene says otherwise (`input::transfer`).
+pub(crate) fn read_rgb_stored(path: &Path) -> Result<(RgbImage, bool)> {
     crate::fsutil::require_file(path, "image")?;
     let reader = open(path)?;
     if reader.format().is_none() {
         // Not a format `image` knows from its first bytes: DPX, or an error from `image`.
         let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
         if super::dpx::is_dpx(&bytes) {
-            return super::dpx::decode(path, &bytes);
+            return super::dpx::decode(path, &bytes).map(|img| (img, false));
         }
     }
     let img = if reader.format() == Some(image::ImageFormat::Jpeg) {
@@ -73,6 +79,10 @@ pub fn read_rgb(path: &Path) -> Result<RgbImage> {
     if w == 0 || h == 0 {
         return Err(Error::invalid(path, "size", "the image is empty"));
     }
+    let float = matches!(
+        img,
+        DynamicImage::ImageRgb32F(_) | DynamicImage::ImageRgba32F(_)
+    );
     let grey = |v: f32| [v, v, v];
     let data: Vec<[f32; 3]> = match &img {
         DynamicImage::ImageLuma8(b) => b.pixels().map(|p| grey(p.0[0] as f32 / 255.0)).collect(),
@@ -111,8 +121,10 @@ pub fn read_rgb(path: &Path) -> Result<RgbImage> {
             ),
         ));
     }
-    RgbImage::from_pixels(w, h, data)
-        .ok_or_else(|| Error::invalid(path, "size", "decoded pixel count does not match its size"))
+    let img = RgbImage::from_pixels(w, h, data).ok_or_else(|| {
+        Error::invalid(path, "size", "decoded pixel count does not match its size")
+    })?;
+    Ok((img, float))
 }
 
 /// Width and height of an image file, from its header only (fast: no pixel is decoded).

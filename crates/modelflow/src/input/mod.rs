@@ -9,6 +9,7 @@ pub(crate) mod dpx;
 pub(crate) mod imageio;
 pub(crate) mod meshio;
 pub(crate) mod scene;
+pub mod transfer;
 pub mod video;
 
 pub use imageio::{image_size, read_rgb, write_png, write_png16};

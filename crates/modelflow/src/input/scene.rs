@@ -9,8 +9,9 @@ use crate::base::mesh::Mesh;
 use crate::base::units::Units;
 use crate::error::{Error, Result};
 use crate::fsutil::{not_a_file, require_file, write_atomic};
-use crate::input::imageio::{image_size, read_rgb};
+use crate::input::imageio::{image_size, read_rgb_stored};
 use crate::input::meshio::read_mesh;
+use crate::input::transfer::{encode_linear, Transfer};
 use crate::input::video::{is_video, VideoReader, VIDEO_EXTENSIONS};
 use nalgebra::{Matrix3, Matrix3x4, Vector3};
 use rayon::prelude::*;
@@ -74,6 +75,10 @@ pub struct CameraEntry {
     #[serde(default, skip_serializing_if = "is_zero_f64")]
     pub time_offset: f64,
     pub images: String,
+    /// What the stored values are: `"auto"` (floating-point images scene-linear, integer ones
+    /// encoded), `"linear"` or `"encoded"` (`input::transfer`).
+    #[serde(default, skip_serializing_if = "Transfer::is_auto")]
+    pub transfer: Transfer,
 }
 
 fn is_zero(v: &i64) -> bool {
@@ -114,6 +119,8 @@ pub struct FramePattern {
     pub offset: i64,
     /// The pattern is one video file holding every frame (see `input::video`).
     pub video: bool,
+    /// What the stored values are (scene-linear ones are encoded at load).
+    pub transfer: Transfer,
 }
 
 /// A loaded, validated scene.
@@ -300,12 +307,18 @@ impl FramePattern {
             pattern,
             offset: 0,
             video,
+            transfer: Transfer::Auto,
         })
     }
 
     /// The same pattern reading file number `frame + offset` for `frame`.
     pub fn with_offset(self, offset: i64) -> Self {
         FramePattern { offset, ..self }
+    }
+
+    /// The same pattern whose values are `transfer`.
+    pub fn with_transfer(self, transfer: Transfer) -> Self {
+        FramePattern { transfer, ..self }
     }
 
     /// The file of `frame`: `{frame}` becomes the plain number `frame + offset`, `{frame:0N}`
@@ -879,7 +892,8 @@ impl Scene {
             images.push(
                 FramePattern::new(&base, &c.images)
                     .map_err(|m| Error::invalid(path, format!("cameras[{i}].images"), m))?
-                    .with_offset(c.frame_offset),
+                    .with_offset(c.frame_offset)
+                    .with_transfer(c.transfer),
             );
         }
         let ground_truth = match &file.ground_truth {
@@ -1067,15 +1081,18 @@ impl Scene {
             .zip(self.videos.par_iter())
             .map(|((cam, pat), video)| {
                 let p = pat.path(frame);
-                let img = match video {
+                let (mut img, float) = match video {
                     Some(reader) => {
                         let n = (frame as i64 + pat.offset).max(0) as u64;
                         // A reader poisoned by a panic elsewhere is still a valid decoder state.
                         let mut r = reader.lock().unwrap_or_else(|e| e.into_inner());
-                        r.frame(n)?
+                        (r.frame(n)?, false)
                     }
-                    None => read_rgb(&p)?,
+                    None => read_rgb_stored(&p)?,
                 };
+                if pat.transfer.encodes(float) {
+                    encode_linear(&mut img);
+                }
                 if (img.width(), img.height()) != (cam.width as usize, cam.height as usize) {
                     return Err(Error::invalid(
                         &p,

@@ -914,6 +914,7 @@ impl Synthetic {
                     frame_offset: 0,
                     time_offset: cam.time_offset,
                     images: format!("images/{}/{{frame:04}}.png", cam.name),
+                    transfer: Default::default(),
                 })
                 .collect(),
             ground_truth: Some("truth/{frame:04}.obj".to_string()),

@@ -63,6 +63,7 @@ pub fn scene_file(
                 frame_offset: 0,
                 time_offset: 0.0,
                 images: images.replace("{camera}", &c.name),
+                transfer: Default::default(),
             })
             .collect(),
         ground_truth: None,
