@@ -451,6 +451,7 @@ fn gain_schur(
 
 /// A pixel of a patch after warping: its index in the patch, warped position, `1/h_z`, and the
 /// next image's colour and gradients there.
+#[derive(Clone, Copy, Default)]
 struct Warped {
     index: u32,
     u: f64,
@@ -695,8 +696,12 @@ impl Problem<'_> {
             let mut pd2 = 0.0f64;
             let mut pn = 0u32;
             let mut gp = [[0.0f64; 3]; 3];
-            // Pass 1: warp and sample every pixel of the patch.
-            scratch.clear();
+            // Pass 1: warp and sample every pixel of the patch, into the first `n` slots of the
+            // worker's buffer (grown once, written by index: no per-pixel push).
+            if scratch.len() < (patch.end - patch.start) as usize {
+                scratch.resize((patch.end - patch.start) as usize, Warped::default());
+            }
+            let mut n = 0usize;
             // Normal equations of the shading fit: gain(λ) = Σ_i λ_i·g_i (linear over the triangle).
             let mut gm = Matrix3::<f64>::zeros();
             let mut gr = Vector3::<f64>::zeros();
@@ -729,14 +734,16 @@ impl Problem<'_> {
                 let lv = Vector3::from(l);
                 gm += lv * lv.transpose() * cc;
                 gr += lv * sc;
-                scratch.push(Warped {
+                scratch[n] = Warped {
                     index: i as u32,
                     u,
                     v,
                     inv,
                     s,
-                });
+                };
+                n += 1;
             }
+            let warped = &scratch[..n];
             // Shading changes as the surface turns: compare up to a brightness gain per
             // (triangle, camera), fitted by least squares to the warped pixels — constant, or
             // linear over the triangle (smooth shading). Because the gain is optimal for the
@@ -758,7 +765,7 @@ impl Problem<'_> {
             let (gains, fitted): ([f32; 3], Fitted) = match opts.gain {
                 GainModel::Off => ([1.0; 3], Fitted::None),
                 _ if gm.trace() <= 0.0 => ([1.0; 3], Fitted::None),
-                GainModel::Linear if scratch.len() >= 12 => match gm.try_inverse() {
+                GainModel::Linear if warped.len() >= 12 => match gm.try_inverse() {
                     Some(inv) if (inv * gm).iter().all(|v| v.is_finite()) => {
                         let g = inv * gr;
                         let c = g.map(|v| v.clamp(0.5, 2.0));
@@ -777,7 +784,7 @@ impl Problem<'_> {
             // barycentrics (every patch but `align`'s, whose pixels slide over the triangle).
             let on_template = system && fitted != Fitted::None && to_current.is_none();
             // Pass 2: residuals, loss, normal equations.
-            for wp in scratch.iter() {
+            for wp in warped {
                 let px = &pixels[wp.index as usize];
                 let mut l = [
                     px.lambda[0] as f64,
