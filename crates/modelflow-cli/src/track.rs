@@ -266,6 +266,13 @@ pub fn run(args: Args, invocation: &Invocation) -> anyhow::Result<()> {
             r
         );
     }
+    let (_, turned) = scene.mesh.facing_outward();
+    if turned > 0 {
+        eprintln!(
+            "note: {turned} of the mesh's {} triangles are wound against their neighbours or face into the closed surface they make; the tracker turns them (the meshes written keep your winding)",
+            scene.mesh.triangles.len()
+        );
+    }
     let opts = args.track.options();
     let cover = modelflow::tracker::coverage(&scene.mesh, &scene.cameras, scene.first, &opts);
     eprintln!(

@@ -358,3 +358,57 @@ fn a_missing_gpu_is_named_and_nothing_is_written() {
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert!(!out.status.success() && stderr.contains("tpu"), "{stderr}");
 }
+
+#[test]
+fn a_closed_mesh_wound_inward_is_tracked_as_if_wound_outward_and_written_as_given() {
+    // Another package's convention: the closed blob with every triangle wound the other way.
+    // The facing test would take every front face for a back face and compare nothing; the
+    // tracker turns them, says so, and writes the user's winding back.
+    use modelflow::input::{read_mesh, write_obj};
+    let dir = tempfile::tempdir().unwrap();
+    let opts = SynthOptions {
+        preset: modelflow::synth::Preset::Blob,
+        width: 320,
+        height: 240,
+        frames: 3,
+        supersample: 1,
+        ..SynthOptions::default()
+    };
+    let scene = write_dataset(&opts, &dir.path().join("footage"), &|_, _| {}).unwrap();
+    let given = scene.parent().unwrap().join("mesh/initial.obj");
+    let mesh = read_mesh(&given).unwrap();
+    let err = track_ok(&scene, &dir.path().join("outward"));
+    assert!(!err.contains("are wound against"), "{err}");
+
+    let inward: Vec<[u32; 3]> = mesh.triangles.iter().map(|t| [t[0], t[2], t[1]]).collect();
+    let turned = dir.path().join("inward.obj");
+    write_obj(&turned, &mesh.with_triangles(inward.clone())).unwrap();
+    let o = Command::new(env!("CARGO_BIN_EXE_modelflow"))
+        .args(["track", "--scene"])
+        .arg(&scene)
+        .arg("--mesh")
+        .arg(&turned)
+        .arg("--out")
+        .arg(dir.path().join("inward"))
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&o.stderr).to_string();
+    assert!(o.status.success(), "{err}");
+    let n = mesh.triangles.len();
+    assert!(
+        err.contains(&format!(
+            "note: {n} of the mesh's {n} triangles are wound against their neighbours or face into the closed surface they make"
+        )),
+        "{err}"
+    );
+    assert!(!err.contains("STALLED"), "{err}");
+    // The same meshes to the bit, with the winding the user gave.
+    let a = modelflow::run::read_run(&dir.path().join("outward")).unwrap();
+    let b = modelflow::run::read_run(&dir.path().join("inward")).unwrap();
+    assert_eq!(a.len(), 3);
+    for ((fa, ma), (fb, mb)) in a.iter().zip(&b) {
+        assert_eq!(fa, fb);
+        assert_eq!(ma.positions, mb.positions, "frame {fa}");
+        assert_eq!(mb.triangles, inward, "frame {fb}");
+    }
+}

@@ -79,6 +79,18 @@ impl Mesh {
         }
     }
 
+    /// The same mesh with other triangles over the same vertices (the face-varying tables,
+    /// which follow the triangles, are dropped).
+    pub fn with_triangles(&self, triangles: Vec<[u32; 3]>) -> Self {
+        Mesh {
+            positions: self.positions.clone(),
+            triangles,
+            uvs: self.uvs.clone(),
+            corner_uvs: None,
+            corner_normals: None,
+        }
+    }
+
     /// The area-weighted normal (unnormalised: twice the area) of every triangle.
     fn face_areas(&self) -> Vec<Vector3<f64>> {
         self.triangles
@@ -145,6 +157,93 @@ impl Mesh {
         e.sort_unstable();
         e.dedup();
         e
+    }
+
+    /// The triangles wound as the tracker needs them: consistently across every edge two
+    /// triangles share (each such edge run one way by one and the other way by the other), and
+    /// each closed piece facing outward (its triangles' normals, by the right-hand rule, point
+    /// out of the volume it encloses: a positive signed volume). Returns them and how many were
+    /// turned. Artists' meshes are often wound inconsistently (after booleans, mirroring,
+    /// merges) or inward as a whole (another package's convention); the tracker's facing test
+    /// would then take the turned triangles for back faces and never compare their pixels, and
+    /// a closed mesh wound inward would show no camera anything. Pieces meet only through shared
+    /// edges; an edge with three or more triangles joins nothing, and where a non-orientable
+    /// surface (a Möbius strip) cannot agree, the first winding found stays. Open pieces keep
+    /// the winding of their first triangle (the tracker treats open surfaces as two-sided).
+    pub fn facing_outward(&self) -> (Vec<[u32; 3]>, usize) {
+        let n = self.triangles.len();
+        // Every undirected edge with the triangles that run it, and which way.
+        let mut by_edge: HashMap<[u32; 2], Vec<(usize, bool)>> = HashMap::new();
+        for (i, t) in self.triangles.iter().enumerate() {
+            for k in 0..3 {
+                let (a, b) = (t[k], t[(k + 1) % 3]);
+                let key = if a < b { [a, b] } else { [b, a] };
+                by_edge.entry(key).or_default().push((i, a < b));
+            }
+        }
+        let mut flip = vec![false; n];
+        let mut seen = vec![false; n];
+        let mut out = self.triangles.clone();
+        for root in 0..n {
+            if seen[root] {
+                continue;
+            }
+            seen[root] = true;
+            let mut piece = vec![root];
+            let mut closed = true;
+            let mut k = 0;
+            while k < piece.len() {
+                let t = piece[k];
+                k += 1;
+                let tri = self.triangles[t];
+                for e in 0..3 {
+                    let (a, b) = (tri[e], tri[(e + 1) % 3]);
+                    let key = if a < b { [a, b] } else { [b, a] };
+                    let runs = &by_edge[&key];
+                    if runs.len() != 2 {
+                        closed = false;
+                        continue;
+                    }
+                    let here = (a < b) != flip[t];
+                    for &(o, forward) in runs {
+                        if o == t || seen[o] {
+                            continue;
+                        }
+                        // The neighbour must run the shared edge the other way.
+                        flip[o] = forward == here;
+                        seen[o] = true;
+                        piece.push(o);
+                    }
+                }
+            }
+            let wound = |t: usize, flip: &[bool]| {
+                let tri = self.triangles[t];
+                if flip[t] {
+                    [tri[0], tri[2], tri[1]]
+                } else {
+                    tri
+                }
+            };
+            if closed {
+                let volume: f64 = piece
+                    .iter()
+                    .map(|&t| {
+                        let [a, b, c] = wound(t, &flip).map(|v| self.positions[v as usize].coords);
+                        a.dot(&b.cross(&c))
+                    })
+                    .sum();
+                if volume < 0.0 {
+                    for &t in &piece {
+                        flip[t] = !flip[t];
+                    }
+                }
+            }
+            for &t in &piece {
+                out[t] = wound(t, &flip);
+            }
+        }
+        let turned = flip.iter().filter(|&&f| f).count();
+        (out, turned)
     }
 
     /// Whether every edge is shared by exactly two triangles (a closed, manifold surface).
@@ -315,6 +414,48 @@ mod tests {
             assert!(m.triangle_normal(i).z > 0.0);
         }
         assert!((m.bbox_diagonal() - 2f64.sqrt()).abs() < 1e-12);
+    }
+
+    #[test]
+    fn windings_are_made_consistent_and_closed_surfaces_face_outward() {
+        // A tetrahedron wound outward, then with one face turned, then all turned.
+        let positions = vec![
+            Point3::new(0.0, 0.0, 0.0),
+            Point3::new(1.0, 0.0, 0.0),
+            Point3::new(0.0, 1.0, 0.0),
+            Point3::new(0.0, 0.0, 1.0),
+        ];
+        let outward = vec![[0, 2, 1], [0, 1, 3], [1, 2, 3], [0, 3, 2]];
+        let m = |t: Vec<[u32; 3]>| Mesh {
+            positions: positions.clone(),
+            triangles: t,
+            uvs: None,
+            corner_uvs: None,
+            corner_normals: None,
+        };
+        let (t, turned) = m(outward.clone()).facing_outward();
+        assert_eq!((t, turned), (outward.clone(), 0));
+        let mut one = outward.clone();
+        one[2] = [1, 3, 2];
+        let (t, turned) = m(one).facing_outward();
+        assert_eq!((t, turned), (outward.clone(), 1));
+        let inward: Vec<[u32; 3]> = outward.iter().map(|t| [t[0], t[2], t[1]]).collect();
+        let (t, turned) = m(inward).facing_outward();
+        assert_eq!((t.clone(), turned), (outward.clone(), 4));
+        // Every normal points away from the centroid.
+        let c = Point3::new(0.25, 0.25, 0.25);
+        let mm = m(t);
+        for i in 0..4 {
+            let tri = mm.triangles[i].map(|v| mm.positions[v as usize]);
+            let centre = (tri[0].coords + tri[1].coords + tri[2].coords) / 3.0;
+            assert!(mm.triangle_normal(i).dot(&(centre - c.coords)) > 0.0);
+        }
+        // An open sheet: made consistent with its first triangle, not turned as a whole.
+        let sheet = grid(3, 3, |u, v| Point3::new(u, v, 0.0));
+        let mut t = sheet.triangles.clone();
+        t[3] = [t[3][0], t[3][2], t[3][1]];
+        let (fixed, turned) = sheet.with_triangles(t).facing_outward();
+        assert_eq!((fixed, turned), (sheet.triangles.clone(), 1));
     }
 
     #[test]

@@ -482,6 +482,8 @@ pub fn align(
         ));
     }
     let start = mesh.positions.clone();
+    // Wound as the tracker winds them (`Mesh::facing_outward`): the facing test needs it.
+    let triangles = mesh.facing_outward().0;
     let levels = if opts.levels == 0 {
         auto_levels(cameras, frame, &start)
     } else {
@@ -532,13 +534,13 @@ pub fn align(
         };
         for round in 0..opts.rounds {
             let x0 = x.clone();
-            let mut set = cross_patches(&x0, &mesh.triangles, &projections, &targets, &popts);
+            let mut set = cross_patches(&x0, &triangles, &projections, &targets, &popts);
             let by_triangle = set.by_triangle();
             let problem = Problem {
                 moving_source: Some(&x0),
                 gauge_floor: opts.gauge_floor,
                 ..Problem::photometric(
-                    &mesh.triangles,
+                    &triangles,
                     &set,
                     &by_triangle,
                     targets.clone(),

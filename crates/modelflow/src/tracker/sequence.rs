@@ -199,6 +199,10 @@ impl Tracker {
         let opts = used.options;
         let levels = opts.levels;
         let pyramids = build_pyramids(images, levels, opts.blur);
+        // The triangles wound consistently and outward (the facing test needs it); the
+        // meshes written keep the user's triangles, only positions come from here.
+        let oriented = mesh.with_triangles(mesh.facing_outward().0);
+        let mesh = &oriented;
         let edges = Arc::new(EdgeSet::new(mesh));
         let mut t = Tracker {
             triangles: mesh.triangles.clone(),
