@@ -266,7 +266,18 @@ pub fn run(args: Args, invocation: &Invocation) -> anyhow::Result<()> {
             r
         );
     }
-    let (_, turned) = scene.mesh.facing_outward();
+    let merged = scene.mesh.welded();
+    if let Some((m, _)) = &merged {
+        eprintln!(
+            "note: {} of the mesh's {} vertices lie exactly where another does (a mesh split along seams, or a triangle soup); the tracker joins them (the meshes written keep your vertices)",
+            scene.mesh.positions.len() - m.positions.len(),
+            scene.mesh.positions.len()
+        );
+    }
+    let (_, turned) = merged
+        .as_ref()
+        .map_or(&scene.mesh, |(m, _)| m)
+        .facing_outward();
     if turned > 0 {
         eprintln!(
             "note: {turned} of the mesh's {} triangles are wound against their neighbours or face into the closed surface they make; the tracker turns them (the meshes written keep your winding)",

@@ -412,3 +412,84 @@ fn a_closed_mesh_wound_inward_is_tracked_as_if_wound_outward_and_written_as_give
         assert_eq!(mb.triangles, inward, "frame {fb}");
     }
 }
+
+#[test]
+fn a_triangle_soup_is_tracked_as_the_surface_it_makes_and_written_as_given() {
+    // The blob written as a triangle soup (every triangle its own three vertices, as STL holds
+    // and as exporters split meshes along seams): no edge joins the triangles, so without
+    // merging the copies the regularisers hold nothing together (it once took minutes on the
+    // first frame). Tracked, it must follow the welded mesh's track.
+    use modelflow::input::{read_mesh, write_obj};
+    let dir = tempfile::tempdir().unwrap();
+    let opts = SynthOptions {
+        preset: modelflow::synth::Preset::Blob,
+        width: 320,
+        height: 240,
+        frames: 3,
+        supersample: 1,
+        ..SynthOptions::default()
+    };
+    let scene = write_dataset(&opts, &dir.path().join("footage"), &|_, _| {}).unwrap();
+    let mesh = read_mesh(&scene.parent().unwrap().join("mesh/initial.obj")).unwrap();
+    let soup = modelflow::base::Mesh {
+        positions: mesh
+            .triangles
+            .iter()
+            .flat_map(|t| t.map(|v| mesh.positions[v as usize]))
+            .collect(),
+        triangles: (0..mesh.triangles.len() as u32)
+            .map(|k| [3 * k, 3 * k + 1, 3 * k + 2])
+            .collect(),
+        uvs: None,
+        corner_uvs: None,
+        corner_normals: None,
+    };
+    // The same scene with the soup as its mesh (and no ground truth of the other topology).
+    let folder = scene.parent().unwrap();
+    write_obj(&folder.join("mesh/soup.obj"), &soup).unwrap();
+    let mut v: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&scene).unwrap()).unwrap();
+    v["mesh"] = "mesh/soup.obj".into();
+    v.as_object_mut().unwrap().remove("ground_truth");
+    let souped = folder.join("soup.json");
+    std::fs::write(&souped, v.to_string()).unwrap();
+    track_ok(&scene, &dir.path().join("welded"));
+    let err = track_ok(&souped, &dir.path().join("soup"));
+    let (v, t) = (soup.positions.len(), mesh.positions.len());
+    assert!(
+        err.contains(&format!(
+            "note: {} of the mesh's {v} vertices lie exactly where another does",
+            v - t
+        )),
+        "{err}"
+    );
+    let a = modelflow::run::read_run(&dir.path().join("welded")).unwrap();
+    let b = modelflow::run::read_run(&dir.path().join("soup")).unwrap();
+    let size = mesh.bbox_diagonal();
+    let (ma, mb) = (&a[2].1, &b[2].1);
+    assert_eq!(mb.triangles, soup.triangles);
+    let worst = mesh
+        .triangles
+        .iter()
+        .flatten()
+        .zip(&mb.positions)
+        .map(|(&v, p)| (ma.positions[v as usize] - p).norm())
+        .fold(0.0, f64::max);
+    // The same surface: the soup's copies stay together, on the welded mesh's track (the
+    // merged vertices are numbered in another order, so rounding differs).
+    assert!(
+        worst < 5e-4 * size,
+        "{} % of the size",
+        100.0 * worst / size
+    );
+    let moved = mesh
+        .positions
+        .iter()
+        .zip(&ma.positions)
+        .map(|(p, q)| (p - q).norm())
+        .fold(0.0, f64::max);
+    assert!(
+        moved > 20.0 * worst,
+        "the blob moved {moved}, the tracks differ by {worst}"
+    );
+}

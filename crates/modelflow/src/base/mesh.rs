@@ -159,6 +159,48 @@ impl Mesh {
         e
     }
 
+    /// The mesh with vertices at exactly the same position merged, and for every vertex its
+    /// merged index; `None` when no two vertices coincide. Exporters split a surface's vertices
+    /// along UV seams and hard edges (PLY, and every format without separate texture indices)
+    /// or write a triangle soup (one copy per triangle, as STL holds): the copies are not joined
+    /// by any edge, so the regularisers cannot hold the seams shut and a soup has no edges to
+    /// hold at all. Only bit-identical positions are merged (the copies an exporter writes are);
+    /// a triangle whose corners merge into one another (none in a loaded mesh, which refuses
+    /// zero-area triangles) is left out; the texture and normal tables are dropped.
+    pub fn welded(&self) -> Option<(Mesh, Vec<u32>)> {
+        let mut first: HashMap<[u64; 3], u32> = HashMap::with_capacity(self.positions.len());
+        let mut positions = Vec::with_capacity(self.positions.len());
+        let of_vertex: Vec<u32> = self
+            .positions
+            .iter()
+            .map(|p| {
+                // +0.0 and −0.0 are the same position.
+                let key = [p.x, p.y, p.z].map(|c| (c + 0.0).to_bits());
+                *first.entry(key).or_insert_with(|| {
+                    positions.push(*p);
+                    (positions.len() - 1) as u32
+                })
+            })
+            .collect();
+        if positions.len() == self.positions.len() {
+            return None;
+        }
+        let triangles = self
+            .triangles
+            .iter()
+            .map(|t| t.map(|v| of_vertex[v as usize]))
+            .filter(|t| t[0] != t[1] && t[1] != t[2] && t[0] != t[2])
+            .collect();
+        let mesh = Mesh {
+            positions,
+            triangles,
+            uvs: None,
+            corner_uvs: None,
+            corner_normals: None,
+        };
+        Some((mesh, of_vertex))
+    }
+
     /// The triangles wound as the tracker needs them: consistently across every edge two
     /// triangles share (each such edge run one way by one and the other way by the other), and
     /// each closed piece facing outward (its triangles' normals, by the right-hand rule, point
@@ -456,6 +498,39 @@ mod tests {
         t[3] = [t[3][0], t[3][2], t[3][1]];
         let (fixed, turned) = sheet.with_triangles(t).facing_outward();
         assert_eq!((fixed, turned), (sheet.triangles.clone(), 1));
+    }
+
+    #[test]
+    fn vertices_at_the_same_place_are_welded() {
+        // Two triangles of a square, each with its own copies of the diagonal's ends.
+        let p = |x: f64, y: f64| Point3::new(x, y, 0.0);
+        let m = Mesh {
+            positions: vec![
+                p(0.0, 0.0),
+                p(1.0, 0.0),
+                p(1.0, 1.0),
+                p(0.0, 0.0),
+                p(1.0, 1.0),
+                p(0.0, 1.0),
+            ],
+            triangles: vec![[0, 1, 2], [3, 4, 5]],
+            uvs: None,
+            corner_uvs: None,
+            corner_normals: None,
+        };
+        let (w, of) = m.welded().unwrap();
+        assert_eq!(
+            w.positions,
+            vec![p(0.0, 0.0), p(1.0, 0.0), p(1.0, 1.0), p(0.0, 1.0)]
+        );
+        assert_eq!(w.triangles, vec![[0, 1, 2], [0, 2, 3]]);
+        assert_eq!(of, vec![0, 1, 2, 0, 2, 3]);
+        assert_eq!(w.edges().len(), 5);
+        // Nothing to weld: None. A position a hair apart is another vertex.
+        assert!(w.welded().is_none());
+        let mut apart = m.clone();
+        apart.positions[3].x = 1e-300;
+        assert_eq!(apart.welded().unwrap().0.positions.len(), 5);
     }
 
     #[test]

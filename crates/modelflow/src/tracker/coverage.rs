@@ -42,8 +42,10 @@ impl Coverage {
 /// The coverage of `mesh` (its positions as they are at `frame`) by `cameras` at `frame`, with
 /// the tracker's facing test and margin from `opts` (`min_cos`, `margin`).
 pub fn coverage(mesh: &Mesh, cameras: &[Camera], frame: u32, opts: &TrackOptions) -> Coverage {
-    // Wound as the tracker winds them (`Mesh::facing_outward`).
-    let triangles = &mesh.facing_outward().0;
+    // The mesh as the tracker works on it (vertices merged, triangles wound outward).
+    let (mesh, _) = crate::tracker::sequence::tracked_mesh(mesh);
+    let mesh = &mesh;
+    let triangles = &mesh.triangles;
     let popts = PatchOptions {
         margin: opts.margin,
         min_cos: opts.min_cos,

@@ -151,6 +151,35 @@ pub struct Tracker {
     before_prev: Option<Vec<Point3<f64>>>,
     /// The frame `before_prev` was solved for.
     before_frame: u32,
+    /// When the given mesh had vertices at the same place (split along seams, or a triangle
+    /// soup): the tracker works on them merged (`Mesh::welded`), and this maps back.
+    weld: Option<Weld>,
+}
+
+/// The mesh as the tracker works on it: vertices at the same place merged
+/// ([`Mesh::welded`]; then also, for every given vertex, its merged one) and the triangles
+/// wound consistently, closed pieces outward ([`Mesh::facing_outward`]).
+pub(crate) fn tracked_mesh(mesh: &Mesh) -> (Mesh, Option<Vec<u32>>) {
+    let (merged, of_vertex) = match mesh.welded() {
+        Some((m, of)) => (m, Some(of)),
+        None => (mesh.clone(), None),
+    };
+    let triangles = merged.facing_outward().0;
+    (
+        Mesh {
+            triangles,
+            ..merged
+        },
+        of_vertex,
+    )
+}
+
+/// The given mesh's vertices against the merged ones the tracker works on.
+struct Weld {
+    /// For every given vertex, its merged vertex.
+    of_vertex: Vec<u32>,
+    /// The current positions of the given vertices (what [`Tracker::positions`] returns).
+    given: Vec<Point3<f64>>,
 }
 
 /// Refuses `images` images for `cameras` cameras unless there is one per camera.
@@ -199,10 +228,15 @@ impl Tracker {
         let opts = used.options;
         let levels = opts.levels;
         let pyramids = build_pyramids(images, levels, opts.blur);
-        // The triangles wound consistently and outward (the facing test needs it); the
-        // meshes written keep the user's triangles, only positions come from here.
-        let oriented = mesh.with_triangles(mesh.facing_outward().0);
-        let mesh = &oriented;
+        // Vertices at the same place merged (`Mesh::welded`), the triangles wound consistently
+        // and outward (the facing test needs it); the meshes written keep the user's
+        // vertices and triangles, only positions come from here.
+        let (tracked, of_vertex) = tracked_mesh(mesh);
+        let weld = of_vertex.map(|of_vertex| Weld {
+            of_vertex,
+            given: mesh.positions.clone(),
+        });
+        let mesh = &tracked;
         let edges = Arc::new(EdgeSet::new(mesh));
         let mut t = Tracker {
             triangles: mesh.triangles.clone(),
@@ -225,6 +259,7 @@ impl Tracker {
             },
             before_prev: None,
             before_frame: frame,
+            weld,
         };
         (t.anchor, t.contradicted_at_first) = t.anchor_patches(&t.prev, None);
         t.information_at_first = t.information_at_first();
@@ -276,9 +311,34 @@ impl Tracker {
     /// ground truth in an experiment); the next step starts from them, with no velocity.
     pub fn set_positions(&mut self, positions: Vec<Point3<f64>>) -> Result<()> {
         self.check_positions(&positions)?;
-        self.prev.positions = positions;
+        self.prev.positions = self.merged(positions);
         self.before_prev = None;
+        self.sync_given();
         Ok(())
+    }
+
+    /// Positions of the given mesh's vertices as the merged vertices' (each merged vertex
+    /// takes its last given copy's).
+    fn merged(&self, positions: Vec<Point3<f64>>) -> Vec<Point3<f64>> {
+        match &self.weld {
+            None => positions,
+            Some(w) => {
+                let mut out = self.prev.positions.clone();
+                for (&m, p) in w.of_vertex.iter().zip(positions) {
+                    out[m as usize] = p;
+                }
+                out
+            }
+        }
+    }
+
+    /// The given vertices' positions from the merged ones, after these changed.
+    fn sync_given(&mut self) {
+        if let Some(w) = &mut self.weld {
+            for (g, &m) in w.given.iter_mut().zip(&w.of_vertex) {
+                *g = self.prev.positions[m as usize];
+            }
+        }
     }
 
     /// Puts the tracker in the state it had right after solving `frame`: the frame's images
@@ -303,6 +363,11 @@ impl Tracker {
         }
         if let Some(n) = &first_next {
             self.check_positions(n)?;
+        }
+        let positions = self.merged(positions);
+        let before = before.map(|b| self.merged(b));
+        let first_next = first_next.map(|n| self.merged(n));
+        if let Some(n) = &first_next {
             if self.prev.frame == self.anchor_frame && self.before_prev.is_none() {
                 (self.anchor, self.contradicted_at_first) =
                     self.anchor_patches(&self.prev, Some((n, 1.0)));
@@ -315,6 +380,7 @@ impl Tracker {
         };
         self.before_prev = before;
         self.before_frame = frame.saturating_sub(1);
+        self.sync_given();
         Ok(())
     }
 
@@ -337,10 +403,11 @@ impl Tracker {
     }
 
     fn check_positions(&self, positions: &[Point3<f64>]) -> Result<()> {
-        if positions.len() != self.prev.positions.len() {
+        let n = self.positions().len();
+        if positions.len() != n {
             return Err(Error::mismatch(
                 "positions",
-                format!("{} (one per mesh vertex)", self.prev.positions.len()),
+                format!("{n} (one per mesh vertex)"),
                 positions.len(),
             ));
         }
@@ -371,9 +438,13 @@ impl Tracker {
         Ok(())
     }
 
-    /// Current vertex positions (the last solved frame).
+    /// Current vertex positions (the last solved frame), one per vertex of the mesh given to
+    /// [`Tracker::new`].
     pub fn positions(&self) -> &[Point3<f64>] {
-        &self.prev.positions
+        match &self.weld {
+            Some(w) => &w.given,
+            None => &self.prev.positions,
+        }
     }
 
     fn consensus_options(&self) -> ConsensusOptions {
@@ -690,7 +761,16 @@ impl Tracker {
             }
             self.before_prev = Some(old.positions);
             self.before_frame = old.frame;
+            self.sync_given();
         }
+        let confidence = match &self.weld {
+            Some(w) if !out.confidence.is_empty() => w
+                .of_vertex
+                .iter()
+                .map(|&m| out.confidence[m as usize])
+                .collect(),
+            _ => out.confidence,
+        };
         // A stalled frame's images are not made the template: the next frame is compared with
         // the last frame that was solved (its positions are what this frame reports).
         let mut report = FrameReport {
@@ -709,7 +789,7 @@ impl Tracker {
             stalled,
             timing: out.timing,
             levels: summaries,
-            confidence: out.confidence,
+            confidence,
         };
         report.suspect = health::own_concerns(&report)
             .iter()
