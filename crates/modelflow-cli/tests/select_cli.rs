@@ -69,7 +69,18 @@ fn part_of_a_shot_with_some_cameras_goes_on_from_an_earlier_runs_mesh() {
     assert_eq!(report["frames"], 3);
     let mean = report["rms_mean_pct"].as_f64().unwrap();
     assert!(mean < 0.5, "mean error {mean} % over frames 2..4");
-    // Without --frames the run is incomplete for the scene, and eval says which frames lack.
+    // Without --frames: the frames the run tracked, as its run.json records them, said so.
+    let out = modelflow(
+        &["eval", "--json"],
+        &[("--scene", &scene), ("--track", &second)],
+    );
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{err}");
+    assert!(err.contains("evaluating frames 2..=4"), "{err}");
+    let again: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(again, report);
+    // A folder of meshes without a run.json is scored over the whole scene: which frames lack.
+    std::fs::remove_file(second.join("run.json")).unwrap();
     let out = modelflow(&["eval"], &[("--scene", &scene), ("--track", &second)]);
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(
