@@ -703,8 +703,10 @@ impl Problem<'_> {
             }
             let mut n = 0usize;
             // Normal equations of the shading fit: gain(λ) = Σ_i λ_i·g_i (linear over the triangle).
-            let mut gm = Matrix3::<f64>::zeros();
-            let mut gr = Vector3::<f64>::zeros();
+            // Summed as plain numbers (the matrix's six distinct entries), not as nalgebra
+            // matrices: the same values, fewer instructions in the per-pixel loop.
+            let mut gm6 = [0.0f64; 6];
+            let mut gr3 = [0.0f64; 3];
             let pixels = &self.pixels[patch.start as usize..patch.end as usize];
             for (i, px) in pixels.iter().enumerate() {
                 let l = [
@@ -731,9 +733,12 @@ impl Problem<'_> {
                     sc += (s[k] * px.color[k]) as f64;
                     cc += (px.color[k] * px.color[k]) as f64;
                 }
-                let lv = Vector3::from(l);
-                gm += lv * lv.transpose() * cc;
-                gr += lv * sc;
+                for (e, &(a, b)) in gm6.iter_mut().zip(&PAIRS) {
+                    *e += l[a] * l[b] * cc;
+                }
+                for (e, &a) in gr3.iter_mut().zip(&l) {
+                    *e += a * sc;
+                }
                 scratch[n] = Warped {
                     index: i as u32,
                     u,
@@ -750,6 +755,10 @@ impl Problem<'_> {
             // current positions, the gradient with respect to them is unchanged (envelope theorem).
             // Which gains were fitted freely (none clamped): their directions are projected out
             // of the normal equations below.
+            let gm = Matrix3::new(
+                gm6[0], gm6[3], gm6[4], gm6[3], gm6[1], gm6[5], gm6[4], gm6[5], gm6[2],
+            );
+            let gr = Vector3::from(gr3);
             let constant = |gm: &Matrix3<f64>, gr: &Vector3<f64>| {
                 let g = gr.sum() / gm.sum();
                 let c = g.clamp(0.5, 2.0);
