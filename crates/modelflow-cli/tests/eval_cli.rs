@@ -57,16 +57,7 @@ fn ground_truth_against_itself_scores_zero() {
 #[test]
 fn shifted_run_scores_the_shift_in_a_table() {
     let dir = tempfile::tempdir().unwrap();
-    for f in 0..12 {
-        let name = format!("{f:04}.obj");
-        let m = read_mesh(&sample().join("truth").join(&name)).unwrap();
-        let moved = m
-            .positions
-            .iter()
-            .map(|p| p + Vector3::new(0.0, 0.006, 0.008))
-            .collect();
-        write_obj(&dir.path().join(&name), &m.with_positions(moved)).unwrap();
-    }
+    write_shifted(dir.path(), 0..=11);
     let out = eval(&sample().join("scene.json"), dir.path(), false);
     assert!(out.status.success(), "{}", text(&out.stderr));
     let table = text(&out.stdout);
@@ -133,7 +124,13 @@ fn run_folder(first: u32, last: u32, last_complete: Option<u32>) -> tempfile::Te
         serde_json::to_string_pretty(&m).unwrap(),
     )
     .unwrap();
-    for f in first..=last_complete.unwrap_or(last) {
+    write_shifted(dir.path(), first..=last_complete.unwrap_or(last));
+    dir
+}
+
+/// The sample's true meshes of `frames`, moved by 1 cm (0.6 along y, 0.8 along z), into `dir`.
+fn write_shifted(dir: &std::path::Path, frames: std::ops::RangeInclusive<u32>) {
+    for f in frames {
         let name = format!("{f:04}.obj");
         let m = read_mesh(&sample().join("truth").join(&name)).unwrap();
         let moved = m
@@ -141,9 +138,8 @@ fn run_folder(first: u32, last: u32, last_complete: Option<u32>) -> tempfile::Te
             .iter()
             .map(|p| p + Vector3::new(0.0, 0.006, 0.008))
             .collect();
-        write_obj(&dir.path().join(&name), &m.with_positions(moved)).unwrap();
+        write_obj(&dir.join(&name), &m.with_positions(moved)).unwrap();
     }
-    dir
 }
 
 #[test]

@@ -359,13 +359,9 @@ fn a_missing_gpu_is_named_and_nothing_is_written() {
     assert!(!out.status.success() && stderr.contains("tpu"), "{stderr}");
 }
 
-#[test]
-fn a_closed_mesh_wound_inward_is_tracked_as_if_wound_outward_and_written_as_given() {
-    // Another package's convention: the closed blob with every triangle wound the other way.
-    // The facing test would take every front face for a back face and compare nothing; the
-    // tracker turns them, says so, and writes the user's winding back.
-    use modelflow::input::{read_mesh, write_obj};
-    let dir = tempfile::tempdir().unwrap();
+/// The closed blob's footage (3 frames at 320×240) written under `dir`: the scene file and its
+/// mesh.
+fn small_blob(dir: &std::path::Path) -> (std::path::PathBuf, modelflow::base::Mesh) {
     let opts = SynthOptions {
         preset: modelflow::synth::Preset::Blob,
         width: 320,
@@ -374,9 +370,20 @@ fn a_closed_mesh_wound_inward_is_tracked_as_if_wound_outward_and_written_as_give
         supersample: 1,
         ..SynthOptions::default()
     };
-    let scene = write_dataset(&opts, &dir.path().join("footage"), &|_, _| {}).unwrap();
-    let given = scene.parent().unwrap().join("mesh/initial.obj");
-    let mesh = read_mesh(&given).unwrap();
+    let scene = write_dataset(&opts, &dir.join("footage"), &|_, _| {}).unwrap();
+    let mesh =
+        modelflow::input::read_mesh(&scene.parent().unwrap().join("mesh/initial.obj")).unwrap();
+    (scene, mesh)
+}
+
+#[test]
+fn a_closed_mesh_wound_inward_is_tracked_as_if_wound_outward_and_written_as_given() {
+    // Another package's convention: the closed blob with every triangle wound the other way.
+    // The facing test would take every front face for a back face and compare nothing; the
+    // tracker turns them, says so, and writes the user's winding back.
+    use modelflow::input::write_obj;
+    let dir = tempfile::tempdir().unwrap();
+    let (scene, mesh) = small_blob(dir.path());
     let err = track_ok(&scene, &dir.path().join("outward"));
     assert!(!err.contains("are wound against"), "{err}");
 
@@ -419,18 +426,9 @@ fn a_triangle_soup_is_tracked_as_the_surface_it_makes_and_written_as_given() {
     // and as exporters split meshes along seams): no edge joins the triangles, so without
     // merging the copies the regularisers hold nothing together (it once took minutes on the
     // first frame). Tracked, it must follow the welded mesh's track.
-    use modelflow::input::{read_mesh, write_obj};
+    use modelflow::input::write_obj;
     let dir = tempfile::tempdir().unwrap();
-    let opts = SynthOptions {
-        preset: modelflow::synth::Preset::Blob,
-        width: 320,
-        height: 240,
-        frames: 3,
-        supersample: 1,
-        ..SynthOptions::default()
-    };
-    let scene = write_dataset(&opts, &dir.path().join("footage"), &|_, _| {}).unwrap();
-    let mesh = read_mesh(&scene.parent().unwrap().join("mesh/initial.obj")).unwrap();
+    let (scene, mesh) = small_blob(dir.path());
     let soup = modelflow::base::Mesh {
         positions: mesh
             .triangles
