@@ -66,6 +66,7 @@ pub(crate) fn read_rgb_stored(path: &Path) -> Result<(RgbImage, bool)> {
             return super::dpx::decode(path, &bytes).map(|img| (img, false));
         }
     }
+    let exr = reader.format() == Some(image::ImageFormat::OpenExr);
     let img = if reader.format() == Some(image::ImageFormat::Jpeg) {
         // Read once: checked for completeness, then decoded from memory.
         let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
@@ -73,8 +74,16 @@ pub(crate) fn read_rgb_stored(path: &Path) -> Result<(RgbImage, bool)> {
         ImageReader::with_format(std::io::Cursor::new(bytes), image::ImageFormat::Jpeg).decode()
     } else {
         reader.decode()
-    }
-    .map_err(|e| decode_error(path, e))?;
+    };
+    let img = match img {
+        Ok(img) => img,
+        // No plain R, G, B channels: a multi-layer EXR, whose beauty pass is taken.
+        Err(e) if exr => match read_exr_beauty(path)? {
+            Some(img) => img,
+            None => return Err(decode_error(path, e)),
+        },
+        Err(e) => return Err(decode_error(path, e)),
+    };
     let (w, h) = (img.width() as usize, img.height() as usize);
     if w == 0 || h == 0 {
         return Err(Error::invalid(path, "size", "the image is empty"));
@@ -127,6 +136,84 @@ pub(crate) fn read_rgb_stored(path: &Path) -> Result<(RgbImage, bool)> {
     Ok((img, float))
 }
 
+/// The beauty pass of a multi-layer OpenEXR, as Blender's "OpenEXR MultiLayer" and compositing
+/// packages write it: channels named `<layer>.<pass>.R`, `.G`, `.B` (and many other passes:
+/// depth, normals, ...). The pass taken is the one named `Combined` (Blender's beauty), else
+/// `beauty` or `rgba` (any case), else the first with all three of R, G and B in name order.
+/// `None` when no pass has them. Written by hand on top of the `exr` crate: `image` reads only
+/// channels named plainly `R`, `G`, `B`.
+fn read_exr_beauty(path: &Path) -> Result<Option<DynamicImage>> {
+    let file = exr::prelude::read_all_flat_layers_from_file(path).map_err(|e| {
+        Error::invalid(
+            path,
+            "image",
+            format!("cannot decode the OpenEXR file: {e}"),
+        )
+    })?;
+    // Every pass with R, G and B, as (its full name, layer, channel indices).
+    let mut passes: Vec<(String, usize, [usize; 3])> = Vec::new();
+    for (l, layer) in file.layer_data.iter().enumerate() {
+        let prefix = layer
+            .attributes
+            .layer_name
+            .as_ref()
+            .map(|n| format!("{n}."))
+            .unwrap_or_default();
+        let names: Vec<String> = layer
+            .channel_data
+            .list
+            .iter()
+            .map(|c| format!("{prefix}{}", c.name))
+            .collect();
+        for (i, name) in names.iter().enumerate() {
+            let Some(pass) = name.strip_suffix(".R") else {
+                continue;
+            };
+            let find = |suffix: &str| names.iter().position(|n| *n == format!("{pass}{suffix}"));
+            if let (Some(g), Some(b)) = (find(".G"), find(".B")) {
+                passes.push((pass.to_string(), l, [i, g, b]));
+            }
+        }
+    }
+    let is = |p: &str, what: &str| {
+        p.rsplit('.')
+            .next()
+            .is_some_and(|last| last.eq_ignore_ascii_case(what))
+    };
+    let chosen = passes
+        .iter()
+        .find(|(p, _, _)| is(p, "combined"))
+        .or_else(|| passes.iter().find(|(p, _, _)| is(p, "beauty")))
+        .or_else(|| passes.iter().find(|(p, _, _)| is(p, "rgba")))
+        .or_else(|| passes.first());
+    let Some((_, l, ch)) = chosen else {
+        return Ok(None);
+    };
+    let layer = &file.layer_data[*l];
+    let (w, h) = (layer.size.width(), layer.size.height());
+    let values: Vec<Vec<f32>> = ch
+        .iter()
+        .map(|&c| {
+            layer.channel_data.list[c]
+                .sample_data
+                .values_as_f32()
+                .collect()
+        })
+        .collect();
+    if values.iter().any(|v| v.len() != w * h) {
+        return Err(Error::invalid(
+            path,
+            "image",
+            "a channel of the beauty pass is subsampled; expected one sample per pixel",
+        ));
+    }
+    let buf = image::Rgb32FImage::from_fn(w as u32, h as u32, |x, y| {
+        let i = y as usize * w + x as usize;
+        image::Rgb([values[0][i], values[1][i], values[2][i]])
+    });
+    Ok(Some(DynamicImage::ImageRgb32F(buf)))
+}
+
 /// Width and height of an image file, from its header only (fast: no pixel is decoded).
 pub fn image_size(path: &Path) -> Result<(u32, u32)> {
     let reader = open(path)?;
@@ -143,7 +230,19 @@ pub fn image_size(path: &Path) -> Result<(u32, u32)> {
             return Ok((l.width as u32, l.height as u32));
         }
     }
-    reader.into_dimensions().map_err(|e| decode_error(path, e))
+    let exr = reader.format() == Some(image::ImageFormat::OpenExr);
+    match reader.into_dimensions() {
+        Ok(size) => Ok(size),
+        // A multi-layer EXR (no plain R, G, B): the size of its layers, from the header.
+        Err(e) if exr => match exr::meta::MetaData::read_from_file(path, false) {
+            Ok(meta) => match meta.headers.first() {
+                Some(h) => Ok((h.layer_size.width() as u32, h.layer_size.height() as u32)),
+                None => Err(decode_error(path, e)),
+            },
+            Err(_) => Err(decode_error(path, e)),
+        },
+        Err(e) => Err(decode_error(path, e)),
+    }
 }
 
 fn quantise<const MAX: u32>(v: f32) -> f32 {
@@ -206,4 +305,68 @@ fn encode_png(path: &Path, img: DynamicImage) -> Result<()> {
     )
     .map_err(|e| Error::invalid(path, "image", format!("cannot encode PNG: {e}")))?;
     write_atomic(path, &bytes)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use exr::prelude::*;
+
+    /// A multi-layer EXR as Blender writes one: passes named `ViewLayer.<pass>.<channel>`.
+    fn write_layered(path: &Path, passes: &[(&str, f32)]) {
+        let (w, h) = (8usize, 4usize);
+        let list: Vec<AnyChannel<FlatSamples>> = passes
+            .iter()
+            .map(|&(name, v)| {
+                let samples = (0..w * h).map(|i| v + i as f32 * 0.001).collect();
+                AnyChannel::new(name, FlatSamples::F32(samples))
+            })
+            .collect();
+        let layer = Layer::new(
+            (w, h),
+            LayerAttributes::default(),
+            Encoding::FAST_LOSSLESS,
+            AnyChannels::sort(SmallVec::from_vec(list)),
+        );
+        Image::from_layer(layer).write().to_file(path).unwrap();
+    }
+
+    #[test]
+    fn a_multi_layer_exr_gives_its_beauty_pass() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("0001.exr");
+        // Another pass with R, G, B that sorts first (AO), the beauty (Combined), and passes
+        // without colour (depth, normals).
+        write_layered(
+            &path,
+            &[
+                ("ViewLayer.AO.R", 9.0),
+                ("ViewLayer.AO.G", 9.0),
+                ("ViewLayer.AO.B", 9.0),
+                ("ViewLayer.Combined.R", 0.5),
+                ("ViewLayer.Combined.G", 0.25),
+                ("ViewLayer.Combined.B", 1.5),
+                ("ViewLayer.Combined.A", 1.0),
+                ("ViewLayer.Depth.Z", 3.0),
+                ("ViewLayer.Normal.X", 0.0),
+                ("ViewLayer.Normal.Y", 1.0),
+                ("ViewLayer.Normal.Z", 0.0),
+            ],
+        );
+        assert_eq!(image_size(&path).unwrap(), (8, 4));
+        let (img, float) = read_rgb_stored(&path).unwrap();
+        assert!(float, "scene-linear, like any float EXR");
+        assert_eq!((img.width(), img.height()), (8, 4));
+        // Pixel (3, 2) is sample 19.
+        assert_eq!(img.get(3, 2), [0.519, 0.269, 1.519]);
+
+        // No pass with colour: the decoder's own message, naming the file.
+        let bare = dir.path().join("depth.exr");
+        write_layered(&bare, &[("ViewLayer.Depth.Z", 3.0)]);
+        let err = read_rgb(&bare).unwrap_err().to_string();
+        assert!(
+            err.contains("depth.exr") && err.contains("cannot decode"),
+            "{err}"
+        );
+    }
 }
