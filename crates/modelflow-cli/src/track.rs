@@ -249,6 +249,36 @@ const SLIVER_RATIO: f64 = 1e-3;
 /// views barely overlap: depth there is the regularisers' guess).
 const ONE_CAMERA_WARN: f64 = 0.5;
 
+/// Warns when the cameras agree best with the first mesh moved along its normals
+/// (`tracker::surface_offset`): a mesh off the surface is followed short of every turn.
+fn surface_check(scene: &Scene) -> anyhow::Result<()> {
+    let images = scene.load_images(scene.first)?;
+    let Some(off) =
+        modelflow::tracker::surface_offset(&scene.mesh, &scene.cameras, scene.first, &images)
+    else {
+        return Ok(());
+    };
+    if !off.is_off() {
+        return Ok(());
+    }
+    let len = modelflow::base::Length::of(scene.units);
+    let side = match (off.closed, off.pixels < 0.0) {
+        (true, true) => "it lies outside the surface (a visual hull made from silhouettes does), and the tracker will turn it short of every turn of the object",
+        (true, false) => "it lies inside the surface, and the tracker will turn it past every turn of the object",
+        (false, _) => "it lies off the surface, and the tracker will turn it short of or past every turn of the object",
+    };
+    eprintln!(
+        "warning: at frame {}, the cameras agree best with the mesh moved {}{:.1} px ({} {}) along its normals, {:.1}× better than where it is: {side} (docs/tracker.md, \"The first mesh must lie on the surface\"). Bring the mesh onto the surface first.",
+        scene.first,
+        if off.at_limit { "at least " } else { "" },
+        off.pixels,
+        len.show(off.length),
+        len.unit(),
+        off.ratio
+    );
+    Ok(())
+}
+
 pub fn run(args: Args, invocation: &Invocation) -> anyhow::Result<()> {
     args.track.options().validate()?;
     let scene = args.select.apply(Scene::load(&args.scene)?)?;
@@ -299,6 +329,7 @@ pub fn run(args: Args, invocation: &Invocation) -> anyhow::Result<()> {
             100.0 * cover.one_camera_share()
         );
     }
+    surface_check(&scene)?;
     let mut run = run_options(args.out.mode(args.resume), invocation);
     run.gpu = gpu;
     let summary = run_scene(&scene, &opts, &args.out.out, &run)?;

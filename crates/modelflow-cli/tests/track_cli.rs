@@ -491,3 +491,61 @@ fn a_triangle_soup_is_tracked_as_the_surface_it_makes_and_written_as_given() {
         "the blob moved {moved}, the tracks differ by {worst}"
     );
 }
+
+#[test]
+fn a_mesh_off_the_surface_is_named_before_tracking() {
+    // The blob's mesh moved outward along its normals by 2 % of its size (a visual hull is
+    // that far out and more): the cameras agree best with it moved back in, and `track` says
+    // so; the mesh on the surface gives no such warning, nor does the mesh moved inward by
+    // less than the threshold.
+    use modelflow::input::write_obj;
+    let dir = tempfile::tempdir().unwrap();
+    let (scene, mesh) = small_blob(dir.path());
+    let err = track_ok(&scene, &dir.path().join("on"));
+    assert!(!err.contains("agree best"), "{err}");
+    let mut normals = vec![nalgebra::Vector3::zeros(); mesh.positions.len()];
+    for (i, t) in mesh.triangles.iter().enumerate() {
+        for &v in t {
+            normals[v as usize] += mesh.triangle_normal(i);
+        }
+    }
+    let size = mesh.bbox_diagonal();
+    let moved = |d: f64| {
+        mesh.with_positions(
+            mesh.positions
+                .iter()
+                .zip(&normals)
+                .map(|(p, n)| p + n.normalize() * d * size)
+                .collect(),
+        )
+    };
+    let run = |d: f64, name: &str| {
+        let file = dir.path().join(format!("{name}.obj"));
+        write_obj(&file, &moved(d)).unwrap();
+        let o = Command::new(env!("CARGO_BIN_EXE_modelflow"))
+            .args(["track", "--frames", "0..1", "--scene"])
+            .arg(&scene)
+            .arg("--mesh")
+            .arg(&file)
+            .arg("--out")
+            .arg(dir.path().join(name))
+            .output()
+            .unwrap();
+        let err = String::from_utf8_lossy(&o.stderr).to_string();
+        assert!(o.status.success(), "{err}");
+        err
+    };
+    let err = run(0.02, "outside");
+    assert!(
+        err.contains("warning: at frame 0, the cameras agree best with the mesh moved -")
+            && err.contains("it lies outside the surface"),
+        "{err}"
+    );
+    let err = run(-0.02, "inside");
+    assert!(
+        err.contains("agree best") && err.contains("it lies inside the surface"),
+        "{err}"
+    );
+    let err = run(0.001, "close");
+    assert!(!err.contains("agree best"), "{err}");
+}

@@ -12,6 +12,7 @@ pub(crate) mod consensus;
 mod coverage;
 mod gpu;
 pub(crate) mod health;
+mod offset;
 mod options;
 pub(crate) mod outline;
 pub(crate) mod patch;
@@ -33,6 +34,7 @@ pub use align::{
 pub use coverage::{coverage, Coverage};
 pub use gpu::{Gpu, GpuStats};
 pub use health::{check_reports, Checks, Concern, FrameCheck, INFORMATION_FLOOR, SUSPECT_RISE};
+pub use offset::{surface_offset, SurfaceOffset};
 pub use options::{OptionsUsed, TrackOptions};
 pub use regularise::Regularisation;
 pub use sequence::{prepare, FrameReport, Prepared, StepTiming, Tracker};
