@@ -5,7 +5,7 @@
 use modelflow::base::{rms_distance, Length};
 use modelflow::input::Scene;
 use modelflow::report::{alignment_picture, surface_rms};
-use modelflow::tracker::{align, perturb, AlignOptions, MotionKind};
+use modelflow::tracker::{align, onto_surface, perturb, surface_offset, AlignOptions, MotionKind};
 use std::path::PathBuf;
 
 #[derive(clap::Args)]
@@ -27,6 +27,11 @@ pub struct Args {
     /// edge against a background (a cloth, a sheet of paper), not a cut inside a surface.
     #[arg(long)]
     outline: bool,
+    /// When the mesh lies off the surface the cameras agree on (the check `track` makes: 1.5
+    /// px or more along its normals), first move every vertex along its normal onto it (for a
+    /// mesh made from silhouettes, which lies outside it); its triangulation is kept.
+    #[arg(long)]
+    surface: bool,
     /// Pyramid levels (0 = from the mesh's size in the images: about 24 px across at the
     /// coarsest; 0 to 8).
     #[arg(long, default_value_t = AlignOptions::default().levels)]
@@ -78,7 +83,42 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     opts.validate()?;
     let images = scene.load_images(frame)?;
     let t = std::time::Instant::now();
-    let a = align(&mesh, &scene.cameras, frame, &images, &opts)?;
+    // With --surface, a mesh off the surface has its shape moved first (it pulls the pose the
+    // cameras agree on: docs/tracker.md, "The first mesh must lie on the surface"), then its
+    // pose aligned, then its shape refined once more from there.
+    let off = if args.surface {
+        surface_offset(&mesh, &scene.cameras, frame, &images)
+    } else {
+        None
+    };
+    let reshape = off.is_some_and(|o| o.is_off());
+    if args.surface && !reshape {
+        eprintln!(
+            "the mesh lies on the surface the cameras agree on (within {} px along its normals): its shape is left as it is",
+            modelflow::tracker::SURFACE_MIN_PX
+        );
+    }
+    let start = if reshape {
+        mesh.with_positions(onto_surface(&mesh, &scene.cameras, frame, &images, 3))
+    } else {
+        mesh.clone()
+    };
+    let mut a = align(&start, &scene.cameras, frame, &images, &opts)?;
+    if reshape {
+        a.positions = onto_surface(
+            &mesh.with_positions(a.positions.clone()),
+            &scene.cameras,
+            frame,
+            &images,
+            1,
+        );
+        let o = off.expect("reshape implies an offset");
+        eprintln!(
+            "the mesh lay {}{:.1} px off the surface the cameras agree on (along its normals); every vertex was moved onto it",
+            if o.at_limit { "at least " } else { "" },
+            o.pixels.abs()
+        );
+    }
     let seconds = t.elapsed().as_secs_f64();
     let out = mesh.with_positions(a.positions.clone());
     modelflow::input::write_obj(&args.out, &out)?;

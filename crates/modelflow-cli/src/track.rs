@@ -268,7 +268,7 @@ fn surface_check(scene: &Scene) -> anyhow::Result<()> {
         (false, _) => "it lies off the surface, and the tracker will turn it short of or past every turn of the object",
     };
     eprintln!(
-        "warning: at frame {}, the cameras agree best with the mesh moved {}{:.1} px ({} {}) along its normals, {:.1}× better than where it is: {side} (docs/tracker.md, \"The first mesh must lie on the surface\"). Bring the mesh onto the surface first.",
+        "warning: at frame {}, the cameras agree best with the mesh moved {}{:.1} px ({} {}) along its normals, {:.1}× better than where it is: {side} (docs/tracker.md, \"The first mesh must lie on the surface\"). Bring the mesh onto the surface first (modelflow align --surface).",
         scene.first,
         if off.at_limit { "at least " } else { "" },
         off.pixels,

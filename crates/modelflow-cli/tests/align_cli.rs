@@ -115,3 +115,63 @@ fn bad_requests_are_refused_by_name() {
         "nothing is written when the request is refused"
     );
 }
+
+#[test]
+fn surface_moves_a_mesh_outside_the_surface_onto_it_and_leaves_one_on_it_alone() {
+    // The blob's mesh moved outward along its normals by 2 % of its size, as a visual hull
+    // lies outside the surface: `--surface` moves every vertex back onto it.
+    use modelflow::synth::{write_dataset, SynthOptions};
+    let dir = tempfile::tempdir().unwrap();
+    let opts = SynthOptions {
+        preset: modelflow::synth::Preset::Blob,
+        frames: 1,
+        supersample: 1,
+        ..SynthOptions::default()
+    };
+    let scene = write_dataset(&opts, &dir.path().join("footage"), &|_, _| {}).unwrap();
+    let mesh = read_mesh(&scene.parent().unwrap().join("mesh/initial.obj")).unwrap();
+    let mut normals = vec![nalgebra::Vector3::zeros(); mesh.positions.len()];
+    for (i, t) in mesh.triangles.iter().enumerate() {
+        for &v in t {
+            normals[v as usize] += mesh.triangle_normal(i);
+        }
+    }
+    let size = mesh.bbox_diagonal();
+    let outside = mesh.with_positions(
+        mesh.positions
+            .iter()
+            .zip(&normals)
+            .map(|(p, n)| p + n.normalize() * 0.02 * size)
+            .collect(),
+    );
+    let hull = dir.path().join("hull.obj");
+    modelflow::input::write_obj(&hull, &outside).unwrap();
+    let run = |mesh: &Path, out: &Path| {
+        let o = Command::new(env!("CARGO_BIN_EXE_modelflow"))
+            .args(["align", "--surface", "--json", "--scene"])
+            .arg(&scene)
+            .arg("--mesh")
+            .arg(mesh)
+            .arg("--out")
+            .arg(out)
+            .output()
+            .unwrap();
+        assert!(o.status.success(), "{}", text(&o.stderr));
+        let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+        (v, text(&o.stderr))
+    };
+    let (v, err) = run(&hull, &dir.path().join("onto.obj"));
+    assert!(err.contains("every vertex was moved onto it"), "{err}");
+    let (before, after) = (
+        v["error_before_pct"].as_f64().unwrap(),
+        v["error_after_pct"].as_f64().unwrap(),
+    );
+    // (Per cent of the given mesh's size, 2 % larger than the surface's.)
+    assert!((1.7..2.1).contains(&before), "{before}");
+    assert!(after < 0.5 * before, "{before} % -> {after} %");
+    // On the surface already: left as it is (the pose aligned as without --surface).
+    let given = scene.parent().unwrap().join("mesh/initial.obj");
+    let (v, err) = run(&given, &dir.path().join("same.obj"));
+    assert!(err.contains("its shape is left as it is"), "{err}");
+    assert!(v["error_after_pct"].as_f64().unwrap() < 0.1, "{v}");
+}

@@ -48,6 +48,142 @@ pub const MIN_RATIO: f64 = 1.5;
 /// The range searched, whole pixels either way.
 const RANGE: i32 = 10;
 
+/// What the scans need of a frame: the cameras' images at one pyramid level and their
+/// projections there, pixels per scene unit at the mesh, and the comparison's options.
+struct Frame<'a> {
+    targets: Vec<&'a RgbImage>,
+    projections: Vec<Projection>,
+    per_unit: f64,
+    opts: SolverOptions,
+}
+
+/// One offset's comparison: the mean cost per pixel over every triangle, and per triangle its
+/// cost and compared pixels (weighted).
+type Scanned = Option<(f64, Vec<(u32, f64, f64)>)>;
+
+impl Frame<'_> {
+    /// For offsets −RANGE..=RANGE pixels of `x` along `normals`: what the cameras' comparison
+    /// gives there (`None` where no two cameras see a common triangle).
+    fn scan(
+        &self,
+        x: &[Point3<f64>],
+        normals: &[Vector3<f64>],
+        triangles: &[[u32; 3]],
+        edges: &[[u32; 2]],
+        closed: bool,
+    ) -> Vec<Scanned> {
+        let popts = PatchOptions {
+            margin: 1,
+            min_cos: 0.1,
+            two_sided: !closed,
+            checkerboard: false,
+        };
+        (-RANGE..=RANGE)
+            .map(|k| {
+                let d = k as f64 / self.per_unit;
+                let xk: Vec<Point3<f64>> = x.iter().zip(normals).map(|(p, n)| p + n * d).collect();
+                let mut set =
+                    cross_patches(&xk, triangles, &self.projections, &self.targets, &popts);
+                if set.patches.is_empty() {
+                    return None;
+                }
+                let by = set.by_triangle();
+                let problem = Problem {
+                    moving_source: Some(&xk),
+                    ..Problem::photometric(
+                        triangles,
+                        &set,
+                        &by,
+                        self.targets.clone(),
+                        self.projections.clone(),
+                        edges,
+                    )
+                };
+                let (cost, _, parts) = problem.evaluate(&xk, &self.opts, None);
+                let per_triangle = by
+                    .iter()
+                    .zip(&parts)
+                    .map(|((t, _), a)| (*t, a.cost, a.weight))
+                    .collect();
+                Some((cost, per_triangle))
+            })
+            .collect()
+    }
+}
+
+/// Area-weighted unit vertex normals at `x` (zero where a vertex has no triangle).
+fn vertex_normals(triangles: &[[u32; 3]], x: &[Point3<f64>]) -> Vec<Vector3<f64>> {
+    let mut normals = vec![Vector3::zeros(); x.len()];
+    for t in triangles {
+        let [a, b, c] = t.map(|v| x[v as usize]);
+        let n = (b - a).cross(&(c - a));
+        for &v in t {
+            normals[v as usize] += n;
+        }
+    }
+    for n in &mut normals {
+        let l = n.norm();
+        if l > 0.0 {
+            *n /= l;
+        }
+    }
+    normals
+}
+
+/// The minimum of `costs` (indexed from −RANGE), refined by the parabola through its
+/// neighbours, in pixels; its cost; and whether it is at an end of the range.
+fn best_offset(costs: &[f64]) -> Option<(f64, f64, bool)> {
+    let (best, &c) = costs
+        .iter()
+        .enumerate()
+        .filter(|(_, c)| c.is_finite())
+        .min_by(|a, b| a.1.total_cmp(b.1))?;
+    let mut pixels = best as f64 - RANGE as f64;
+    if best > 0 && best + 1 < costs.len() {
+        let (l, r) = (costs[best - 1], costs[best + 1]);
+        let curve = l - 2.0 * c + r;
+        if curve > 0.0 && curve.is_finite() {
+            pixels += 0.5 * (l - r) / curve;
+        }
+    }
+    Some((pixels, c, best == 0 || best + 1 == costs.len()))
+}
+
+/// The comparison at pyramid `level` (of `pyramids`, blurred as the tracker's).
+fn frame_of<'a>(
+    cameras: &[Camera],
+    frame: u32,
+    pyramids: &'a [Pyramid],
+    level: usize,
+    x: &[Point3<f64>],
+) -> Option<Frame<'a>> {
+    let per_unit =
+        crate::tracker::outline::pixels_per_unit(cameras, frame, x) / (1u32 << level) as f64;
+    if !(per_unit.is_finite() && per_unit > 0.0) {
+        return None;
+    }
+    Some(Frame {
+        targets: pyramids.iter().map(|p| &p.levels[level]).collect(),
+        projections: cameras
+            .iter()
+            .map(|c| level_projection(c.at(frame), level))
+            .collect(),
+        per_unit,
+        // The convex loss: a highlight or an occluder differs between viewpoints at any offset.
+        opts: SolverOptions {
+            loss: Loss::Huber,
+            ..SolverOptions::default()
+        },
+    })
+}
+
+fn pyramids(images: &[RgbImage], levels: usize) -> Vec<Pyramid> {
+    images
+        .par_iter()
+        .map(|i| Pyramid::new(i, levels, 1.0))
+        .collect()
+}
+
 /// The offset along the normals at which `cameras` agree best about `mesh` at `frame`
 /// (`images`: one per camera, pinhole); `None` when no two cameras see a common triangle.
 pub fn surface_offset(
@@ -61,92 +197,127 @@ pub fn surface_offset(
     }
     let (m, _) = tracked_mesh(mesh);
     let closed = m.is_closed();
-    let mut normals = vec![Vector3::zeros(); m.positions.len()];
-    for (i, t) in m.triangles.iter().enumerate() {
-        let n = m.triangle_normal(i);
-        for &v in t {
-            normals[v as usize] += n;
-        }
-    }
-    for n in &mut normals {
-        let l = n.norm();
-        if l > 0.0 {
-            *n /= l;
-        }
-    }
-    let per_unit = crate::tracker::outline::pixels_per_unit(cameras, frame, &m.positions);
-    if !(per_unit.is_finite() && per_unit > 0.0) {
-        return None;
-    }
-    let targets: Vec<RgbImage> = images
-        .par_iter()
-        .map(|i| Pyramid::new(i, 1, 1.0).levels.swap_remove(0))
-        .collect();
-    let targets: Vec<&RgbImage> = targets.iter().collect();
-    let projections: Vec<Projection> = cameras
-        .iter()
-        .map(|c| level_projection(c.at(frame), 0))
-        .collect();
-    let popts = PatchOptions {
-        margin: 1,
-        min_cos: 0.1,
-        two_sided: !closed,
-        checkerboard: false,
-    };
-    let pattern = m.edges();
-    // The convex loss: a highlight or an occluder differs between viewpoints at any offset.
-    let opts = SolverOptions {
-        loss: Loss::Huber,
-        ..SolverOptions::default()
-    };
-    let cost = |k: i32| -> Option<f64> {
-        let d = k as f64 / per_unit;
-        let x: Vec<Point3<f64>> = m
-            .positions
-            .iter()
-            .zip(&normals)
-            .map(|(p, n)| p + n * d)
-            .collect();
-        let mut set = cross_patches(&x, &m.triangles, &projections, &targets, &popts);
-        if set.patches.is_empty() {
-            return None;
-        }
-        let by = set.by_triangle();
-        let problem = Problem {
-            moving_source: Some(&x),
-            ..Problem::photometric(
-                &m.triangles,
-                &set,
-                &by,
-                targets.clone(),
-                projections.clone(),
-                &pattern,
-            )
-        };
-        Some(problem.cost(&x, &opts))
-    };
-    let costs: Vec<f64> = (-RANGE..=RANGE)
-        .map(|k| cost(k).unwrap_or(f64::INFINITY))
+    let normals = vertex_normals(&m.triangles, &m.positions);
+    let pyramids = pyramids(images, 1);
+    let f = frame_of(cameras, frame, &pyramids, 0, &m.positions)?;
+    let costs: Vec<f64> = f
+        .scan(&m.positions, &normals, &m.triangles, &m.edges(), closed)
+        .into_iter()
+        .map(|s| s.map_or(f64::INFINITY, |(c, _)| c))
         .collect();
     let at_zero = costs[RANGE as usize];
     if !at_zero.is_finite() {
         return None;
     }
-    let (best, &c) = costs.iter().enumerate().min_by(|a, b| a.1.total_cmp(b.1))?;
-    // Sub-pixel: the parabola through the best offset and its neighbours.
-    let mut pixels = best as f64 - RANGE as f64;
-    if best > 0 && best + 1 < costs.len() {
-        let (l, r) = (costs[best - 1], costs[best + 1]);
-        let curve = l - 2.0 * c + r;
-        if curve > 0.0 && curve.is_finite() {
-            pixels += 0.5 * (l - r) / curve;
-        }
-    }
+    let (pixels, c, at_limit) = best_offset(&costs)?;
     Some(SurfaceOffset {
         pixels,
-        length: pixels / per_unit,
+        length: pixels / f.per_unit,
         ratio: if c > 0.0 { at_zero / c } else { 1.0 },
-        at_limit: best == 0 || best + 1 == costs.len(),
+        at_limit,
         closed,
     })
+}
+
+/// `mesh` with every vertex moved along its normal onto the surface `cameras` agree on at
+/// `frame` (positions, one per vertex of `mesh`). Per vertex, the offset at which its
+/// triangles' cross-camera comparisons agree best (−10 to +10 px, refined by a parabola), trusted
+/// only with a clear minimum (the cost 3 px to either side at least 1.2 times it, not at the end
+/// of the range) and replaced by the median of the trusted ones in its ring; then filled in and
+/// smoothed over the mesh (vertices no two cameras see take their neighbours'), and applied;
+/// `rounds` times from the moved mesh, the first at half resolution (twice the reach). For a
+/// mesh made from silhouettes (a visual hull), outside the surface by different amounts in
+/// different places. It keeps the triangulation and the vertices' tangential placement.
+pub fn onto_surface(
+    mesh: &Mesh,
+    cameras: &[Camera],
+    frame: u32,
+    images: &[RgbImage],
+    rounds: usize,
+) -> Vec<Point3<f64>> {
+    let (m, of_vertex) = tracked_mesh(mesh);
+    let closed = m.is_closed();
+    let pyramids = pyramids(images, 2);
+    let mut x = m.positions.clone();
+    let nv = x.len();
+    let edges = m.edges();
+    let mut neighbours: Vec<Vec<u32>> = vec![Vec::new(); nv];
+    for &[a, b] in &edges {
+        neighbours[a as usize].push(b);
+        neighbours[b as usize].push(a);
+    }
+    for round in 0..rounds {
+        let level = usize::from(round == 0 && rounds > 1);
+        let Some(f) = frame_of(cameras, frame, &pyramids, level, &x) else {
+            break;
+        };
+        let normals = vertex_normals(&m.triangles, &x);
+        let scans = f.scan(&x, &normals, &m.triangles, &edges, closed);
+        // Per vertex and offset: its triangles' cost and pixels.
+        let n = scans.len();
+        let mut cost = vec![0.0; nv * n];
+        let mut weight = vec![0.0; nv * n];
+        for (k, s) in scans.iter().enumerate() {
+            let Some((_, tris)) = s else { continue };
+            for &(t, c, w) in tris {
+                for &v in &m.triangles[t as usize] {
+                    cost[v as usize * n + k] += c;
+                    weight[v as usize * n + k] += w;
+                }
+            }
+        }
+        let own: Vec<Option<f64>> = (0..nv)
+            .map(|v| {
+                let (c, w) = (&cost[v * n..(v + 1) * n], &weight[v * n..(v + 1) * n]);
+                if w.iter().any(|&w| w <= 0.0) {
+                    return None;
+                }
+                let mean: Vec<f64> = c.iter().zip(w).map(|(c, w)| c / w).collect();
+                let (p, low, at_limit) = best_offset(&mean)?;
+                let i = (p.round() as i32 + RANGE) as usize;
+                let clear = [i.saturating_sub(3), (i + 3).min(n - 1)]
+                    .iter()
+                    .all(|&j| mean[j] >= 1.2 * low);
+                (!at_limit && clear).then_some(p)
+            })
+            .collect();
+        let own: Vec<Option<f64>> = (0..nv)
+            .map(|v| {
+                own[v]?;
+                let mut ring: Vec<f64> = std::iter::once(v as u32)
+                    .chain(neighbours[v].iter().copied())
+                    .filter_map(|u| own[u as usize])
+                    .collect();
+                ring.sort_by(f64::total_cmp);
+                Some(ring[ring.len() / 2])
+            })
+            .collect();
+        let mut d: Vec<f64> = own.iter().map(|o| o.unwrap_or(0.0)).collect();
+        for _ in 0..200 {
+            d = (0..nv)
+                .map(|v| {
+                    let nb = &neighbours[v];
+                    let sum: f64 = nb.iter().map(|&u| d[u as usize]).sum();
+                    let (w_own, own_d) = match own[v] {
+                        Some(o) => (1.0, o),
+                        None => (0.0, 0.0),
+                    };
+                    let den = w_own + nb.len() as f64;
+                    if den > 0.0 {
+                        (w_own * own_d + sum) / den
+                    } else {
+                        0.0
+                    }
+                })
+                .collect();
+        }
+        let step = 1.0 / f.per_unit;
+        for ((p, nrm), d) in x.iter_mut().zip(&normals).zip(&d) {
+            *p += nrm * (d * step);
+        }
+    }
+    match of_vertex {
+        Some(of) => of.iter().map(|&v| x[v as usize]).collect(),
+        None => x,
+    }
 }

@@ -1000,7 +1000,7 @@ impl Problem<'_> {
     /// Cost at `x`; with `system`, also fills `a` and `b` (= −Jᵀr) of the normal equations.
     /// Also returns each triangle's photometric sums (in `by_triangle` order), from which
     /// [`Problem::confidence`] is read without another pass over the pixels.
-    fn evaluate(
+    pub(crate) fn evaluate(
         &self,
         x: &[Point3<f64>],
         opts: &SolverOptions,
