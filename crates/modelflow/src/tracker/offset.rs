@@ -45,8 +45,10 @@ impl SurfaceOffset {
 pub const MIN_PX: f64 = 1.5;
 /// Nor offsets where the cameras agree less than this much better than at the mesh.
 pub const MIN_RATIO: f64 = 1.5;
-/// The range searched, whole pixels either way.
+/// The range searched, whole pixels either way (of the level compared).
 const RANGE: i32 = 10;
+/// The widest image [`surface_offset`] compares at full size; wider ones at a coarser level.
+const CHECK_WIDTH: u32 = 1280;
 
 /// What the scans need of a frame: the cameras' images at one pyramid level and their
 /// projections there, pixels per scene unit at the mesh, and the comparison's options.
@@ -198,8 +200,14 @@ pub fn surface_offset(
     let (m, _) = tracked_mesh(mesh);
     let closed = m.is_closed();
     let normals = vertex_normals(&m.triangles, &m.positions);
-    let pyramids = pyramids(images, 1);
-    let f = frame_of(cameras, frame, &pyramids, 0, &m.positions)?;
+    // Large frames are compared at a coarser level (at most 1280 px wide), so that a rig of 4K
+    // cameras is checked in about the time a 720p one is; offsets are still given in pixels of
+    // the frames themselves.
+    let widest = cameras.iter().map(|c| c.width).max().unwrap_or(0);
+    let level = (0..4).find(|&l| widest >> l <= CHECK_WIDTH).unwrap_or(4);
+    let pyramids = pyramids(images, level + 1);
+    let f = frame_of(cameras, frame, &pyramids, level, &m.positions)?;
+    let scale = (1u32 << level) as f64;
     let costs: Vec<f64> = f
         .scan(&m.positions, &normals, &m.triangles, &m.edges(), closed)
         .into_iter()
@@ -211,7 +219,7 @@ pub fn surface_offset(
     }
     let (pixels, c, at_limit) = best_offset(&costs)?;
     Some(SurfaceOffset {
-        pixels,
+        pixels: pixels * scale,
         length: pixels / f.per_unit,
         ratio: if c > 0.0 { at_zero / c } else { 1.0 },
         at_limit,
