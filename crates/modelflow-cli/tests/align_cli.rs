@@ -130,18 +130,13 @@ fn surface_moves_a_mesh_outside_the_surface_onto_it_and_leaves_one_on_it_alone()
     };
     let scene = write_dataset(&opts, &dir.path().join("footage"), &|_, _| {}).unwrap();
     let mesh = read_mesh(&scene.parent().unwrap().join("mesh/initial.obj")).unwrap();
-    let mut normals = vec![nalgebra::Vector3::zeros(); mesh.positions.len()];
-    for (i, t) in mesh.triangles.iter().enumerate() {
-        for &v in t {
-            normals[v as usize] += mesh.triangle_normal(i);
-        }
-    }
+    let normals = mesh.vertex_normals();
     let size = mesh.bbox_diagonal();
     let outside = mesh.with_positions(
         mesh.positions
             .iter()
             .zip(&normals)
-            .map(|(p, n)| p + n.normalize() * 0.02 * size)
+            .map(|(p, n)| p + n * 0.02 * size)
             .collect(),
     );
     let hull = dir.path().join("hull.obj");

@@ -503,19 +503,14 @@ fn a_mesh_off_the_surface_is_named_before_tracking() {
     let (scene, mesh) = small_blob(dir.path());
     let err = track_ok(&scene, &dir.path().join("on"));
     assert!(!err.contains("agree best"), "{err}");
-    let mut normals = vec![nalgebra::Vector3::zeros(); mesh.positions.len()];
-    for (i, t) in mesh.triangles.iter().enumerate() {
-        for &v in t {
-            normals[v as usize] += mesh.triangle_normal(i);
-        }
-    }
+    let normals = mesh.vertex_normals();
     let size = mesh.bbox_diagonal();
     let moved = |d: f64| {
         mesh.with_positions(
             mesh.positions
                 .iter()
                 .zip(&normals)
-                .map(|(p, n)| p + n.normalize() * d * size)
+                .map(|(p, n)| p + n * d * size)
                 .collect(),
         )
     };

@@ -116,6 +116,11 @@ impl Mesh {
             .collect()
     }
 
+    /// The unit area-weighted normal of every vertex (zero where its triangles have no area).
+    pub fn vertex_normals(&self) -> Vec<Vector3<f64>> {
+        self.corner_group_normals(&self.triangles, self.positions.len())
+    }
+
     /// The input normals as they are at this mesh's positions (see [`CornerNormals`]); `None`
     /// when the input had no normals on every corner.
     pub fn current_normals(&self) -> Option<Vec<[f64; 3]>> {

@@ -113,25 +113,6 @@ impl Frame<'_> {
     }
 }
 
-/// Area-weighted unit vertex normals at `x` (zero where a vertex has no triangle).
-fn vertex_normals(triangles: &[[u32; 3]], x: &[Point3<f64>]) -> Vec<Vector3<f64>> {
-    let mut normals = vec![Vector3::zeros(); x.len()];
-    for t in triangles {
-        let [a, b, c] = t.map(|v| x[v as usize]);
-        let n = (b - a).cross(&(c - a));
-        for &v in t {
-            normals[v as usize] += n;
-        }
-    }
-    for n in &mut normals {
-        let l = n.norm();
-        if l > 0.0 {
-            *n /= l;
-        }
-    }
-    normals
-}
-
 /// The minimum of `costs` (indexed from −RANGE), refined by the parabola through its
 /// neighbours, in pixels; its cost; and whether it is at an end of the range.
 fn best_offset(costs: &[f64]) -> Option<(f64, f64, bool)> {
@@ -199,7 +180,7 @@ pub fn surface_offset(
     }
     let (m, _) = tracked_mesh(mesh);
     let closed = m.is_closed();
-    let normals = vertex_normals(&m.triangles, &m.positions);
+    let normals = m.vertex_normals();
     // Large frames are compared at a coarser level (at most 1280 px wide), so that a rig of 4K
     // cameras is checked in about the time a 720p one is; offsets are still given in pixels of
     // the frames themselves.
@@ -259,7 +240,7 @@ pub fn onto_surface(
         let Some(f) = frame_of(cameras, frame, &pyramids, level, &x) else {
             break;
         };
-        let normals = vertex_normals(&m.triangles, &x);
+        let normals = m.with_positions(x.clone()).vertex_normals();
         let scans = f.scan(&x, &normals, &m.triangles, &edges, closed);
         // Per vertex and offset: its triangles' cost and pixels.
         let n = scans.len();
