@@ -9,8 +9,8 @@ use std::path::PathBuf;
 #[command(allow_negative_numbers = true)]
 pub struct Args {
     /// Preset: cloth (a hanging, waving, folding sheet; 2 cameras), blob (a closed, turning,
-    /// lobed surface; 4 cameras around it) or irregular (the blob on an uneven triangulation with
-    /// a hole).
+    /// lobed surface; 4 cameras around it), irregular (the blob on an uneven triangulation with
+    /// a hole) or limb (a capsule that bends at an elbow while its forearm twists; 4 cameras).
     #[arg(long, default_value = "cloth")]
     preset: String,
     /// Output folder (created; existing files with the same names are replaced).

@@ -17,6 +17,13 @@
 //!   on one side, about four times coarser on the other, jittered vertices (uneven valences,
 //!   1 125 vertices, edges from 1.5 to 31 cm at the first frame, median 3.6 cm) and a hole with a
 //!   border, through which the inside shows.
+//! - `limb`: articulated motion, as a person's arm makes: a capsule 1.24 m long and 24 cm thick
+//!   (1 826 vertices in rings) that bends at its middle by up to 60° while its forearm twists
+//!   by up to 30°, the whole swinging from its shoulder end and turning slowly, seen by four
+//!   cameras on a ring. The bend is spread over 20 cm of the elbow, whose skin along the limb
+//!   stretches by about three quarters on the outside and is compressed by two thirds on the inside
+//!   (a crook the forearm hides from some cameras). Its texture is baked over the capsule's
+//!   `(x, angle)` (`texture::CapsuleTexture`).
 //!
 //! Any preset can be carried by a hand-held motion on top of its own (`shake`, in pixels per
 //! frame): the whole object travels round a circle of 12 frames in the first camera's image
@@ -44,7 +51,7 @@ use crate::input::meshio::write_obj;
 use crate::input::scene::{CameraEntry, DistortionEntry, FrameRange, SceneFile, FORMAT};
 use crate::synth::remesh::{irregular_sphere, Irregularity};
 use crate::synth::render::{render, Light, RenderOptions, Surface};
-use crate::synth::texture::{mix64, CubeTexture, PlaneTexture, Texture};
+use crate::synth::texture::{mix64, CapsuleTexture, CubeTexture, PlaneTexture, Texture};
 use nalgebra::{Matrix3, Point3, Rotation3, Unit, Vector3};
 use rayon::prelude::*;
 use std::collections::HashMap;
@@ -60,16 +67,18 @@ pub enum Preset {
     Cloth,
     Blob,
     Irregular,
+    Limb,
 }
 
 impl Preset {
-    pub const ALL: [Preset; 3] = [Preset::Cloth, Preset::Blob, Preset::Irregular];
+    pub const ALL: [Preset; 4] = [Preset::Cloth, Preset::Blob, Preset::Irregular, Preset::Limb];
 
     pub fn name(self) -> &'static str {
         match self {
             Preset::Cloth => "cloth",
             Preset::Blob => "blob",
             Preset::Irregular => "irregular",
+            Preset::Limb => "limb",
         }
     }
 
@@ -92,7 +101,7 @@ impl Preset {
     pub fn default_cameras(self) -> usize {
         match self {
             Preset::Cloth => 2,
-            Preset::Blob | Preset::Irregular => 4,
+            Preset::Blob | Preset::Irregular | Preset::Limb => 4,
         }
     }
 }
@@ -249,6 +258,7 @@ impl SynthOptions {
 enum Skin {
     Plane(PlaneTexture),
     Cube(CubeTexture),
+    Capsule(CapsuleTexture),
 }
 
 /// A generated synthetic sequence, in memory.
@@ -578,6 +588,148 @@ fn lobed(opts: &SynthOptions, sphere: Mesh) -> Synthetic {
     }
 }
 
+// ---------------------------------------------------------------------------------------------
+// Limb
+
+/// Half the length of the limb's cylinder (between its caps' centres), and its radius.
+const LIMB_HALF: f64 = 0.5;
+const LIMB_RADIUS: f64 = 0.12;
+
+/// A capsule along x: a cylinder from `−half` to `half` of radius `radius` with hemispherical
+/// caps, as rings of `around` vertices about `spacing` apart, closed by a vertex at each pole.
+/// Triangles are counter-clockwise seen from outside.
+fn capsule(half: f64, radius: f64, around: usize, spacing: f64) -> Mesh {
+    use std::f64::consts::FRAC_PI_2;
+    // The profile (x, distance from the axis) from the −x pole to the +x pole, poles excluded.
+    let cap = ((FRAC_PI_2 * radius / spacing).round() as usize).max(2);
+    let along = ((2.0 * half / spacing).round() as usize).max(1);
+    let mut profile: Vec<(f64, f64)> = Vec::new();
+    for k in 1..cap {
+        let a = FRAC_PI_2 * k as f64 / cap as f64;
+        profile.push((-half - radius * a.cos(), radius * a.sin()));
+    }
+    for i in 0..=along {
+        profile.push((-half + 2.0 * half * i as f64 / along as f64, radius));
+    }
+    for k in (1..cap).rev() {
+        let a = FRAC_PI_2 * k as f64 / cap as f64;
+        profile.push((half + radius * a.cos(), radius * a.sin()));
+    }
+    let mut pos = vec![Point3::new(-half - radius, 0.0, 0.0)];
+    for &(x, rho) in &profile {
+        for s in 0..around {
+            let th = 2.0 * std::f64::consts::PI * s as f64 / around as f64;
+            pos.push(Point3::new(x, rho * th.cos(), rho * th.sin()));
+        }
+    }
+    pos.push(Point3::new(half + radius, 0.0, 0.0));
+    let ring = |r: usize, s: usize| (1 + r * around + s % around) as u32;
+    let last = (pos.len() - 1) as u32;
+    let mut tris = Vec::new();
+    for s in 0..around {
+        tris.push([0, ring(0, s + 1), ring(0, s)]);
+    }
+    for r in 0..profile.len() - 1 {
+        for s in 0..around {
+            let (a, b, c, d) = (
+                ring(r, s),
+                ring(r, s + 1),
+                ring(r + 1, s + 1),
+                ring(r + 1, s),
+            );
+            tris.push([a, b, c]);
+            tris.push([a, c, d]);
+        }
+    }
+    let r = profile.len() - 1;
+    for s in 0..around {
+        tris.push([ring(r, s), ring(r, s + 1), last]);
+    }
+    Mesh::new(pos, tris)
+}
+
+/// The limb's vertices at time `t` seconds from their rest positions `rest` (the capsule along
+/// x, the elbow at the origin): the forearm (x > 0) twists about its axis, up to 30° at the
+/// wrist, and bends at the elbow by up to 60° (the bend spread over 20 cm of the elbow, so the
+/// skin there stretches on the outside and folds on the inside); the whole limb swings about the
+/// shoulder (the −x end) and turns slowly.
+fn limb_positions(rest: &[Point3<f64>], t: f64) -> Vec<Point3<f64>> {
+    use std::f64::consts::PI;
+    let twist = 30f64.to_radians() * (2.0 * PI * t / 5.0).sin();
+    let bend = 60f64.to_radians() * 0.5 * (1.0 - (2.0 * PI * t / 5.2).cos());
+    let swing = Rotation3::from_axis_angle(
+        &Vector3::y_axis(),
+        8f64.to_radians() * (2.0 * PI * t / 6.0).sin(),
+    );
+    let turn =
+        Rotation3::from_axis_angle(&Unit::new_normalize(Vector3::new(0.2, 0.1, 1.0)), 0.15 * t);
+    let shoulder = Vector3::new(-LIMB_HALF - LIMB_RADIUS, 0.0, 0.0);
+    let extent = LIMB_HALF + LIMB_RADIUS;
+    rest.iter()
+        .map(|p| {
+            let x = p.x;
+            let twisted =
+                Rotation3::from_axis_angle(&Vector3::x_axis(), twist * smoothstep(0.0, extent, x))
+                    * p.coords;
+            let bent =
+                Rotation3::from_axis_angle(&Vector3::z_axis(), bend * smoothstep(-0.1, 0.1, x))
+                    * twisted;
+            let swung = swing * (bent - shoulder) + shoulder;
+            Point3::from(turn * swung)
+        })
+        .collect()
+}
+
+/// A limb: a capsule 1.24 m long and 24 cm thick (1 826 vertices) that bends at its middle like
+/// an elbow while its forearm twists, the whole swinging and turning, seen by cameras on a ring.
+fn limb(opts: &SynthOptions) -> Synthetic {
+    let rest = capsule(LIMB_HALF, LIMB_RADIUS, 32, 0.0236);
+    let material: Vec<[f64; 3]> = rest.positions.iter().map(|p| [p.x, p.y, p.z]).collect();
+    let truth: Vec<Vec<Point3<f64>>> = (0..opts.frames)
+        .into_par_iter()
+        .map(|f| limb_positions(&rest.positions, f as f64 / FPS))
+        .collect();
+    let extent = LIMB_HALF + LIMB_RADIUS;
+    let uvs = rest
+        .positions
+        .iter()
+        .map(|p| {
+            [
+                0.5 + p.z.atan2(p.y) / (2.0 * std::f64::consts::PI),
+                (p.x + extent) / (2.0 * extent),
+            ]
+        })
+        .collect();
+    let mesh = Mesh::with_vertex_uvs(truth[0].clone(), rest.triangles, uvs);
+    let tex = Texture::new(opts.seed, 0.006);
+    let skin = Skin::Capsule(tex.bake_capsule(LIMB_HALF, LIMB_RADIUS, 1000.0));
+    let count = opts.camera_count();
+    let target = Point3::new(0.0, 0.1, 0.0);
+    let (cameras, krt): (Vec<Camera>, Vec<Krt>) = (0..count)
+        .map(|c| {
+            let az = (15.0 + 360.0 * c as f64 / count as f64).to_radians();
+            let el = if c % 2 == 0 { 14f64 } else { 32.0 }.to_radians();
+            let eye = Point3::new(
+                2.6 * el.cos() * az.sin(),
+                -2.6 * el.cos() * az.cos(),
+                2.6 * el.sin(),
+            ) + target.coords;
+            camera_looking(format!("cam{c}"), opts, eye, target)
+        })
+        .unzip();
+    Synthetic {
+        options: opts.clone(),
+        cameras,
+        mesh,
+        material,
+        truth,
+        skin,
+        krt,
+        distort: Vec::new(),
+        render_options: render_options(opts, Vector3::new(0.4, -0.6, 0.8), [0.12, 0.12, 0.12]),
+    }
+}
+
 fn render_options(opts: &SynthOptions, light: Vector3<f64>, background: [f32; 3]) -> RenderOptions {
     RenderOptions {
         supersample: opts.supersample,
@@ -623,6 +775,7 @@ impl Synthetic {
             Preset::Cloth => cloth(opts),
             Preset::Blob => blob(opts),
             Preset::Irregular => irregular(opts),
+            Preset::Limb => limb(opts),
         };
         if opts.turn > 0.0 {
             s.turn(opts.turn);
@@ -817,6 +970,7 @@ impl Synthetic {
         let surface = match &self.skin {
             Skin::Plane(t) => Surface::Material(t),
             Skin::Cube(t) => Surface::Material(t),
+            Skin::Capsule(t) => Surface::Material(t),
         };
         let cam = &self.cameras[camera];
         match self.distort.get(camera).and_then(|d| d.as_deref()) {
@@ -987,7 +1141,7 @@ mod tests {
     fn unknown_preset_lists_the_presets() {
         let e = SynthOptions::preset("sheet").unwrap_err().to_string();
         assert!(
-            e.contains("'sheet'") && e.contains("cloth, blob, irregular"),
+            e.contains("'sheet'") && e.contains("cloth, blob, irregular, limb"),
             "{e}"
         );
         assert_eq!(SynthOptions::preset("blob").unwrap().preset, Preset::Blob);
@@ -1113,6 +1267,57 @@ mod tests {
             occluded > 10,
             "only {occluded} front-facing vertices hidden"
         );
+    }
+
+    #[test]
+    fn limb_is_a_closed_capsule_whose_elbow_skin_stretches_outside_and_folds_inside() {
+        let s = Synthetic::generate(&opts(Preset::Limb, 79)).unwrap();
+        assert!(s.mesh.is_closed());
+        assert_eq!(s.mesh.vertex_count(), 1826);
+        // Wound outward: every triangle's normal points away from the axis (or the pole).
+        for (i, t) in s.mesh.triangles.iter().enumerate() {
+            let c = t
+                .iter()
+                .map(|&v| s.material[v as usize])
+                .fold([0.0; 3], |a, m| {
+                    [a[0] + m[0] / 3.0, a[1] + m[1] / 3.0, a[2] + m[2] / 3.0]
+                });
+            let axis = [c[0].clamp(-LIMB_HALF, LIMB_HALF), 0.0, 0.0];
+            let out = Vector3::new(c[0] - axis[0], c[1], c[2]);
+            let rest = s.mesh.with_positions(
+                s.material
+                    .iter()
+                    .map(|m| Point3::new(m[0], m[1], m[2]))
+                    .collect(),
+            );
+            assert!(rest.triangle_normal(i).dot(&out) > 0.0, "triangle {i}");
+        }
+        // At the full bend (frame 78, 60°) the elbow's skin along the limb stretches by half
+        // on the outside of the bend and is compressed by half on the inside, while the upper
+        // arm and the forearm keep their lengths.
+        let last = &s.truth[78];
+        let (mut inner, mut outer, mut upper) = (Vec::new(), Vec::new(), Vec::new());
+        for [a, b] in s.mesh.edges() {
+            let (ma, mb) = (s.material[a as usize], s.material[b as usize]);
+            let rest = (s.mesh.positions[b as usize] - s.mesh.positions[a as usize]).norm();
+            if (ma[0] - mb[0]).abs() < 0.8 * rest {
+                continue; // not along the limb
+            }
+            let strain = (last[b as usize] - last[a as usize]).norm() / rest - 1.0;
+            let (x, side) = (0.5 * (ma[0] + mb[0]), 0.5 * (ma[1] + mb[1]) / LIMB_RADIUS);
+            if x.abs() < 0.05 && side > 0.9 {
+                inner.push(strain);
+            } else if x.abs() < 0.05 && side < -0.9 {
+                outer.push(strain);
+            } else if x < -0.3 {
+                upper.push(strain.abs());
+            }
+        }
+        let mean = |v: &[f64]| v.iter().sum::<f64>() / v.len() as f64;
+        assert!(!inner.is_empty() && !outer.is_empty());
+        assert!(mean(&inner) < -0.5, "inside of the elbow {}", mean(&inner));
+        assert!(mean(&outer) > 0.5, "outside of the elbow {}", mean(&outer));
+        assert!(upper.iter().all(|&e| e < 1e-9), "the upper arm stretched");
     }
 
     #[test]

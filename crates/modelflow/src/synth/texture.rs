@@ -299,6 +299,36 @@ impl Texture {
         }
     }
 
+    /// Bakes the pattern on the capsule whose axis runs along x from `−half_length` to
+    /// `half_length`, with radius `radius`, at `density` texels per material unit (along the axis
+    /// and round the cylinder's circumference).
+    pub fn bake_capsule(&self, half_length: f64, radius: f64, density: f64) -> CapsuleTexture {
+        let extent = half_length + radius;
+        let cols = ((2.0 * extent * density).ceil() as usize).max(2);
+        let around = ((2.0 * std::f64::consts::PI * radius * density).ceil() as usize).max(8);
+        let dx = 2.0 * extent / cols as f64;
+        let dtheta = 2.0 * std::f64::consts::PI / around as f64;
+        let rows = around + 2;
+        let data: Vec<[f32; 3]> = (0..rows * cols)
+            .into_par_iter()
+            .map(|k| {
+                let (i, j) = (k % cols, k / cols);
+                let x = -extent + (i as f64 + 0.5) * dx;
+                let theta = -std::f64::consts::PI + (j as f64 - 0.5) * dtheta;
+                // The surface's distance from the axis at x: the cylinder's, or the cap's.
+                let beyond = (x.abs() - half_length).max(0.0);
+                let rho = (radius * radius - beyond * beyond).max(0.0).sqrt();
+                self.eval(&[x, rho * theta.cos(), rho * theta.sin()])
+            })
+            .collect();
+        CapsuleTexture {
+            image: RgbImage::from_pixels(cols, rows, data).expect("sizes match"),
+            x0: -extent,
+            dx,
+            dtheta,
+        }
+    }
+
     /// Bakes the pattern on the sphere of radius `radius` around the origin into a cube map with
     /// `res × res` texels per face.
     pub fn bake_cube(&self, radius: f64, res: usize) -> CubeTexture {
@@ -319,6 +349,38 @@ impl Texture {
             })
             .collect();
         CubeTexture { faces, res }
+    }
+}
+
+/// The pattern baked on a capsule (a cylinder along x with hemispherical caps) as a map over
+/// `(x, θ)`, θ the angle about the x axis from +y toward +z: texel `(i, j)` holds the colour at
+/// the surface point with `x = x0 + (i + ½)·dx` and `θ = −π + (j − ½)·dθ`. Its first and last
+/// rows repeat the last and first angles, so a bilinear sample wraps round the axis without a
+/// seam (the colours come from the same 3D points).
+#[derive(Clone, Debug)]
+pub struct CapsuleTexture {
+    image: RgbImage,
+    x0: f64,
+    dx: f64,
+    dtheta: f64,
+}
+
+impl CapsuleTexture {
+    /// Bilinear sample at the surface point in the direction of `m` from the x axis, at `m`'s x.
+    #[inline]
+    pub fn sample(&self, m: &[f64; 3]) -> [f32; 3] {
+        let theta = m[2].atan2(m[1]);
+        let u = (m[0] - self.x0) / self.dx - 0.5;
+        // θ ∈ [−π, π] lands in rows [½, n + ½], inside the n + 2 rows.
+        let v = (theta + std::f64::consts::PI) / self.dtheta + 0.5;
+        bilinear_clamped(&self.image, u, v)
+    }
+}
+
+impl Material for CapsuleTexture {
+    /// Looked up at material point `m`'s position along the axis and angle about it.
+    fn albedo(&self, m: &[f64; 3]) -> [f32; 3] {
+        self.sample(m)
     }
 }
 
