@@ -45,11 +45,17 @@ pub struct TrackArgs {
     #[arg(long, default_value_t = TrackOptions::default().regularisation.spring_t)]
     pub spring_t: f64,
     /// Yield strain of the springs, as a fraction of the rest length: an edge the images held
-    /// stretched (or compressed) beyond it in the previous frame is pulled toward that length
-    /// less the yield instead of its rest length, so a surface that really stretches is
-    /// followed (0 = off: always the rest length, as in the thesis; 0 to 10).
+    /// stretched (or compressed) beyond it in the previous frame has its spring centred on that
+    /// length instead of its rest length, so a surface that really stretches is followed (0 =
+    /// off: always the rest length, as in the thesis; 0 to 10).
     #[arg(long, default_value_t = TrackOptions::default().regularisation.spring_yield)]
     pub spring_yield: f64,
+    /// Beyond the yield strain, how far the spring's centre stands behind the previous frame's
+    /// length, toward the rest length, as a fraction of the yield strain: 0 resists only a
+    /// change from the previous frame; 1 pulls a stretch back by the whole yield every frame, as
+    /// runs made before 2026-11-26 did (0 to 1).
+    #[arg(long, default_value_t = TrackOptions::default().regularisation.spring_pull_back)]
+    pub spring_pull_back: f64,
     /// Weight of the frame-to-frame membrane term, on the edges' change of rate over the mean
     /// edge length (0 = off; 0 to 1e6).
     #[arg(long, default_value_t = TrackOptions::default().regularisation.membrane)]
@@ -184,6 +190,7 @@ impl TrackArgs {
                 spring_k: self.spring_k,
                 spring_t: self.spring_t,
                 spring_yield: self.spring_yield,
+                spring_pull_back: self.spring_pull_back,
                 membrane: self.membrane,
                 bending: self.bending,
                 bending_yield: self.bending_yield,

@@ -141,8 +141,9 @@ fn a_surface_that_swells_is_followed_not_pulled_back_to_its_first_shape() {
     // The irregular preset's lobes swell: by frame 30 one edge in twelve is 13 % or more
     // longer than at frame 0 and some 30 %. Springs that always pull toward the first frame's
     // lengths hold them back (0.69 % final error at this size with `--spring-yield 0`; 0.57 %
-    // with the default yield strain, which lets a stretch the images held in the previous
-    // frame stay beyond it; 0.47 % with a yield of 0.05).
+    // with the yield strain pulled back every frame, `--spring-pull-back 1`; 0.43 % with the
+    // defaults, which centre the spring past its yield on the length the images held in the
+    // previous frame).
     let opts = SynthOptions {
         width: 320,
         height: 240,
@@ -178,7 +179,66 @@ fn a_surface_that_swells_is_followed_not_pulled_back_to_its_first_shape() {
     );
     let err = 100.0 * rms(tr.positions(), truth) / diag;
     eprintln!("frame {last}: error {err:.3} % of the size");
-    assert!(err < 0.63, "final error {err:.3} % of the size");
+    assert!(err < 0.52, "final error {err:.3} % of the size");
+}
+
+#[test]
+fn an_elbow_that_bends_is_followed_into_its_crook() {
+    // The limb preset bends 52° at its elbow by frame 60: the skin along the inside of the bend
+    // is compressed by up to 61 % (44 % on average over the edges checked here), and the
+    // forearm hides that crook from some cameras. Springs that pulled a strain back by their
+    // whole yield every frame held it near the yield (0.68 % final error at this size with
+    // `--spring-pull-back 1`); centred on the previous frame's length past the yield (the
+    // default) they follow it (tracked −46 %, 0.43 %).
+    let opts = SynthOptions {
+        width: 320,
+        height: 240,
+        frames: 61,
+        ..SynthOptions::preset("limb").unwrap()
+    };
+    let syn = Synthetic::generate(&opts).unwrap();
+    let mut tr = start(&syn);
+    let diag = syn.mesh.bbox_diagonal();
+    let last = opts.frames - 1;
+    for f in 1..=last {
+        let report = tr.step(f, &images(&syn, f)).unwrap();
+        assert!(!report.stalled, "frame {f} stalled ({:?})", report.stop);
+    }
+    // The edges along the limb within 6 cm of the elbow, on the inside of the bend (rest +y).
+    let crook: Vec<[u32; 2]> = syn
+        .mesh
+        .edges()
+        .into_iter()
+        .filter(|&[a, b]| {
+            let (ma, mb) = (syn.material[a as usize], syn.material[b as usize]);
+            let along = (ma[0] - mb[0]).abs();
+            let mid = [0.5 * (ma[0] + mb[0]), 0.5 * (ma[1] + mb[1])];
+            along > 0.01 && mid[0].abs() < 0.06 && mid[1] > 0.11
+        })
+        .collect();
+    let strain = |x: &[Point3<f64>]| {
+        crook
+            .iter()
+            .map(|&[a, b]| {
+                let rest = (syn.mesh.positions[b as usize] - syn.mesh.positions[a as usize]).norm();
+                (x[b as usize] - x[a as usize]).norm() / rest - 1.0
+            })
+            .sum::<f64>()
+            / crook.len() as f64
+    };
+    let truth = &syn.truth[last as usize];
+    let (tracked, real) = (strain(tr.positions()), strain(truth));
+    let err = 100.0 * rms(tr.positions(), truth) / diag;
+    eprintln!(
+        "{} crook edges: strain {tracked:.3} tracked, {real:.3} true; error {err:.3} %",
+        crook.len()
+    );
+    assert!(real < -0.4, "the footage must fold the crook: {real:.3}");
+    assert!(
+        tracked < 0.7 * real,
+        "crook compressed by {tracked:.3} of {real:.3}"
+    );
+    assert!(err < 0.55, "final error {err:.3} % of the size");
 }
 
 #[test]
@@ -186,8 +246,10 @@ fn a_cloth_that_folds_is_followed_not_pulled_back_to_its_first_shape() {
     // The default cloth ripples and folds: its local shape changes for good. The bending term
     // against the rest shape pulled every fold back toward the flat first frame; past its yield
     // (default 0.05 of the mean edge length) a fold the images held in the previous frame is
-    // kept, less the yield. At this size, frames 1–40: mean error 0.235 % with the default,
-    // 0.262 % with `--bending-yield 0` (0.131 against 0.143 % over the 640×480 bench clip).
+    // kept, less the yield. At this size, frames 1–40: mean error 0.264 % with the default,
+    // about 0.295 % with `--bending-yield 0` (0.134 against 0.143 % over the 640×480 bench
+    // clip). (0.235 and 0.262 with `--spring-pull-back 1`, the springs' default before
+    // 2026-11-26: the cloth's drift past the springs' yield is no longer pulled back.)
     let (opts, syn) = cloth_320x240(41);
     let mut tr = start(&syn);
     let diag = syn.mesh.bbox_diagonal();
@@ -199,7 +261,7 @@ fn a_cloth_that_folds_is_followed_not_pulled_back_to_its_first_shape() {
     }
     let mean = sum / (opts.frames - 1) as f64;
     eprintln!("mean error {mean:.4} % of the size");
-    assert!(mean < 0.245, "mean error {mean:.4} % of the size");
+    assert!(mean < 0.275, "mean error {mean:.4} % of the size");
 }
 
 #[test]

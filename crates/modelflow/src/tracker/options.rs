@@ -210,6 +210,13 @@ impl TrackOptions {
                 why: "a fraction of the rest length; 0 = off",
             },
             Range {
+                option: "--spring-pull-back",
+                value: r.spring_pull_back,
+                low: (0.0, true),
+                high: (1.0, true),
+                why: "a fraction of the yield strain",
+            },
+            Range {
                 option: "--bending-yield",
                 value: r.bending_yield,
                 low: (0.0, true),

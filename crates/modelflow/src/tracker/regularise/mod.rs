@@ -33,6 +33,14 @@ pub struct Regularisation {
     /// rest length, as in the thesis (and in runs made before the option existed).
     #[serde(default)]
     pub spring_yield: f64,
+    /// Beyond the yield strain, how far the spring's centre stands behind the previous frame's
+    /// length, toward the rest length, as a fraction of the yield strain
+    /// (`springs::spring_centre`): 0 (the default) resists only a change from the previous
+    /// frame, so a stretch or a fold the images held is not pulled back where the images see
+    /// it little (the inside of a bending elbow); 1 pulls it back by the whole yield every frame
+    /// (runs made before the option existed).
+    #[serde(default = "one")]
+    pub spring_pull_back: f64,
     /// Weight `μ` of the frame-to-frame membrane.
     pub membrane: f64,
     /// Weight `β` of the bending term against the rest shape.
@@ -46,12 +54,17 @@ pub struct Regularisation {
     pub bending_yield: f64,
 }
 
+fn one() -> f64 {
+    1.0
+}
+
 impl Default for Regularisation {
     fn default() -> Self {
         Regularisation {
             spring_k: 1.0,
             spring_t: 0.2,
             spring_yield: 0.065,
+            spring_pull_back: 0.0,
             membrane: 0.002,
             bending: 0.01,
             bending_yield: 0.05,
@@ -172,7 +185,10 @@ pub(crate) fn build(
             edges.clone(),
             reg.spring_k,
             reg.spring_t,
-            (reg.spring_yield > 0.0).then_some(reg.spring_yield),
+            (reg.spring_yield > 0.0).then_some(springs::Yield {
+                strain: reg.spring_yield,
+                pull_back: reg.spring_pull_back,
+            }),
         )));
     }
     if reg.membrane > 0.0 {
@@ -212,6 +228,22 @@ pub(crate) fn names(reg: &Regularisation) -> Vec<&'static str> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_run_recorded_before_the_pull_back_option_resumes_with_the_springs_it_had() {
+        // run.json of a run made before 2026-11-26 names no `spring_pull_back`: its springs
+        // pulled a stretch back by the whole yield, so `--resume` must go on that way.
+        let old = r#"{"spring_k": 1.0, "spring_t": 0.2, "spring_yield": 0.065,
+                      "membrane": 0.002, "bending": 0.01, "bending_yield": 0.05}"#;
+        let r: Regularisation = serde_json::from_str(old).unwrap();
+        assert_eq!(r.spring_pull_back, 1.0);
+        assert_eq!(Regularisation::default().spring_pull_back, 0.0);
+        let new = serde_json::to_string(&Regularisation::default()).unwrap();
+        assert_eq!(
+            serde_json::from_str::<Regularisation>(&new).unwrap(),
+            Regularisation::default()
+        );
+    }
 
     #[test]
     fn edge_weights_follow_the_area_so_a_sliver_adds_almost_nothing() {

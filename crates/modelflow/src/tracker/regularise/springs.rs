@@ -51,26 +51,41 @@ fn curvature(a: &Point3<f64>, b: &Point3<f64>, f: f64, grad: &Vector3<f64>) -> M
     h
 }
 
+/// Where the springs yield: the strain (a fraction of the rest length) beyond which an edge's
+/// spring follows the previous frame, and how far behind it then stands, as a fraction of that
+/// strain (see [`spring_centre`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(crate) struct Yield {
+    pub strain: f64,
+    pub pull_back: f64,
+}
+
 /// The length an edge's spring pulls toward in a frame: its rest length, unless the edge was
-/// stretched or compressed by more than `yield_strain` (a fraction of the rest length) in the
-/// previous frame, in which case by as much as it went beyond it (`None`: always the rest
+/// stretched or compressed by more than the yield strain `y` in the previous frame; then the
+/// previous frame's length, less `pull_back·y` toward the rest length (`None`: always the rest
 /// length, as in the thesis).
 ///
 /// Plastic flow, in the terms of materials: up to the yield strain the springs hold the surface
 /// to its first frame's shape (tracking drift, which is small, is pulled back), beyond it they
-/// follow a stretch that the images held in the previous frame (a swelling lobe, skin, rubber),
-/// while still resisting a sudden change from one frame to the next as the thesis' springs do.
-/// A stretch that the images give up is not kept: the centre follows the previous frame back.
-pub(crate) fn spring_centre(rest: f64, previous: f64, yield_strain: Option<f64>) -> f64 {
-    let Some(y) = yield_strain else {
+/// follow a stretch that the images held in the previous frame (a swelling lobe, skin, rubber,
+/// the outside of a bending elbow, and its inside, compressed), while still resisting a sudden
+/// change from one frame to the next as the thesis' springs do. A stretch that the images give
+/// up is not kept: the centre follows the previous frame back. With `pull_back` 1 (the default
+/// before 2026-11-26) a stretch is also pulled back by the whole yield every frame, which holds
+/// what the images see little (a bending elbow's crook) at the yield strain.
+pub(crate) fn spring_centre(rest: f64, previous: f64, yielding: Option<Yield>) -> f64 {
+    let Some(Yield {
+        strain: y,
+        pull_back,
+    }) = yielding
+    else {
         return rest;
     };
     let strain = (previous - rest) / rest;
-    if !strain.is_finite() {
+    if !strain.is_finite() || strain.abs() <= y {
         return rest;
     }
-    let beyond = (strain.abs() - y).max(0.0);
-    rest * (1.0 + strain.signum() * beyond)
+    rest * (1.0 + strain.signum() * (strain.abs() - pull_back * y))
 }
 
 /// The cubic springs on every edge of the mesh, against its rest lengths (or, past the yield
@@ -87,19 +102,19 @@ pub(crate) struct CubicSprings {
     edges: Arc<EdgeSet>,
     k: f64,
     t: f64,
-    yield_strain: Option<f64>,
+    yielding: Option<Yield>,
     /// Each edge's length the spring pulls toward in this frame (`spring_centre`).
     centre: Vec<f64>,
 }
 
 impl CubicSprings {
-    pub fn new(edges: Arc<EdgeSet>, k: f64, t: f64, yield_strain: Option<f64>) -> Self {
+    pub fn new(edges: Arc<EdgeSet>, k: f64, t: f64, yielding: Option<Yield>) -> Self {
         let centre = edges.rest.clone();
         CubicSprings {
             edges,
             k,
             t,
-            yield_strain,
+            yielding,
             centre,
         }
     }
@@ -115,7 +130,7 @@ impl Regulariser for CubicSprings {
         for ((c, edge), &rest) in self.centre.iter_mut().zip(&es.edges).zip(&es.rest) {
             let [a, b] = edge.map(|v| v as usize);
             let previous = (frame.previous[b] - frame.previous[a]).norm();
-            *c = spring_centre(rest, previous, self.yield_strain);
+            *c = spring_centre(rest, previous, self.yielding);
         }
     }
 
@@ -229,19 +244,30 @@ mod tests {
     }
 
     #[test]
-    fn past_the_yield_strain_the_spring_follows_the_previous_frame_less_the_yield() {
+    fn past_the_yield_strain_the_spring_follows_the_previous_frame() {
         // Rest length 2, yield 5 %: within ±5 % the spring pulls to the rest length; an edge
-        // held 30 % longer (2.6) pulls to 25 % longer (2.5), one held 20 % shorter to 15 %.
-        let y = Some(0.05);
-        assert_eq!(spring_centre(2.0, 2.09, y), 2.0);
-        assert_eq!(spring_centre(2.0, 1.91, y), 2.0);
-        assert!((spring_centre(2.0, 2.6, y) - 2.5).abs() < 1e-12);
-        assert!((spring_centre(2.0, 1.6, y) - 1.7).abs() < 1e-12);
+        // held 30 % longer (2.6) pulls to that length (the default), or to 25 % longer (2.5)
+        // with the whole yield pulled back; one held 20 % shorter to 1.6, or to 15 % (1.7).
+        let y = |pull_back| {
+            Some(Yield {
+                strain: 0.05,
+                pull_back,
+            })
+        };
+        for p in [0.0, 0.5, 1.0] {
+            assert_eq!(spring_centre(2.0, 2.09, y(p)), 2.0);
+            assert_eq!(spring_centre(2.0, 1.91, y(p)), 2.0);
+        }
+        assert_eq!(spring_centre(2.0, 2.6, y(0.0)), 2.6);
+        assert_eq!(spring_centre(2.0, 1.6, y(0.0)), 1.6);
+        assert!((spring_centre(2.0, 2.6, y(1.0)) - 2.5).abs() < 1e-12);
+        assert!((spring_centre(2.0, 1.6, y(1.0)) - 1.7).abs() < 1e-12);
+        assert!((spring_centre(2.0, 2.6, y(0.5)) - 2.55).abs() < 1e-12);
         // Off: the thesis' springs, always the rest length.
         assert_eq!(spring_centre(2.0, 2.6, None), 2.0);
         // A degenerate rest length or a non-finite previous length keeps the rest length.
-        assert_eq!(spring_centre(0.0, 1.0, y), 0.0);
-        assert_eq!(spring_centre(2.0, f64::NAN, y), 2.0);
+        assert_eq!(spring_centre(0.0, 1.0, y(0.0)), 0.0);
+        assert_eq!(spring_centre(2.0, f64::NAN, y(0.0)), 2.0);
     }
 
     #[test]
@@ -258,17 +284,26 @@ mod tests {
             previous: &previous,
             predicted: &previous,
         };
-        let cost = |yield_strain: Option<f64>, length: f64| {
-            let mut s = CubicSprings::new(edges.clone(), 1.0, 0.2, yield_strain);
+        let cost = |yielding: Option<Yield>, length: f64| {
+            let mut s = CubicSprings::new(edges.clone(), 1.0, 0.2, yielding);
             s.begin_frame(&frame);
             s.accumulate(&[Point3::origin(), Point3::new(length, 0.0, 0.0)], None)
         };
-        // Staying at 1.4 costs the thesis' springs F² = 0.4⁶/0.2⁴ = 2.56, and (0.05/0.4)⁶ of
-        // that with a 5 % yield (0.05 from the centre at 1.35).
+        let y = |pull_back| {
+            Some(Yield {
+                strain: 0.05,
+                pull_back,
+            })
+        };
+        // Staying at 1.4 costs the thesis' springs F² = 0.4⁶/0.2⁴ = 2.56; nothing with the
+        // default yield; and (0.05/0.4)⁶ of that with the whole yield pulled back (0.05 from
+        // the centre at 1.35).
         assert!((cost(None, 1.4) - 2.56).abs() < 1e-12);
-        assert!((cost(Some(0.05), 1.4) - 2.56 / 8f64.powi(6)).abs() < 1e-15);
+        assert_eq!(cost(y(0.0), 1.4), 0.0);
+        assert!((cost(y(1.0), 1.4) - 2.56 / 8f64.powi(6)).abs() < 1e-15);
         // A further jump of 0.4 in one frame is resisted as the first 0.4 was from rest.
-        assert!(cost(Some(0.05), 1.8) > cost(None, 1.4));
+        assert!((cost(y(0.0), 1.8) - cost(None, 1.4)).abs() < 1e-12);
+        assert!(cost(y(1.0), 1.8) > cost(None, 1.4));
     }
 
     #[test]
