@@ -50,6 +50,28 @@ fn track_mean(syn: &Synthetic, frames: u32, options: TrackOptions) -> (f64, usiz
     (sum / (frames - 1) as f64, pixels)
 }
 
+/// `preset` at 320×240 over `frames` frames, tracked with the default options to its last
+/// frame (asserting that no frame stalls): the footage and the tracker there.
+fn tracked_320x240(preset: &str, frames: u32) -> (Synthetic, Tracker) {
+    let opts = SynthOptions {
+        width: 320,
+        height: 240,
+        frames,
+        ..SynthOptions::preset(preset).unwrap()
+    };
+    let syn = Synthetic::generate(&opts).unwrap();
+    let mut tr = start(&syn);
+    for f in 1..frames {
+        let report = tr.step(f, &images(&syn, f)).unwrap();
+        assert!(
+            !report.stalled,
+            "{preset} frame {f} stalled ({:?})",
+            report.stop
+        );
+    }
+    (syn, tr)
+}
+
 /// The default cloth at 320×240, `frames` frames.
 fn cloth_320x240(frames: u32) -> (SynthOptions, Synthetic) {
     let opts = SynthOptions {
@@ -144,20 +166,9 @@ fn a_surface_that_swells_is_followed_not_pulled_back_to_its_first_shape() {
     // with the yield strain pulled back every frame, `--spring-pull-back 1`; 0.43 % with the
     // defaults, which centre the spring past its yield on the length the images held in the
     // previous frame).
-    let opts = SynthOptions {
-        width: 320,
-        height: 240,
-        frames: 31,
-        ..SynthOptions::preset("irregular").unwrap()
-    };
-    let syn = Synthetic::generate(&opts).unwrap();
-    let mut tr = start(&syn);
+    let (syn, tr) = tracked_320x240("irregular", 31);
     let diag = syn.mesh.bbox_diagonal();
-    let last = opts.frames - 1;
-    for f in 1..=last {
-        let report = tr.step(f, &images(&syn, f)).unwrap();
-        assert!(!report.stalled, "frame {f} stalled ({:?})", report.stop);
-    }
+    let last = 31 - 1;
     let truth = &syn.truth[last as usize];
     let lengths = |x: &[Point3<f64>]| -> Vec<f64> {
         syn.mesh
@@ -190,20 +201,9 @@ fn an_elbow_that_bends_is_followed_into_its_crook() {
     // whole yield every frame held it near the yield (0.68 % final error at this size with
     // `--spring-pull-back 1`); centred on the previous frame's length past the yield (the
     // default) they follow it (tracked −46 %, 0.43 %).
-    let opts = SynthOptions {
-        width: 320,
-        height: 240,
-        frames: 61,
-        ..SynthOptions::preset("limb").unwrap()
-    };
-    let syn = Synthetic::generate(&opts).unwrap();
-    let mut tr = start(&syn);
+    let (syn, tr) = tracked_320x240("limb", 61);
     let diag = syn.mesh.bbox_diagonal();
-    let last = opts.frames - 1;
-    for f in 1..=last {
-        let report = tr.step(f, &images(&syn, f)).unwrap();
-        assert!(!report.stalled, "frame {f} stalled ({:?})", report.stop);
-    }
+    let last = 61 - 1;
     // The edges along the limb within 6 cm of the elbow, on the inside of the bend (rest +y).
     let crook: Vec<[u32; 2]> = syn
         .mesh

@@ -319,6 +319,30 @@ fn camera_looking(
     (Camera::fixed(name, opts.width, opts.height, p), (k, r, t))
 }
 
+/// `count` cameras on a ring round `target` at `distance`, every one aimed at it: the first 15°
+/// round from behind the target (−y), the rest evenly spaced, alternately `elevation[0]` and
+/// `elevation[1]` degrees above it.
+fn ring_rig(
+    opts: &SynthOptions,
+    count: usize,
+    target: Point3<f64>,
+    distance: f64,
+    elevation: [f64; 2],
+) -> (Vec<Camera>, Vec<Krt>) {
+    (0..count)
+        .map(|c| {
+            let az = (15.0 + 360.0 * c as f64 / count as f64).to_radians();
+            let el = elevation[c % 2].to_radians();
+            let eye = Point3::new(
+                distance * el.cos() * az.sin(),
+                -distance * el.cos() * az.cos(),
+                distance * el.sin(),
+            ) + target.coords;
+            camera_looking(format!("cam{c}"), opts, eye, target)
+        })
+        .unzip()
+}
+
 fn smoothstep(a: f64, b: f64, x: f64) -> f64 {
     let t = ((x - a) / (b - a)).clamp(0.0, 1.0);
     t * t * (3.0 - 2.0 * t)
@@ -562,19 +586,7 @@ fn lobed(opts: &SynthOptions, sphere: Mesh) -> Synthetic {
     let tex = Texture::new(opts.seed, 0.006);
     let skin = Skin::Cube(tex.bake_cube(BLOB_RADIUS, 512));
     let count = opts.camera_count();
-    let target = Point3::origin();
-    let (cameras, krt): (Vec<Camera>, Vec<Krt>) = (0..count)
-        .map(|c| {
-            let az = (15.0 + 360.0 * c as f64 / count as f64).to_radians();
-            let el = if c % 2 == 0 { 12f64 } else { 28.0 }.to_radians();
-            let eye = Point3::new(
-                2.5 * el.cos() * az.sin(),
-                -2.5 * el.cos() * az.cos(),
-                2.5 * el.sin(),
-            );
-            camera_looking(format!("cam{c}"), opts, eye, target)
-        })
-        .unzip();
+    let (cameras, krt) = ring_rig(opts, count, Point3::origin(), 2.5, [12.0, 28.0]);
     Synthetic {
         options: opts.clone(),
         cameras,
@@ -704,19 +716,7 @@ fn limb(opts: &SynthOptions) -> Synthetic {
     let tex = Texture::new(opts.seed, 0.006);
     let skin = Skin::Capsule(tex.bake_capsule(LIMB_HALF, LIMB_RADIUS, 1000.0));
     let count = opts.camera_count();
-    let target = Point3::new(0.0, 0.1, 0.0);
-    let (cameras, krt): (Vec<Camera>, Vec<Krt>) = (0..count)
-        .map(|c| {
-            let az = (15.0 + 360.0 * c as f64 / count as f64).to_radians();
-            let el = if c % 2 == 0 { 14f64 } else { 32.0 }.to_radians();
-            let eye = Point3::new(
-                2.6 * el.cos() * az.sin(),
-                -2.6 * el.cos() * az.cos(),
-                2.6 * el.sin(),
-            ) + target.coords;
-            camera_looking(format!("cam{c}"), opts, eye, target)
-        })
-        .unzip();
+    let (cameras, krt) = ring_rig(opts, count, Point3::new(0.0, 0.1, 0.0), 2.6, [14.0, 32.0]);
     Synthetic {
         options: opts.clone(),
         cameras,
