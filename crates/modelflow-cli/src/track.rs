@@ -51,11 +51,17 @@ pub struct TrackArgs {
     #[arg(long, default_value_t = TrackOptions::default().regularisation.spring_yield)]
     pub spring_yield: f64,
     /// Beyond the yield strain, how far the spring's centre stands behind the previous frame's
-    /// length, toward the rest length, as a fraction of the yield strain: 0 resists only a
-    /// change from the previous frame; 1 pulls a stretch back by the whole yield every frame, as
-    /// runs made before 2026-11-26 did (0 to 1).
+    /// length, toward the rest length, as a fraction of the yield strain, while the surface
+    /// shows no stretch (--spring-stretch-share): 1 pulls a strain back by the whole yield every
+    /// frame; 0 resists only a change from the previous frame (0 to 1).
     #[arg(long, default_value_t = TrackOptions::default().regularisation.spring_pull_back)]
     pub spring_pull_back: f64,
+    /// The share of the mesh's edges that, strained beyond twice the yield in the previous
+    /// frame, shows that the surface stretches (a bending limb, a swelling lobe; a cloth or a
+    /// rigid object shows none): the springs' pull-back is then 0 for the frame (0 = off:
+    /// always --spring-pull-back; 0 to 1).
+    #[arg(long, default_value_t = TrackOptions::default().regularisation.spring_stretch_share)]
+    pub spring_stretch_share: f64,
     /// Weight of the frame-to-frame membrane term, on the edges' change of rate over the mean
     /// edge length (0 = off; 0 to 1e6).
     #[arg(long, default_value_t = TrackOptions::default().regularisation.membrane)]
@@ -191,6 +197,7 @@ impl TrackArgs {
                 spring_t: self.spring_t,
                 spring_yield: self.spring_yield,
                 spring_pull_back: self.spring_pull_back,
+                spring_stretch_share: self.spring_stretch_share,
                 membrane: self.membrane,
                 bending: self.bending,
                 bending_yield: self.bending_yield,

@@ -46,6 +46,7 @@ fn track_options_out_of_range_are_refused_by_name() {
         ("--spring-t", "0", "(0, 10]"),
         ("--spring-yield", "-0.01", "[0, 10]"),
         ("--spring-pull-back", "1.5", "[0, 1]"),
+        ("--spring-stretch-share", "-0.1", "[0, 1]"),
         ("--bending-yield", "NaN", "[0, 10]"),
         ("--membrane", "-0.5", "[0, 1000000]"),
         ("--min-decrease", "NaN", "[0, 1)"),

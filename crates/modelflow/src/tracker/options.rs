@@ -217,6 +217,13 @@ impl TrackOptions {
                 why: "a fraction of the yield strain",
             },
             Range {
+                option: "--spring-stretch-share",
+                value: r.spring_stretch_share,
+                low: (0.0, true),
+                high: (1.0, true),
+                why: "a share of the edges; 0 = off",
+            },
+            Range {
                 option: "--bending-yield",
                 value: r.bending_yield,
                 low: (0.0, true),

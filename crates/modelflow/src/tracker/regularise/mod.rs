@@ -35,12 +35,18 @@ pub struct Regularisation {
     pub spring_yield: f64,
     /// Beyond the yield strain, how far the spring's centre stands behind the previous frame's
     /// length, toward the rest length, as a fraction of the yield strain
-    /// (`springs::spring_centre`): 0 (the default) resists only a change from the previous
-    /// frame, so a stretch or a fold the images held is not pulled back where the images see
-    /// it little (the inside of a bending elbow); 1 pulls it back by the whole yield every frame
-    /// (runs made before the option existed).
+    /// (`springs::spring_centre`), while the surface shows no stretch (see
+    /// `spring_stretch_share`): 1 (the default, and runs made before the option existed) pulls
+    /// a strain back by the whole yield every frame; 0 resists only a change from the previous
+    /// frame.
     #[serde(default = "one")]
     pub spring_pull_back: f64,
+    /// The share of the edges that, strained beyond twice the yield strain in the previous
+    /// frame, shows that the surface stretches (`springs::pull_back_for`): the pull-back is
+    /// then 0 for the frame, whatever `spring_pull_back` says. 0 = off (runs made before the
+    /// option existed).
+    #[serde(default)]
+    pub spring_stretch_share: f64,
     /// Weight `μ` of the frame-to-frame membrane.
     pub membrane: f64,
     /// Weight `β` of the bending term against the rest shape.
@@ -64,7 +70,8 @@ impl Default for Regularisation {
             spring_k: 1.0,
             spring_t: 0.2,
             spring_yield: 0.065,
-            spring_pull_back: 0.0,
+            spring_pull_back: 1.0,
+            spring_stretch_share: 0.005,
             membrane: 0.002,
             bending: 0.01,
             bending_yield: 0.05,
@@ -188,6 +195,7 @@ pub(crate) fn build(
             (reg.spring_yield > 0.0).then_some(springs::Yield {
                 strain: reg.spring_yield,
                 pull_back: reg.spring_pull_back,
+                stretch_share: reg.spring_stretch_share,
             }),
         )));
     }
@@ -236,8 +244,15 @@ mod tests {
         let old = r#"{"spring_k": 1.0, "spring_t": 0.2, "spring_yield": 0.065,
                       "membrane": 0.002, "bending": 0.01, "bending_yield": 0.05}"#;
         let r: Regularisation = serde_json::from_str(old).unwrap();
-        assert_eq!(r.spring_pull_back, 1.0);
-        assert_eq!(Regularisation::default().spring_pull_back, 0.0);
+        assert_eq!((r.spring_pull_back, r.spring_stretch_share), (1.0, 0.0));
+        // Runs made on 2026-11-26 before the stretch share: pull-back 0 in every frame.
+        let day = r#"{"spring_k": 1.0, "spring_t": 0.2, "spring_yield": 0.065,
+                      "spring_pull_back": 0.0, "membrane": 0.002, "bending": 0.01,
+                      "bending_yield": 0.05}"#;
+        let r: Regularisation = serde_json::from_str(day).unwrap();
+        assert_eq!((r.spring_pull_back, r.spring_stretch_share), (0.0, 0.0));
+        let d = Regularisation::default();
+        assert_eq!((d.spring_pull_back, d.spring_stretch_share), (1.0, 0.005));
         let new = serde_json::to_string(&Regularisation::default()).unwrap();
         assert_eq!(
             serde_json::from_str::<Regularisation>(&new).unwrap(),
