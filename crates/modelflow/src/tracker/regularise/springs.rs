@@ -92,8 +92,9 @@ pub(crate) fn pull_back_for(y: &Yield, beyond: usize, edges: usize) -> f64 {
 /// the outside of a bending elbow, and its inside, compressed), while still resisting a sudden
 /// change from one frame to the next as the thesis' springs do. A stretch that the images give
 /// up is not kept: the centre follows the previous frame back. With `pull_back` 1 (the default
-/// before 2026-11-26) a stretch is also pulled back by the whole yield every frame, which holds
-/// what the images see little (a bending elbow's crook) at the yield strain.
+/// while a shot shows no stretch, [`pull_back_for`]) a strain is also pulled back by the whole
+/// yield every frame: a cloth's drift past the yield is undone, but what the images see little
+/// (a bending elbow's crook) is held at the yield strain.
 pub(crate) fn spring_centre(rest: f64, previous: f64, yielding: Option<Yield>) -> f64 {
     let Some(Yield {
         strain: y,
@@ -282,7 +283,7 @@ mod tests {
     #[test]
     fn past_the_yield_strain_the_spring_follows_the_previous_frame() {
         // Rest length 2, yield 5 %: within ±5 % the spring pulls to the rest length; an edge
-        // held 30 % longer (2.6) pulls to that length (the default), or to 25 % longer (2.5)
+        // held 30 % longer (2.6) pulls to that length (pull-back 0), or to 25 % longer (2.5)
         // with the whole yield pulled back; one held 20 % shorter to 1.6, or to 15 % (1.7).
         let y = |pull_back| {
             Some(Yield {
