@@ -92,6 +92,11 @@ pub struct TrackArgs {
     /// the sides that come into view from drifting (0 = off; 0 to 10).
     #[arg(long, default_value_t = TrackOptions::default().lent_anchor)]
     pub lent_anchor: f64,
+    /// Keep template pixels that another part of the mesh hides in the frame being solved (an
+    /// arm in front of the body, a fold turned over); by default they are left out, judged
+    /// from the mesh where each pyramid level starts.
+    #[arg(long)]
+    pub keep_hidden: bool,
     /// Huber threshold on the RGB residual (image values 0..1; above 0, at most 10).
     #[arg(long, default_value_t = TrackOptions::default().solver.huber)]
     pub huber: f64,
@@ -189,6 +194,7 @@ impl TrackArgs {
             stereo: self.stereo,
             approach_decrease: self.approach_decrease,
             lent_anchor: self.lent_anchor,
+            hidden_ahead: !self.keep_hidden,
             blur: self.blur,
             checkerboard: !self.all_pixels,
             rigid_first: !self.no_rigid_stage,

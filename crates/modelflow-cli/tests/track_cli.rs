@@ -228,6 +228,16 @@ fn a_rig_whose_views_do_not_overlap_is_named_before_tracking() {
     assert!(!err.contains("seen by one camera only"), "{err}");
 }
 
+/// The per cent of frame 1's surface the other cameras contradict, as its warning says (0 when
+/// there is no such warning).
+fn contradicted_in_frame_1(err: &str) -> u32 {
+    const SAYS: &str = "warning: frame 1: the other cameras contradict ";
+    err.find(SAYS)
+        .and_then(|i| err[i + SAYS.len()..].split(' ').next())
+        .and_then(|n| n.parse().ok())
+        .unwrap_or(0)
+}
+
 #[test]
 fn a_frame_the_cameras_disagree_about_is_named_and_counted() {
     // The cloth shaken by 70 px per frame at 320×240, past its capture range at that size: the
@@ -243,7 +253,9 @@ fn a_frame_the_cameras_disagree_about_is_named_and_counted() {
         ..SynthOptions::default()
     });
     assert!(
-        err.contains("warning: frame 1: the other cameras contradict 35 % of where this frame left the surface, against 0 % at the first frame"),
+        contradicted_in_frame_1(&err) >= 30
+            && err
+                .contains("% of where this frame left the surface, against 0 % at the first frame"),
         "{err}"
     );
     assert!(
@@ -277,10 +289,7 @@ fn a_slip_in_the_last_frame_is_named_too() {
     let scene = write_dataset(&opts, &dir.path().join("footage"), &|_, _| {}).unwrap();
     let run = dir.path().join("run");
     let err = track_ok(&scene, &run);
-    assert!(
-        err.contains("warning: frame 1: the other cameras contradict 35 % of where this frame left the surface"),
-        "{err}"
-    );
+    assert!(contradicted_in_frame_1(&err) >= 30, "{err}");
     assert!(
         err.contains("1 SUSPECT (the cameras disagreed about the surface, or it showed next to no texture): frames 1)"),
         "{err}"

@@ -89,24 +89,9 @@ pub(crate) fn drop_contradicted(
         .par_iter()
         .map_init(Vec::new, |buf, p| view.verdict(p, &gains, &limit, buf))
         .collect();
-    let mut stats = ConsensusStats::default();
-    let mut out = PatchSet {
-        patches: Vec::with_capacity(patches.len()),
-        pixels: Vec::with_capacity(set.pixels.len()),
-    };
-    for (p, keep) in patches.iter().zip(&keep) {
-        let start = out.pixels.len() as u32;
-        let px = &set.pixels[p.start as usize..p.end as usize];
-        out.pixels
-            .extend(px.iter().zip(keep).filter(|k| *k.1).map(|k| *k.0));
-        let end = out.pixels.len() as u32;
-        stats.dropped += px.len() - (end - start) as usize;
-        if end > start {
-            out.patches.push(Patch { start, end, ..*p });
-        }
+    ConsensusStats {
+        dropped: set.retain_pixels(&keep),
     }
-    *set = out;
-    stats
 }
 
 /// A residual's limit: `d2 + tol2·|∇|²`.

@@ -12,6 +12,7 @@ pub(crate) mod consensus;
 mod coverage;
 mod gpu;
 pub(crate) mod health;
+mod occlusion;
 mod offset;
 mod options;
 pub(crate) mod outline;

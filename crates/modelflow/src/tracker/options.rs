@@ -74,6 +74,12 @@ pub struct TrackOptions {
     /// cameras see sides they did not see at first. 0 = off (runs made before it existed).
     #[serde(default)]
     pub lent_anchor: f64,
+    /// Template pixels whose surface point another part of the mesh hides in the frame being
+    /// solved, or lies at one of the mesh's depth edges there (an arm in front of the body, a
+    /// fold turned over), are left out of each level's solve, judged from the mesh where the
+    /// level starts (`tracker::occlusion`). Off in runs made before it existed.
+    #[serde(default)]
+    pub hidden_ahead: bool,
 }
 
 fn default_consensus() -> f64 {
@@ -102,6 +108,7 @@ impl Default for TrackOptions {
             stereo: 0.0,
             approach_decrease: 0.03,
             lent_anchor: 1.0,
+            hidden_ahead: true,
         }
     }
 }
@@ -395,5 +402,32 @@ impl TrackOptions {
             interpolation_per_level,
             regularisers,
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_run_recorded_before_hidden_pixels_were_left_out_resumes_keeping_them() {
+        // `--resume` reads the options from run.json: one written before `hidden_ahead` existed
+        // names no such field and must go on as it was made (hidden pixels kept), while a new
+        // run leaves them out.
+        assert!(TrackOptions::default().hidden_ahead);
+        let mut old = serde_json::to_value(TrackOptions::default()).expect("options as JSON");
+        old.as_object_mut()
+            .expect("an object")
+            .remove("hidden_ahead")
+            .expect("the field is written");
+        let read: TrackOptions = serde_json::from_value(old).expect("an old run's options");
+        assert!(!read.hidden_ahead);
+        assert_eq!(
+            TrackOptions {
+                hidden_ahead: true,
+                ..read
+            },
+            TrackOptions::default()
+        );
     }
 }

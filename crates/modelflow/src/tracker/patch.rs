@@ -168,6 +168,30 @@ impl PatchSet {
         });
     }
 
+    /// Keeps the pixels `keep[i][j]` says to keep (pixel `j` of patch `i`), and the patches
+    /// with any left; returns how many pixels were dropped.
+    pub fn retain_pixels(&mut self, keep: &[Vec<bool>]) -> usize {
+        debug_assert_eq!(keep.len(), self.patches.len());
+        let mut out = PatchSet {
+            patches: Vec::with_capacity(self.patches.len()),
+            pixels: Vec::with_capacity(self.pixels.len()),
+        };
+        let mut dropped = 0;
+        for (p, keep) in self.patches.iter().zip(keep) {
+            let start = out.pixels.len() as u32;
+            let px = &self.pixels[p.start as usize..p.end as usize];
+            out.pixels
+                .extend(px.iter().zip(keep).filter(|k| *k.1).map(|k| *k.0));
+            let end = out.pixels.len() as u32;
+            dropped += px.len() - (end - start) as usize;
+            if end > start {
+                out.patches.push(Patch { start, end, ..*p });
+            }
+        }
+        *self = out;
+        dropped
+    }
+
     /// `covered[triangle * cameras + camera]`: whether that pair has a patch.
     pub fn coverage(&self, triangles: usize, cameras: usize) -> Vec<bool> {
         let mut c = vec![false; triangles * cameras];

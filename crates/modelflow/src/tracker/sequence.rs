@@ -19,6 +19,7 @@ use crate::tracker::align;
 use crate::tracker::consensus::{drop_contradicted, ConsensusOptions};
 use crate::tracker::gpu::Gpu;
 use crate::tracker::health;
+use crate::tracker::occlusion;
 use crate::tracker::options::{OptionsUsed, TrackOptions};
 use crate::tracker::patch::{PatchOptions, PatchSet};
 use crate::tracker::pyramid::Pyramid;
@@ -58,6 +59,13 @@ pub struct FrameReport {
     /// footage's own level of disagreement between cameras.
     #[serde(default)]
     pub contradicted_at_first: f64,
+    /// Pixels of the finest level's templates (previous frame and anchor) whose surface point
+    /// another part of the mesh hides in this frame, or lies at one of the mesh's depth edges
+    /// here, judged from the mesh where that level started (an arm in front of the body, a fold
+    /// turned over), left out (`TrackOptions::hidden_ahead`). 0 in logs written before it
+    /// existed.
+    #[serde(default)]
+    pub hidden: usize,
     /// How much the images constrain the solution, as a share of what the first frame's own
     /// images give its mesh: the sum over the vertices of the smallest eigenvalue of each
     /// vertex's photometric normal-equation block (the confidence file's `information`), at the
@@ -647,6 +655,7 @@ impl Tracker {
             pixels: 0,
             contradicted: 0,
             contradicted_share: 0.0,
+            hidden: 0,
             rejected_share: 0.0,
             stop: StopReason::NoData,
             confidence: Vec::new(),
@@ -701,6 +710,19 @@ impl Tracker {
                 out.contradicted_share = share_of(dropped, template.pixels.len());
             }
             let (mut set, stereo_x0) = self.level_patches(frame, level, template, &x, &next);
+            if self.opts.hidden_ahead {
+                // At the coarsest level the mesh has not moved yet: judged at the
+                // constant-velocity prediction (the previous shape when none is known).
+                let at = if level == levels - 1 {
+                    &predicted_shape
+                } else {
+                    &x
+                };
+                let hidden = self.leave_out_hidden(&mut set, frame, level, at, &next);
+                if level == finest {
+                    out.hidden = hidden;
+                }
+            }
             let by_triangle = set.by_triangle();
             out.timing.patches += tp.elapsed().as_secs_f64();
             let input = LevelInput {
@@ -781,6 +803,7 @@ impl Tracker {
             contradicted: out.contradicted,
             contradicted_share: out.contradicted_share,
             contradicted_at_first: self.contradicted_at_first,
+            hidden: out.hidden,
             information_share,
             suspect: false,
             rejected_share: out.rejected_share,
@@ -906,6 +929,35 @@ impl Tracker {
         let x0 = x.to_vec();
         merge_into(&mut set, self.stereo_patches(&x0, frame, level, next));
         (set, Some(x0))
+    }
+
+    /// Leaves out of a level's patches the pixels at the mesh's own depth edges in the frame
+    /// being solved, with the mesh at `at` (`tracker::occlusion`); returns how many.
+    fn leave_out_hidden(
+        &self,
+        set: &mut PatchSet,
+        frame: u32,
+        level: usize,
+        at: &[Point3<f64>],
+        next: &[Pyramid],
+    ) -> usize {
+        let projections: Vec<Projection> = self
+            .cameras
+            .iter()
+            .map(|c| level_projection(c.at(frame), level))
+            .collect();
+        let sizes: Vec<(usize, usize)> = next
+            .iter()
+            .map(|p| (p.levels[level].width(), p.levels[level].height()))
+            .collect();
+        occlusion::drop_at_depth_edges(
+            set,
+            at,
+            &self.triangles,
+            &projections,
+            &sizes,
+            self.opts.margin + 1,
+        )
     }
 
     /// Solves one level of a frame from `x` (moved to the level's solution): the prediction
@@ -1084,6 +1136,7 @@ struct Outcome {
     pixels: usize,
     contradicted: usize,
     contradicted_share: f64,
+    hidden: usize,
     rejected_share: f64,
     stop: StopReason,
     confidence: Vec<VertexConfidence>,

@@ -1582,3 +1582,116 @@ fn sides_turned_into_view_are_held_by_the_first_frames_view_from_another_camera(
         "without {without:.3} %, lent {lent:.3} %"
     );
 }
+
+/// A sheet drifting slowly while a strip of the same mesh, 25 cm in front of it, sweeps across
+/// it (an arm across a body), rendered by the project's renderer into two cameras at 320×240:
+/// the sheet's RMS error after `frames` frames (m), and the hidden pixels each frame reported.
+fn sheet_behind_a_sweeping_strip(hidden_ahead: bool, frames: u32) -> (f64, Vec<usize>) {
+    use crate::synth::{render, RenderOptions, Surface, Texture};
+    let (w, h) = (320usize, 240usize);
+    let k = Matrix3::new(600.0, 0.0, 159.5, 0.0, 600.0, 119.5, 0.0, 0.0, 1.0);
+    let cameras: Vec<Camera> = [Point3::new(-0.2, -1.6, 0.1), Point3::new(0.2, -1.6, 0.15)]
+        .iter()
+        .enumerate()
+        .map(|(i, e)| {
+            let (r, t) = look_at(e, &Point3::new(0.0, 0.0, 0.0), &Vector3::z());
+            Camera::fixed(
+                format!("cam{i}"),
+                w as u32,
+                h as u32,
+                Projection::from_krt(&k, &r, &t).unwrap(),
+            )
+        })
+        .collect();
+    // The sheet (9×9 vertices, 60×50 cm) at y = 0.1, the strip (3×9, 10×60 cm) at y = −0.15,
+    // starting left of the middle: one mesh of two pieces.
+    let sheet = grid(9, 9, |s, t| {
+        Point3::new(-0.3 + 0.6 * s, 0.1, -0.25 + 0.5 * t)
+    });
+    let strip = grid(3, 9, |s, t| {
+        Point3::new(-0.2 + 0.1 * s, -0.15, -0.3 + 0.6 * t)
+    });
+    let n_sheet = sheet.positions.len();
+    let mut positions = sheet.positions.clone();
+    positions.extend(&strip.positions);
+    let mut triangles = sheet.triangles.clone();
+    triangles.extend(
+        strip
+            .triangles
+            .iter()
+            .map(|t| t.map(|v| v + n_sheet as u32)),
+    );
+    let mesh = Mesh::new(positions.clone(), triangles);
+    // Per frame the sheet drifts 2 mm (under a pixel), the strip sweeps 1.5 cm (about 5 px).
+    let at = |f: u32| -> Vec<Point3<f64>> {
+        positions
+            .iter()
+            .enumerate()
+            .map(|(i, p)| {
+                let d = if i < n_sheet {
+                    Vector3::new(-0.0015, 0.0, 0.0013)
+                } else {
+                    Vector3::new(0.015, 0.0, 0.0)
+                };
+                p + d * f as f64
+            })
+            .collect()
+    };
+    let texture = Texture::new(3, 0.006);
+    let material = |m: &[f64; 3]| texture.eval(m);
+    let rest: Vec<[f64; 3]> = positions.iter().map(|p| [p.x, p.y, p.z]).collect();
+    let images = |f: u32| -> Vec<RgbImage> {
+        let moved = Mesh::new(at(f), mesh.triangles.clone());
+        cameras
+            .iter()
+            .map(|c| {
+                render(
+                    &moved,
+                    &rest,
+                    &Surface::Material(&material),
+                    c.at(f),
+                    w,
+                    h,
+                    &RenderOptions::default(),
+                )
+                .unwrap()
+            })
+            .collect()
+    };
+    let opts = TrackOptions {
+        hidden_ahead,
+        ..TrackOptions::default()
+    };
+    let mut t = Tracker::new(&mesh, cameras.clone(), 0, &images(0), opts).unwrap();
+    let mut hidden = Vec::new();
+    for f in 1..=frames {
+        let r = t.step(f, &images(f)).unwrap();
+        assert!(!r.stalled, "frame {f}: {r:?}");
+        hidden.push(r.hidden);
+    }
+    let truth = at(frames);
+    let err = rms_distance(&t.positions()[..n_sheet], &truth[..n_sheet]);
+    (err, hidden)
+}
+
+#[test]
+fn a_strip_of_the_mesh_sweeping_in_front_of_it_does_not_drag_the_surface_behind() {
+    // Each frame the strip covers a band of the sheet that the previous frame's template still
+    // sees; compared there, those pixels match the strip's colours and pull the sheet along
+    // with it. Left out (judged from the mesh where each level starts), they do not.
+    let frames = 6;
+    let (kept, _) = sheet_behind_a_sweeping_strip(false, frames);
+    let (left_out, hidden) = sheet_behind_a_sweeping_strip(true, frames);
+    eprintln!(
+        "sheet rms after {frames} frames: kept {:.2} mm, left out {:.2} mm; hidden per frame {hidden:?}",
+        kept * 1e3,
+        left_out * 1e3
+    );
+    assert!(hidden.iter().all(|&h| h > 0), "hidden per frame {hidden:?}");
+    // Measured: 2.80 mm kept, 0.22 mm left out (the strip itself about 0.4 mm either way).
+    assert!(
+        left_out < 0.25 * kept,
+        "kept {kept:e}, left out {left_out:e}"
+    );
+    assert!(left_out < 1e-3, "left out {left_out:e}");
+}
