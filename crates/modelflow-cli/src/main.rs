@@ -55,7 +55,7 @@ enum Command {
     Report(report::Args),
     /// Track the scene's mesh through every frame (Model Flow).
     Track(track::Args),
-    /// Write synthetic multi-view footage with ground truth (presets: cloth, blob, irregular, limb).
+    /// Write synthetic multi-view footage with ground truth (presets: cloth, blob, irregular, limb, crossing).
     Synth(synth::Args),
 }
 

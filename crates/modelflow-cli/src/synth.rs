@@ -10,7 +10,9 @@ use std::path::PathBuf;
 pub struct Args {
     /// Preset: cloth (a hanging, waving, folding sheet; 2 cameras), blob (a closed, turning,
     /// lobed surface; 4 cameras around it), irregular (the blob on an uneven triangulation with
-    /// a hole) or limb (a capsule that bends at an elbow while its forearm twists; 4 cameras).
+    /// a hole), limb (a capsule that bends at an elbow while its forearm twists; 4 cameras) or
+    /// crossing (a body and an arm that sweeps across in front of it: one mesh of two pieces,
+    /// each hiding the other from some of its 4 cameras).
     #[arg(long, default_value = "cloth")]
     preset: String,
     /// Output folder (created; existing files with the same names are replaced).

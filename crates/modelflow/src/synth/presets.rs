@@ -68,10 +68,17 @@ pub enum Preset {
     Blob,
     Irregular,
     Limb,
+    Crossing,
 }
 
 impl Preset {
-    pub const ALL: [Preset; 4] = [Preset::Cloth, Preset::Blob, Preset::Irregular, Preset::Limb];
+    pub const ALL: [Preset; 5] = [
+        Preset::Cloth,
+        Preset::Blob,
+        Preset::Irregular,
+        Preset::Limb,
+        Preset::Crossing,
+    ];
 
     pub fn name(self) -> &'static str {
         match self {
@@ -79,6 +86,7 @@ impl Preset {
             Preset::Blob => "blob",
             Preset::Irregular => "irregular",
             Preset::Limb => "limb",
+            Preset::Crossing => "crossing",
         }
     }
 
@@ -101,7 +109,7 @@ impl Preset {
     pub fn default_cameras(self) -> usize {
         match self {
             Preset::Cloth => 2,
-            Preset::Blob | Preset::Irregular | Preset::Limb => 4,
+            Preset::Blob | Preset::Irregular | Preset::Limb | Preset::Crossing => 4,
         }
     }
 }
@@ -730,6 +738,78 @@ fn limb(opts: &SynthOptions) -> Synthetic {
     }
 }
 
+// ---------------------------------------------------------------------------------------------
+// Crossing
+
+/// The crossing's two pieces at time `t` seconds, from the limb's capsule `rest` (along x): a
+/// body (the capsule stood up along z) swaying 5° about y, and an arm (the capsule lying along
+/// x, 40 cm in front of the body on the −y side) that sweeps up and down 35 cm across it while
+/// tilting by up to 12°. One mesh: the body's vertices first, then the arm's.
+fn crossing_positions(rest: &[Point3<f64>], t: f64) -> Vec<Point3<f64>> {
+    use std::f64::consts::PI;
+    let sway = Rotation3::from_axis_angle(
+        &Vector3::y_axis(),
+        5f64.to_radians() * (2.0 * PI * t / 7.0).sin(),
+    );
+    let phase = 2.0 * PI * t / 6.0;
+    let tilt = Rotation3::from_axis_angle(&Vector3::y_axis(), 12f64.to_radians() * phase.cos());
+    let arm_at = Vector3::new(0.0, -0.4, 0.35 * phase.sin());
+    let body = rest
+        .iter()
+        .map(|p| Point3::from(sway * Vector3::new(p.y, p.z, p.x)));
+    let arm = rest.iter().map(|p| Point3::from(tilt * p.coords + arm_at));
+    body.chain(arm).collect()
+}
+
+/// A crossing: a body and an arm that sweeps up and down across in front of it (the limb's
+/// capsule twice, 3 652 vertices in one mesh of two pieces), seen by cameras on a ring: the
+/// cameras in front see the arm cover and uncover the body every frame, those behind see the
+/// body hide the arm. What people do in front of a rig; docs/tracker.md, "What the mesh itself
+/// hides".
+fn crossing(opts: &SynthOptions) -> Synthetic {
+    let piece = capsule(LIMB_HALF, LIMB_RADIUS, 32, 0.0236);
+    let n = piece.positions.len();
+    let rest: Vec<Point3<f64>> = piece.positions.clone();
+    // The arm reads the capsule's texture mirrored end to end and side to side: another pattern.
+    let material: Vec<[f64; 3]> = rest
+        .iter()
+        .map(|p| [p.x, p.y, p.z])
+        .chain(rest.iter().map(|p| [-p.x, -p.y, p.z]))
+        .collect();
+    let mut triangles = piece.triangles.clone();
+    triangles.extend(piece.triangles.iter().map(|t| t.map(|v| v + n as u32)));
+    let truth: Vec<Vec<Point3<f64>>> = (0..opts.frames)
+        .into_par_iter()
+        .map(|f| crossing_positions(&rest, f as f64 / FPS))
+        .collect();
+    let extent = LIMB_HALF + LIMB_RADIUS;
+    let uvs = material
+        .iter()
+        .map(|m| {
+            [
+                0.5 + m[2].atan2(m[1]) / (2.0 * std::f64::consts::PI),
+                (m[0] + extent) / (2.0 * extent),
+            ]
+        })
+        .collect();
+    let mesh = Mesh::with_vertex_uvs(truth[0].clone(), triangles, uvs);
+    let tex = Texture::new(opts.seed, 0.006);
+    let skin = Skin::Capsule(tex.bake_capsule(LIMB_HALF, LIMB_RADIUS, 1000.0));
+    let count = opts.camera_count();
+    let (cameras, krt) = ring_rig(opts, count, Point3::new(0.0, -0.2, 0.0), 3.1, [10.0, 25.0]);
+    Synthetic {
+        options: opts.clone(),
+        cameras,
+        mesh,
+        material,
+        truth,
+        skin,
+        krt,
+        distort: Vec::new(),
+        render_options: render_options(opts, Vector3::new(0.4, -0.6, 0.8), [0.12, 0.12, 0.12]),
+    }
+}
+
 fn render_options(opts: &SynthOptions, light: Vector3<f64>, background: [f32; 3]) -> RenderOptions {
     RenderOptions {
         supersample: opts.supersample,
@@ -776,6 +856,7 @@ impl Synthetic {
             Preset::Blob => blob(opts),
             Preset::Irregular => irregular(opts),
             Preset::Limb => limb(opts),
+            Preset::Crossing => crossing(opts),
         };
         if opts.turn > 0.0 {
             s.turn(opts.turn);
@@ -1141,7 +1222,7 @@ mod tests {
     fn unknown_preset_lists_the_presets() {
         let e = SynthOptions::preset("sheet").unwrap_err().to_string();
         assert!(
-            e.contains("'sheet'") && e.contains("cloth, blob, irregular, limb"),
+            e.contains("'sheet'") && e.contains("cloth, blob, irregular, limb, crossing"),
             "{e}"
         );
         assert_eq!(SynthOptions::preset("blob").unwrap().preset, Preset::Blob);
@@ -1266,6 +1347,53 @@ mod tests {
         assert!(
             occluded > 10,
             "only {occluded} front-facing vertices hidden"
+        );
+    }
+
+    #[test]
+    fn crossing_is_two_closed_pieces_and_the_arm_sweeps_over_the_body_in_a_front_camera() {
+        // The arm covers, frame after frame, body pixels the first camera (in front) saw at the
+        // first frame.
+        let s = Synthetic::generate(&opts(Preset::Crossing, 100)).unwrap();
+        assert!(s.mesh.is_closed());
+        let n = s.mesh.positions.len() / 2;
+        assert!(s.mesh.triangles.iter().all(|t| {
+            let body = (t[0] as usize) < n;
+            t.iter().all(|&v| ((v as usize) < n) == body)
+        }));
+        // Pixels the body owns at frame 0 that the arm owns later: the most over the clip.
+        let half = s.mesh.triangles.len() / 2;
+        let owners = |cam: usize, f: u32| {
+            crate::base::raster::rasterize(
+                &s.truth[f as usize],
+                &s.mesh.triangles,
+                s.cameras[cam].at(f),
+                640,
+                480,
+            )
+            .owner
+        };
+        let covered = |cam: usize| -> usize {
+            let first = owners(cam, 0);
+            let piece = |o: u32| (o != crate::base::raster::NONE).then_some(o as usize >= half);
+            (5..100u32)
+                .step_by(5)
+                .map(|f| {
+                    owners(cam, f)
+                        .iter()
+                        .zip(&first)
+                        .filter(|&(&now, &then)| {
+                            piece(then) == Some(false) && piece(now) == Some(true)
+                        })
+                        .count()
+                })
+                .max()
+                .unwrap()
+        };
+        let arm_over_body = covered(0);
+        assert!(
+            arm_over_body > 2000,
+            "cam0: the arm covered {arm_over_body} body pixels"
         );
     }
 
