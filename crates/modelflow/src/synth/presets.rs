@@ -593,8 +593,34 @@ fn lobed(opts: &SynthOptions, sphere: Mesh) -> Synthetic {
     let mesh = Mesh::with_vertex_uvs(truth[0].clone(), sphere.triangles, uvs);
     let tex = Texture::new(opts.seed, 0.006);
     let skin = Skin::Cube(tex.bake_cube(BLOB_RADIUS, 512));
+    let ring = Ring {
+        target: Point3::origin(),
+        distance: 2.5,
+        elevation: [12.0, 28.0],
+    };
+    on_ring(opts, ring, mesh, material, truth, skin)
+}
+
+/// Where [`on_ring`] puts its cameras (see [`ring_rig`]).
+struct Ring {
+    target: Point3<f64>,
+    distance: f64,
+    elevation: [f64; 2],
+}
+
+/// A closed object's scene: `mesh` at the first frame, its `truth` per frame, coloured by `skin`
+/// at its `material` coordinates, seen by the preset's cameras on `ring`, lit from the upper
+/// front over a dark grey background.
+fn on_ring(
+    opts: &SynthOptions,
+    ring: Ring,
+    mesh: Mesh,
+    material: Vec<[f64; 3]>,
+    truth: Vec<Vec<Point3<f64>>>,
+    skin: Skin,
+) -> Synthetic {
     let count = opts.camera_count();
-    let (cameras, krt) = ring_rig(opts, count, Point3::origin(), 2.5, [12.0, 28.0]);
+    let (cameras, krt) = ring_rig(opts, count, ring.target, ring.distance, ring.elevation);
     Synthetic {
         options: opts.clone(),
         cameras,
@@ -709,33 +735,34 @@ fn limb(opts: &SynthOptions) -> Synthetic {
         .into_par_iter()
         .map(|f| limb_positions(&rest.positions, f as f64 / FPS))
         .collect();
+    let mesh = Mesh::with_vertex_uvs(truth[0].clone(), rest.triangles, capsule_uvs(&material));
+    let ring = Ring {
+        target: Point3::new(0.0, 0.1, 0.0),
+        distance: 2.6,
+        elevation: [14.0, 32.0],
+    };
+    on_ring(opts, ring, mesh, material, truth, capsule_skin(opts))
+}
+
+/// Texture coordinates of points given in the limb capsule's material coordinates: the angle
+/// round its axis, and the position along it.
+fn capsule_uvs(material: &[[f64; 3]]) -> Vec<[f64; 2]> {
     let extent = LIMB_HALF + LIMB_RADIUS;
-    let uvs = rest
-        .positions
+    material
         .iter()
-        .map(|p| {
+        .map(|m| {
             [
-                0.5 + p.z.atan2(p.y) / (2.0 * std::f64::consts::PI),
-                (p.x + extent) / (2.0 * extent),
+                0.5 + m[2].atan2(m[1]) / (2.0 * std::f64::consts::PI),
+                (m[0] + extent) / (2.0 * extent),
             ]
         })
-        .collect();
-    let mesh = Mesh::with_vertex_uvs(truth[0].clone(), rest.triangles, uvs);
+        .collect()
+}
+
+/// The limb capsule's texture, baked over its surface.
+fn capsule_skin(opts: &SynthOptions) -> Skin {
     let tex = Texture::new(opts.seed, 0.006);
-    let skin = Skin::Capsule(tex.bake_capsule(LIMB_HALF, LIMB_RADIUS, 1000.0));
-    let count = opts.camera_count();
-    let (cameras, krt) = ring_rig(opts, count, Point3::new(0.0, 0.1, 0.0), 2.6, [14.0, 32.0]);
-    Synthetic {
-        options: opts.clone(),
-        cameras,
-        mesh,
-        material,
-        truth,
-        skin,
-        krt,
-        distort: Vec::new(),
-        render_options: render_options(opts, Vector3::new(0.4, -0.6, 0.8), [0.12, 0.12, 0.12]),
-    }
+    Skin::Capsule(tex.bake_capsule(LIMB_HALF, LIMB_RADIUS, 1000.0))
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -782,32 +809,13 @@ fn crossing(opts: &SynthOptions) -> Synthetic {
         .into_par_iter()
         .map(|f| crossing_positions(&rest, f as f64 / FPS))
         .collect();
-    let extent = LIMB_HALF + LIMB_RADIUS;
-    let uvs = material
-        .iter()
-        .map(|m| {
-            [
-                0.5 + m[2].atan2(m[1]) / (2.0 * std::f64::consts::PI),
-                (m[0] + extent) / (2.0 * extent),
-            ]
-        })
-        .collect();
-    let mesh = Mesh::with_vertex_uvs(truth[0].clone(), triangles, uvs);
-    let tex = Texture::new(opts.seed, 0.006);
-    let skin = Skin::Capsule(tex.bake_capsule(LIMB_HALF, LIMB_RADIUS, 1000.0));
-    let count = opts.camera_count();
-    let (cameras, krt) = ring_rig(opts, count, Point3::new(0.0, -0.2, 0.0), 3.1, [10.0, 25.0]);
-    Synthetic {
-        options: opts.clone(),
-        cameras,
-        mesh,
-        material,
-        truth,
-        skin,
-        krt,
-        distort: Vec::new(),
-        render_options: render_options(opts, Vector3::new(0.4, -0.6, 0.8), [0.12, 0.12, 0.12]),
-    }
+    let mesh = Mesh::with_vertex_uvs(truth[0].clone(), triangles, capsule_uvs(&material));
+    let ring = Ring {
+        target: Point3::new(0.0, -0.2, 0.0),
+        distance: 3.1,
+        elevation: [10.0, 25.0],
+    };
+    on_ring(opts, ring, mesh, material, truth, capsule_skin(opts))
 }
 
 fn render_options(opts: &SynthOptions, light: Vector3<f64>, background: [f32; 3]) -> RenderOptions {
