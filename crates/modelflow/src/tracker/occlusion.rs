@@ -13,14 +13,15 @@
 //! those positions) is projected into its camera. The pixel is left out of the level's solve
 //! when another triangle more than the tolerance nearer covers its pixel (it is hidden), or when
 //! its pixel lies within `reach` pixels of a depth edge of the index buffer (two neighbouring
-//! pixels whose depths differ by more than the tolerance): on either side of an occluding edge
-//! whose two sides move differently. Either way the sample there, smoothed and
-//! interpolated, mixes two surfaces' colours; the templates keep the same distance from such
-//! edges in their own frame (`base::raster::trackable_mask`). The tolerance (twice the mesh's
-//! mean edge length) keeps a surface seen at a slant, whose neighbouring pixels differ in depth
-//! by the slant over one pixel, from counting as an edge. Decided once per level, so that the cost a level's steps compare is one
-//! function. Hand-written: the tracker's own index buffers (`base::raster`) on its own warps.
-//! Deterministic whatever the thread count.
+//! pixels whose depths differ by more than the tolerance; `reach` 0 at the coarsest level: on
+//! the edge itself): on either side of an occluding edge whose two sides move differently.
+//! Either way the sample there, smoothed and interpolated, mixes two surfaces' colours; the
+//! templates keep the same distance from such edges in their own frame
+//! (`base::raster::trackable_mask`). The tolerance (twice the mesh's mean edge length) keeps a
+//! surface seen at a slant, whose neighbouring pixels differ in depth by the slant over one
+//! pixel, from counting as an edge. Decided once per level, so that the cost a level's steps
+//! compare is one function. Hand-written: the tracker's own index buffers (`base::raster`) on
+//! its own warps. Deterministic whatever the thread count.
 
 use crate::base::camera::Projection;
 use crate::base::raster::{rasterize, IndexBuffer, NONE};

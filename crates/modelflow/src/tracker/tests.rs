@@ -1688,7 +1688,7 @@ fn a_strip_of_the_mesh_sweeping_in_front_of_it_does_not_drag_the_surface_behind(
         left_out * 1e3
     );
     assert!(hidden.iter().all(|&h| h > 0), "hidden per frame {hidden:?}");
-    // Measured: 2.80 mm kept, 0.22 mm left out (the strip itself about 0.4 mm either way).
+    // Measured: 2.80 mm kept, 0.23 mm left out (the strip itself about 0.4 mm either way).
     assert!(
         left_out < 0.25 * kept,
         "kept {kept:e}, left out {left_out:e}"
