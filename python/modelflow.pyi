@@ -64,6 +64,12 @@ class Tracker:
     @property
     def positions(self) -> npt.NDArray[np.float64]:
         """The current vertex positions, (V, 3)."""
+    @property
+    def first_mesh_moved(self) -> Optional[Dict[str, Any]]:
+        """When the scene's mesh lay off the surface the cameras agree on and was moved onto
+        it before tracking (option "onto_surface", on by default): {"found": {"pixels",
+        "length", "ratio", "at_limit", "closed"}, "median", "max"}, as run.json's
+        `first_mesh_moved`; else None."""
 
 def track_scene(
     scene: Scene,

@@ -313,6 +313,18 @@ impl Tracker {
     fn positions<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray2<f64>> {
         points(py, self.inner.positions().iter().map(|p| [p.x, p.y, p.z]))
     }
+
+    /// When the scene's mesh lay off the surface the cameras agree on and was moved onto it
+    /// before tracking (option "onto_surface", on by default): a dict with "found" (the
+    /// check's "pixels", "length", "ratio", "at_limit", "closed") and how far the vertices
+    /// moved ("median", "max", scene units), as `run.json`'s `first_mesh_moved`; else None.
+    #[getter]
+    fn first_mesh_moved<'py>(&self, py: Python<'py>) -> PyResult<Option<Bound<'py, PyAny>>> {
+        self.inner
+            .first_mesh_moved()
+            .map(|m| to_py(py, m))
+            .transpose()
+    }
 }
 
 /// Tracks the whole scene into the run folder `out` (as `modelflow track` does: one OBJ and one

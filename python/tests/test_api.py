@@ -57,6 +57,8 @@ def test_tracker_loop_gives_the_clis_result(cli_run):
         assert report["sigma"].shape == (1681,) and np.isfinite(report["sigma"]).all()
         cli_mesh = modelflow.read_run(cli_run)[f]
         assert np.abs(tracker.positions - cli_mesh).max() <= 1e-9
+    # The sample's mesh lies on the surface: nothing was moved before tracking.
+    assert tracker.first_mesh_moved is None
 
 
 def test_uint8_images_are_taken_too():

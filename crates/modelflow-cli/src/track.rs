@@ -97,6 +97,11 @@ pub struct TrackArgs {
     /// from the mesh where each pyramid level starts.
     #[arg(long)]
     pub keep_hidden: bool,
+    /// Track the first mesh as given even when it lies off the surface the cameras agree on (by
+    /// default such a mesh, e.g. a visual hull made from silhouettes, has its vertices moved
+    /// along their normals onto the surface before tracking; only a warning then).
+    #[arg(long)]
+    pub keep_shape: bool,
     /// Huber threshold on the RGB residual (image values 0..1; above 0, at most 10).
     #[arg(long, default_value_t = TrackOptions::default().solver.huber)]
     pub huber: f64,
@@ -195,6 +200,7 @@ impl TrackArgs {
             approach_decrease: self.approach_decrease,
             lent_anchor: self.lent_anchor,
             hidden_ahead: !self.keep_hidden,
+            onto_surface: !self.keep_shape,
             blur: self.blur,
             checkerboard: !self.all_pixels,
             rigid_first: !self.no_rigid_stage,
@@ -270,7 +276,8 @@ const SLIVER_RATIO: f64 = 1e-3;
 const ONE_CAMERA_WARN: f64 = 0.5;
 
 /// Warns when the cameras agree best with the first mesh moved along its normals
-/// (`tracker::surface_offset`): a mesh off the surface is followed short of every turn.
+/// (`tracker::surface_offset`): a mesh off the surface is followed short of every turn. Only
+/// with --keep-shape: otherwise the tracker itself moves such a mesh onto the surface.
 fn surface_check(scene: &Scene) -> anyhow::Result<()> {
     let images = scene.load_images(scene.first)?;
     let Some(off) =
@@ -288,7 +295,7 @@ fn surface_check(scene: &Scene) -> anyhow::Result<()> {
         (false, _) => "it lies off the surface, and the tracker will turn it short of or past every turn of the object",
     };
     eprintln!(
-        "warning: at frame {}, the cameras agree best with the mesh moved {}{:.1} px ({} {}) along its normals, {:.1}× better than where it is: {side} (docs/tracker.md, \"The first mesh must lie on the surface\"). Bring the mesh onto the surface first (modelflow align --surface).",
+        "warning: at frame {}, the cameras agree best with the mesh moved {}{:.1} px ({} {}) along its normals, {:.1}× better than where it is: {side} (docs/tracker.md, \"The first mesh must lie on the surface\"). Track without --keep-shape to have it moved onto the surface first (or modelflow align --surface).",
         scene.first,
         if off.at_limit { "at least " } else { "" },
         off.pixels,
@@ -349,10 +356,35 @@ pub fn run(args: Args, invocation: &Invocation) -> anyhow::Result<()> {
             100.0 * cover.one_camera_share()
         );
     }
-    surface_check(&scene)?;
+    if !opts.onto_surface {
+        surface_check(&scene)?;
+    }
     let mut run = run_options(args.out.mode(args.resume), invocation);
     run.gpu = gpu;
     let summary = run_scene(&scene, &opts, &args.out.out, &run)?;
+    if let Some(m) = &summary.first_mesh_moved {
+        let len = modelflow::base::Length::of(scene.units);
+        eprintln!(
+            "note: at frame {}, the cameras agreed best with the mesh moved {}{:.1} px ({} {}) along its normals, {:.1}× better than where it was given: {}. Every vertex was moved along its normal onto the surface before tracking (median {} {}, at most {} {}), and the run starts from there (docs/tracker.md, \"The first mesh must lie on the surface\"); --keep-shape tracks the mesh as given.",
+            scene.first,
+            if m.found.at_limit { "at least " } else { "" },
+            m.found.pixels,
+            len.show(m.found.length),
+            len.unit(),
+            m.found.ratio,
+            if !m.found.closed {
+                "it lay off the surface"
+            } else if m.found.pixels < 0.0 {
+                "it lay outside the surface (a visual hull made from silhouettes does)"
+            } else {
+                "it lay inside the surface"
+            },
+            len.show(m.median),
+            len.unit(),
+            len.show(m.max),
+            len.unit(),
+        );
+    }
     let resumed = match summary.resumed_from {
         Some(f) => format!(", resumed after frame {f}"),
         None => String::new(),

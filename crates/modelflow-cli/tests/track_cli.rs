@@ -502,16 +502,18 @@ fn a_triangle_soup_is_tracked_as_the_surface_it_makes_and_written_as_given() {
 }
 
 #[test]
-fn a_mesh_off_the_surface_is_named_before_tracking() {
+fn a_mesh_off_the_surface_is_moved_onto_it_before_tracking_and_named() {
     // The blob's mesh moved outward along its normals by 2 % of its size (a visual hull is
-    // that far out and more): the cameras agree best with it moved back in, and `track` says
-    // so; the mesh on the surface gives no such warning, nor does the mesh moved inward by
-    // less than the threshold.
-    use modelflow::input::write_obj;
+    // that far out and more): the cameras agree best with it moved back in, so `track` moves
+    // every vertex onto the surface before tracking, says so, records it in the manifest, and
+    // the run's first mesh is the moved one, on the surface. With --keep-shape it tracks the
+    // mesh as given and warns instead (inward too). The mesh on the surface, or moved by less
+    // than the threshold, is tracked as given, without a word.
+    use modelflow::input::{read_mesh, write_obj};
     let dir = tempfile::tempdir().unwrap();
     let (scene, mesh) = small_blob(dir.path());
     let err = track_ok(&scene, &dir.path().join("on"));
-    assert!(!err.contains("agree best"), "{err}");
+    assert!(!err.contains("agree"), "{err}");
     let normals = mesh.vertex_normals();
     let size = mesh.bbox_diagonal();
     let moved = |d: f64| {
@@ -523,7 +525,7 @@ fn a_mesh_off_the_surface_is_named_before_tracking() {
                 .collect(),
         )
     };
-    let run = |d: f64, name: &str| {
+    let run = |d: f64, name: &str, extra: &[&str]| {
         let file = dir.path().join(format!("{name}.obj"));
         write_obj(&file, &moved(d)).unwrap();
         let o = Command::new(env!("CARGO_BIN_EXE_modelflow"))
@@ -533,23 +535,53 @@ fn a_mesh_off_the_surface_is_named_before_tracking() {
             .arg(&file)
             .arg("--out")
             .arg(dir.path().join(name))
+            .args(extra)
             .output()
             .unwrap();
         let err = String::from_utf8_lossy(&o.stderr).to_string();
         assert!(o.status.success(), "{err}");
-        err
+        let first = read_mesh(&dir.path().join(name).join("0000.obj")).unwrap();
+        let mut off: Vec<f64> = first
+            .positions
+            .iter()
+            .zip(&mesh.positions)
+            .map(|(a, b)| (a - b).norm() / size)
+            .collect();
+        off.sort_by(f64::total_cmp);
+        (err, off[off.len() / 2])
     };
-    let err = run(0.02, "outside");
+    let (err, median) = run(0.02, "outside", &[]);
     assert!(
-        err.contains("warning: at frame 0, the cameras agree best with the mesh moved -")
-            && err.contains("it lies outside the surface"),
+        err.contains("note: at frame 0, the cameras agreed best with the mesh moved -")
+            && err.contains("it lay outside the surface")
+            && err.contains("Every vertex was moved along its normal onto the surface"),
         "{err}"
     );
-    let err = run(-0.02, "inside");
+    // Half a pixel is about 0.3 % of the blob's size at 320×240.
+    assert!(
+        median < 0.004,
+        "median vertex {median} of the size from the surface"
+    );
+    let manifest: serde_json::Value = serde_json::from_str(
+        &std::fs::read_to_string(dir.path().join("outside/run.json")).unwrap(),
+    )
+    .unwrap();
+    let found = &manifest["first_mesh_moved"]["found"];
+    assert!(found["pixels"].as_f64().unwrap() < -1.5, "{manifest}");
+    let (err, median) = run(0.02, "kept", &["--keep-shape"]);
+    assert!(
+        err.contains("warning: at frame 0, the cameras agree best with the mesh moved -")
+            && err.contains("it lies outside the surface")
+            && !err.contains("Every vertex was moved"),
+        "{err}"
+    );
+    assert!((median - 0.02).abs() < 1e-6, "{median}");
+    let (err, _) = run(-0.02, "inside", &["--keep-shape"]);
     assert!(
         err.contains("agree best") && err.contains("it lies inside the surface"),
         "{err}"
     );
-    let err = run(0.001, "close");
-    assert!(!err.contains("agree best"), "{err}");
+    let (err, median) = run(0.001, "close", &[]);
+    assert!(!err.contains("agree"), "{err}");
+    assert!((median - 0.001).abs() < 1e-6, "{median}");
 }

@@ -258,6 +258,11 @@ impl RunFolder {
         self.manifest.last_frame_check = Some(check);
     }
 
+    /// Records in the manifest that the tracker moved the first mesh onto the surface.
+    pub fn record_first_mesh_moved(&mut self, moved: crate::tracker::SurfaceMove) {
+        self.manifest.first_mesh_moved = Some(moved);
+    }
+
     /// Records how the run ended in the manifest.
     pub fn finish(&mut self, status: Status) -> Result<()> {
         self.manifest.status = status;

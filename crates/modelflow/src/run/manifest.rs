@@ -96,6 +96,11 @@ pub struct Manifest {
     /// complete, or one written before it existed.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub last_frame_check: Option<LastFrameCheck>,
+    /// When the scene's mesh lay off the surface the cameras agree on and the tracker moved it
+    /// onto it before tracking (`TrackOptions::onto_surface`): what the check found and how far
+    /// the vertices moved. The run's first mesh is the moved one.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub first_mesh_moved: Option<crate::tracker::SurfaceMove>,
 }
 
 /// The cross-camera check on a run's last frame, as a next frame's templates would have taken
@@ -138,6 +143,7 @@ impl Manifest {
             frames_completed: 0,
             resumed: Vec::new(),
             last_frame_check: None,
+            first_mesh_moved: None,
         })
     }
 

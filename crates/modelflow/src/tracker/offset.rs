@@ -15,9 +15,10 @@ use crate::tracker::sequence::{level_projection, tracked_mesh};
 use crate::tracker::solve::{Loss, Problem, SolverOptions};
 use nalgebra::{Point3, Vector3};
 use rayon::prelude::*;
+use serde::{Deserialize, Serialize};
 
 /// How far along its normals the mesh would have to move for the cameras to agree best.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 pub struct SurfaceOffset {
     /// In pixels of the images at the mesh (positive: along the normals, which for a closed
     /// mesh point outward, so a mesh outside the surface has a negative offset).
@@ -208,6 +209,47 @@ pub fn surface_offset(
     })
 }
 
+/// A first mesh found off the surface and moved onto it before tracking
+/// (`TrackOptions::onto_surface`, [`Tracker::first_mesh_moved`](crate::tracker::Tracker::first_mesh_moved)).
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct SurfaceMove {
+    /// What the check found where the mesh was given.
+    pub found: SurfaceOffset,
+    /// How far the vertices moved, in scene units: the median over the vertices.
+    pub median: f64,
+    /// The farthest any vertex moved, in scene units.
+    pub max: f64,
+}
+
+/// Rounds of [`onto_surface`] for a mesh moved before tracking (as `align --surface` does first).
+const ROUNDS: usize = 3;
+
+/// When the cameras at `frame` agree clearly better with `mesh` moved along its normals
+/// ([`SurfaceOffset::is_off`]), its vertices moved onto the surface ([`onto_surface`]) and what
+/// was done; `None` when the mesh lies on the surface (or the check cannot tell: fewer than two
+/// cameras see it).
+pub fn moved_onto_surface(
+    mesh: &Mesh,
+    cameras: &[Camera],
+    frame: u32,
+    images: &[RgbImage],
+) -> Option<(Vec<Point3<f64>>, SurfaceMove)> {
+    let found = surface_offset(mesh, cameras, frame, images)?;
+    if !found.is_off() {
+        return None;
+    }
+    let moved = onto_surface(mesh, cameras, frame, images, ROUNDS);
+    let mut d: Vec<f64> = moved
+        .iter()
+        .zip(&mesh.positions)
+        .map(|(a, b)| (a - b).norm())
+        .collect();
+    d.sort_by(f64::total_cmp);
+    let median = d.get(d.len() / 2).copied().unwrap_or(0.0);
+    let max = d.last().copied().unwrap_or(0.0);
+    Some((moved, SurfaceMove { found, median, max }))
+}
+
 /// `mesh` with every vertex moved along its normal onto the surface `cameras` agree on at
 /// `frame` (positions, one per vertex of `mesh`). Per vertex, the offset at which its
 /// triangles' cross-camera comparisons agree best (−10 to +10 px, refined by a parabola), trusted
@@ -281,7 +323,14 @@ pub fn onto_surface(
                 Some(ring[ring.len() / 2])
             })
             .collect();
-        let mut d: Vec<f64> = own.iter().map(|o| o.unwrap_or(0.0)).collect();
+        // Vertices without a clear minimum of their own (no two cameras see them) start from
+        // the median of the trusted offsets, not from where they are, so that the smoothing
+        // below fills a large unseen region (the underside, the back) with what the seen
+        // surface says about the mesh, rather than leaving its middle where it was.
+        let mut trusted: Vec<f64> = own.iter().flatten().copied().collect();
+        trusted.sort_by(f64::total_cmp);
+        let prior = trusted.get(trusted.len() / 2).copied().unwrap_or(0.0);
+        let mut d: Vec<f64> = own.iter().map(|o| o.unwrap_or(prior)).collect();
         for _ in 0..200 {
             d = (0..nv)
                 .map(|v| {

@@ -80,6 +80,15 @@ pub struct TrackOptions {
     /// level starts (`tracker::occlusion`). Off in runs made before it existed.
     #[serde(default)]
     pub hidden_ahead: bool,
+    /// A first mesh that lies off the surface the cameras agree on (a visual hull made from
+    /// silhouettes lies outside it; `tracker::surface_offset`: 1.5 px or more, clearly better
+    /// agreement there) has its vertices moved along their normals onto the surface before
+    /// tracking (`tracker::onto_surface`, as `align --surface` does), since a mesh off the
+    /// surface is turned short of every turn of the object. The triangulation and the vertices'
+    /// places along the surface are kept; the run's first mesh is the moved one. Off in runs
+    /// made before it existed.
+    #[serde(default)]
+    pub onto_surface: bool,
 }
 
 fn default_consensus() -> f64 {
@@ -109,6 +118,7 @@ impl Default for TrackOptions {
             approach_decrease: 0.03,
             lent_anchor: 1.0,
             hidden_ahead: true,
+            onto_surface: true,
         }
     }
 }
@@ -425,6 +435,28 @@ mod tests {
         assert_eq!(
             TrackOptions {
                 hidden_ahead: true,
+                ..read
+            },
+            TrackOptions::default()
+        );
+    }
+
+    #[test]
+    fn a_run_recorded_before_first_meshes_were_moved_onto_the_surface_resumes_as_given() {
+        // A resumed run rebuilds its first frame's templates from the scene's mesh: one made
+        // before the tracker moved a mesh off the surface onto it must rebuild them from the
+        // mesh as given, as it was made, while a new run moves it.
+        assert!(TrackOptions::default().onto_surface);
+        let mut old = serde_json::to_value(TrackOptions::default()).expect("options as JSON");
+        old.as_object_mut()
+            .expect("an object")
+            .remove("onto_surface")
+            .expect("the field is written");
+        let read: TrackOptions = serde_json::from_value(old).expect("an old run's options");
+        assert!(!read.onto_surface);
+        assert_eq!(
+            TrackOptions {
+                onto_surface: true,
                 ..read
             },
             TrackOptions::default()

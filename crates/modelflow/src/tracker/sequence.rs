@@ -20,6 +20,7 @@ use crate::tracker::consensus::{drop_contradicted, ConsensusOptions};
 use crate::tracker::gpu::Gpu;
 use crate::tracker::health;
 use crate::tracker::occlusion;
+use crate::tracker::offset::{moved_onto_surface, SurfaceMove};
 use crate::tracker::options::{OptionsUsed, TrackOptions};
 use crate::tracker::patch::{PatchOptions, PatchSet};
 use crate::tracker::pyramid::Pyramid;
@@ -162,6 +163,8 @@ pub struct Tracker {
     /// When the given mesh had vertices at the same place (split along seams, or a triangle
     /// soup): the tracker works on them merged (`Mesh::welded`), and this maps back.
     weld: Option<Weld>,
+    /// When the given mesh lay off the surface and was moved onto it (`TrackOptions::onto_surface`).
+    first_mesh_moved: Option<SurfaceMove>,
 }
 
 /// The mesh as the tracker works on it: vertices at the same place merged
@@ -231,6 +234,21 @@ impl Tracker {
                 ));
             }
         }
+        // A mesh off the surface the cameras agree on is moved onto it first: everything below
+        // (rest lengths, templates, the anchor) starts from the moved mesh.
+        let moved = if opts.onto_surface {
+            moved_onto_surface(mesh, &cameras, frame, images)
+        } else {
+            None
+        };
+        let moved_mesh;
+        let (mesh, first_mesh_moved) = match moved {
+            Some((positions, what)) => {
+                moved_mesh = mesh.with_positions(positions);
+                (&moved_mesh, Some(what))
+            }
+            None => (mesh, None),
+        };
         let opts = opts.resolved_for(cameras.iter().map(|c| (c.width, c.height)));
         let used = opts.used();
         let opts = used.options;
@@ -268,6 +286,7 @@ impl Tracker {
             before_prev: None,
             before_frame: frame,
             weld,
+            first_mesh_moved,
         };
         (t.anchor, t.contradicted_at_first) = t.anchor_patches(&t.prev, None);
         t.information_at_first = t.information_at_first();
@@ -444,6 +463,13 @@ impl Tracker {
             ));
         }
         Ok(())
+    }
+
+    /// When the mesh given to [`Tracker::new`] lay off the surface the cameras agree on and its
+    /// vertices were moved onto it before tracking (`TrackOptions::onto_surface`): what the
+    /// check found and how far they moved. [`Tracker::positions`] starts from the moved mesh.
+    pub fn first_mesh_moved(&self) -> Option<&SurfaceMove> {
+        self.first_mesh_moved.as_ref()
     }
 
     /// Current vertex positions (the last solved frame), one per vertex of the mesh given to

@@ -8,6 +8,7 @@ use crate::error::{Error, Result};
 use crate::input::scene::Scene;
 use crate::run::{write_run, FrameDetail, FrameLog, LastFrameCheck, Method, RunFolder, RunOptions};
 use crate::tracker::health::{Checks, FrameCheck};
+use crate::tracker::offset::SurfaceMove;
 use crate::tracker::options::TrackOptions;
 use crate::tracker::sequence::{prepare, Tracker};
 use serde::Serialize;
@@ -37,6 +38,9 @@ pub struct TrackSummary {
     pub suspect_frames: Vec<u32>,
     /// Every frame to check and why (`health`; `run::frames_to_check` reads them back from the folder), stalled and suspect ones alike.
     pub checks: Vec<FrameCheck>,
+    /// When the scene's mesh lay off the surface the cameras agree on and was moved onto it
+    /// before tracking (`TrackOptions::onto_surface`); the run's first mesh is the moved one.
+    pub first_mesh_moved: Option<SurfaceMove>,
 }
 
 /// Tracks a whole scene into the run folder `out_dir` (see `run` for the layout and the rules
@@ -84,9 +88,13 @@ fn track_into(
         tracker.set_cancel(c.clone());
     }
     tracker.set_gpu(run.gpu.clone());
+    let first_mesh_moved = tracker.first_mesh_moved().copied();
     let start = match resumed {
         None => {
-            folder.write_first(&scene.mesh)?;
+            folder.write_first(&scene.mesh.with_positions(tracker.positions().to_vec()))?;
+            if let Some(m) = first_mesh_moved {
+                folder.record_first_mesh_moved(m);
+            }
             scene.first
         }
         Some(last) if last == scene.first => last,
@@ -191,6 +199,7 @@ fn track_into(
         stalled_frames: pick(FrameCheck::stalled),
         suspect_frames: pick(FrameCheck::suspect),
         checks,
+        first_mesh_moved,
     })
 }
 
