@@ -42,8 +42,8 @@ def main():
         fail.append(f"metersPerUnit {UsdGeom.GetStageMetersPerUnit(stage)}, expected {a.meters_per_unit}")
     if list(mesh.GetFaceVertexIndicesAttr().Get()) != first["fv"]:
         fail.append("faceVertexIndices differ from the OBJ's faces")
-    if set(mesh.GetFaceVertexCountsAttr().Get()) != {3}:
-        fail.append("faces are not all triangles")
+    if list(mesh.GetFaceVertexCountsAttr().Get()) != first["fc"]:
+        fail.append("faceVertexCounts differ from the OBJ's faces' corner counts")
     api = UsdGeom.PrimvarsAPI(prim)
     if first["vt"]:
         st = api.GetPrimvar("st")

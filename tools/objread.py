@@ -1,12 +1,13 @@
-"""A minimal OBJ reader for the export checks (v, vt, vn, and f with v/vt/vn; triangles only,
-as modelflow writes them). Pure Python, so the checks need nothing but the consumer itself."""
+"""A minimal OBJ reader for the export checks (v, vt, vn, and f with v/vt/vn; faces of any
+corner count, as modelflow writes them: the input's polygons, or triangles). Pure Python, so the
+checks need nothing but the consumer itself."""
 
 import os
 import re
 
 
 def read_obj(path):
-    v, vt, vn, fv, ft, fn = [], [], [], [], [], []
+    v, vt, vn, fv, ft, fn, fc = [], [], [], [], [], [], []
     with open(path) as f:
         for line in f:
             p = line.split()
@@ -19,12 +20,13 @@ def read_obj(path):
             elif p[0] == "vn":
                 vn.append(tuple(float(x) for x in p[1:4]))
             elif p[0] == "f":
-                for c in p[1:4]:
+                fc.append(len(p) - 1)
+                for c in p[1:]:
                     parts = c.split("/") + ["", ""]
                     fv.append(int(parts[0]) - 1)
                     ft.append(int(parts[1]) - 1 if parts[1] else None)
                     fn.append(int(parts[2]) - 1 if parts[2] else None)
-    return {"v": v, "vt": vt, "vn": vn, "fv": fv, "ft": ft, "fn": fn}
+    return {"v": v, "vt": vt, "vn": vn, "fv": fv, "ft": ft, "fn": fn, "fc": fc}
 
 
 def read_run(run_dir):

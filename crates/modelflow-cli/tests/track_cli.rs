@@ -95,6 +95,80 @@ fn results_are_the_same_whatever_the_thread_count() {
 /// every frame as the input had them (the same `vt` table and indices), and `export` takes
 /// them on into USD.
 #[test]
+fn a_quad_mesh_is_tracked_and_written_back_as_quads() {
+    // An artist's cloth is a grid of quads. Tracked (as triangles, a fan per quad), every
+    // frame's OBJ and the USD export keep the quads, and the track is the triangulated mesh's.
+    let dir = tempfile::tempdir().unwrap();
+    let sample = concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../../fixtures/blender-cloth-sample"
+    );
+    let m = modelflow::input::read_mesh(&std::path::Path::new(sample).join("mesh/initial.obj"))
+        .unwrap();
+    let n = 41;
+    assert_eq!(m.positions.len(), n * n, "the sample's 41×41 grid");
+    let mut text = String::new();
+    for p in &m.positions {
+        text += &format!("v {} {} {}\n", p.x, p.y, p.z);
+    }
+    let mut quads = Vec::new();
+    for r in 0..n - 1 {
+        for c in 0..n - 1 {
+            let v = r * n + c + 1;
+            let q = format!("f {} {} {} {}", v, v + 1, v + n + 1, v + n);
+            text += &q;
+            text += "\n";
+            quads.push(q);
+        }
+    }
+    let mesh = dir.path().join("quads.obj");
+    std::fs::write(&mesh, &text).unwrap();
+    let out = dir.path().join("run");
+    let o = Command::new(env!("CARGO_BIN_EXE_modelflow"))
+        .args(["track", "--frames", "0..2", "--scene"])
+        .arg(format!("{sample}/scene.json"))
+        .arg("--mesh")
+        .arg(&mesh)
+        .arg("--out")
+        .arg(&out)
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    for f in 0..=2 {
+        let written = std::fs::read_to_string(out.join(format!("{f:04}.obj"))).unwrap();
+        let faces: Vec<&str> = written.lines().filter(|l| l.starts_with("f ")).collect();
+        assert_eq!(faces, quads, "frame {f}");
+    }
+    // Tracked as the same surface: frame 2 within 1 % of the size of the truth.
+    let truth =
+        modelflow::input::read_mesh(&std::path::Path::new(sample).join("truth/0002.obj")).unwrap();
+    let got = modelflow::input::read_mesh(&out.join("0002.obj")).unwrap();
+    let worst = got
+        .positions
+        .iter()
+        .zip(&truth.positions)
+        .map(|(a, b)| (a - b).norm())
+        .fold(0.0, f64::max);
+    assert!(worst < 0.01 * m.bbox_diagonal(), "{worst}");
+    let usd = dir.path().join("quads.usda");
+    let o = Command::new(env!("CARGO_BIN_EXE_modelflow"))
+        .args(["export", "--run"])
+        .arg(&out)
+        .arg("--out")
+        .arg(&usd)
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let usda = std::fs::read_to_string(&usd).unwrap();
+    let counts = usda
+        .lines()
+        .find(|l| l.contains("int[] faceVertexCounts"))
+        .expect("faceVertexCounts");
+    assert_eq!(counts.matches('4').count(), 1600, "{}", &counts[..80]);
+    assert!(!counts.contains('3'));
+}
+
+#[test]
 fn track_keeps_the_input_meshes_uvs_and_normals() {
     let dir = tempfile::tempdir().unwrap();
     let sample = concat!(
@@ -450,6 +524,7 @@ fn a_triangle_soup_is_tracked_as_the_surface_it_makes_and_written_as_given() {
         uvs: None,
         corner_uvs: None,
         corner_normals: None,
+        polygons: None,
     };
     // The same scene with the soup as its mesh (and no ground truth of the other topology).
     let folder = scene.parent().unwrap();

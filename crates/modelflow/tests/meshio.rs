@@ -67,7 +67,8 @@ fn obj_keeps_seams_and_normals_through_writing_and_moving() {
     let p = dir.path().join("out.obj");
     write_obj(&p, &m).unwrap();
     let text = std::fs::read_to_string(&p).unwrap();
-    assert!(text.contains("\nf 2/5/2 7/6/2 8/7/2\n"), "{text}");
+    // The quads are written as quads, as the input had them.
+    assert!(text.contains("\nf 2/5/2 7/6/2 8/7/2 3/8/2\n"), "{text}");
     let back = read_mesh(&p).unwrap();
     assert_eq!(back.corner_uvs, m.corner_uvs);
     assert_eq!(back.corner_normals, m.corner_normals);
@@ -111,6 +112,7 @@ fn obj_face_forms_quads_and_negative_indices() {
     assert_eq!(m.positions.len(), 5);
     assert_eq!(m.positions[4], Point3::new(2.0, 0.0, 0.5));
     assert_eq!(m.triangles, vec![[0, 1, 2], [0, 2, 3], [1, 4, 2]]);
+    assert_eq!(m.polygons.as_deref(), Some(&vec![4, 3]));
     // The last face has no vt: per-vertex uvs are not defined.
     assert!(m.uvs.is_none());
 
@@ -125,6 +127,54 @@ fn obj_face_forms_quads_and_negative_indices() {
                 f 1/1 2/2 3/3\nf 1/4 3/3 4/2\n";
     let m = read_mesh(&write(dir.path(), "s.obj", text.as_bytes())).unwrap();
     assert!(m.uvs.is_none());
+}
+
+#[test]
+fn obj_polygons_are_written_back_as_the_input_had_them() {
+    // An artist's mesh of quads, a pentagon and a triangle, with seams in its UVs and split
+    // normals: tracked as triangles, written back with the same faces and the same vt/vn
+    // indices at every corner, at the first frame and after the vertices moved.
+    let dir = tempfile::tempdir().unwrap();
+    let text = "v 0 0 0\nv 1 0 0\nv 2 0 0\nv 0 1 0\nv 1 1 0\nv 2 1 0\nv 3 0.5 0\nv 1 2 0\n\
+                vt 0 0\nvt 0.5 0\nvt 1 0\nvt 0 0.5\nvt 0.5 0.5\nvt 1 0.5\nvt 0.9 0.2\nvt 0.5 1\nvt 0.6 0\n\
+                vn 0 0 1\nvn 0 0.6 0.8\n\
+                f 1/1/1 2/2/1 5/5/1 4/4/1\n\
+                f 2/9/2 3/3/2 7/7/2 6/6/2 5/5/2\n\
+                f 4/4/1 5/5/1 8/8/1\n\
+                f 5/5/1 6/6/1 8/8/1\n";
+    let src = write(dir.path(), "artist.obj", text.as_bytes());
+    let m = read_mesh(&src).unwrap();
+    assert_eq!(m.polygons.as_deref(), Some(&vec![4, 5, 3, 3]));
+    assert_eq!(m.triangles.len(), 2 + 3 + 1 + 1);
+    let faces = |path: &Path| -> Vec<String> {
+        std::fs::read_to_string(path)
+            .unwrap()
+            .lines()
+            .filter(|l| l.starts_with("f "))
+            .map(str::to_string)
+            .collect()
+    };
+    let out = dir.path().join("out.obj");
+    write_obj(&out, &m).unwrap();
+    let input: Vec<String> = text
+        .lines()
+        .filter(|l| l.starts_with("f "))
+        .map(str::to_string)
+        .collect();
+    assert_eq!(faces(&out), input);
+    assert_eq!(read_mesh(&out).unwrap(), m);
+    let moved = m.with_positions(
+        m.positions
+            .iter()
+            .map(|p| Point3::new(p.x, p.y, 0.1 * p.x * p.y))
+            .collect(),
+    );
+    write_obj(&out, &moved).unwrap();
+    assert_eq!(faces(&out), input);
+    // A mesh whose triangles no longer match the faces (another topology) is written as
+    // triangles, not as faces that would be wrong.
+    write_obj(&out, &m.with_triangles(vec![[0, 1, 4], [0, 4, 3]])).unwrap();
+    assert_eq!(faces(&out), vec!["f 1 2 5", "f 1 5 4"]);
 }
 
 #[test]
@@ -180,10 +230,14 @@ fn square() -> (Vec<[f64; 3]>, Vec<Vec<u32>>) {
 
 fn expected() -> Mesh {
     let (v, _) = square();
-    Mesh::new(
-        v.iter().map(|p| Point3::new(p[0], p[1], p[2])).collect(),
-        vec![[0, 1, 2], [0, 2, 3], [1, 4, 2]],
-    )
+    Mesh {
+        // The quad and the triangle, kept as faces for writing.
+        polygons: Some(std::sync::Arc::new(vec![4, 3])),
+        ..Mesh::new(
+            v.iter().map(|p| Point3::new(p[0], p[1], p[2])).collect(),
+            vec![[0, 1, 2], [0, 2, 3], [1, 4, 2]],
+        )
+    }
 }
 
 const HEADER_BODY: &str = "comment written by a test\n\

@@ -41,6 +41,11 @@ pub struct Mesh {
     pub corner_uvs: Option<Arc<CornerTable<2>>>,
     /// The input file's normals per triangle corner (`f v//vn`), when every corner has one.
     pub corner_normals: Option<Arc<CornerNormals>>,
+    /// The input file's faces, when some had more than three corners (an artist's quads): each
+    /// face's corner count, in the file's order. Face `f`'s triangles are the next `n − 2` of
+    /// `triangles`, a fan from its first corner (as the readers triangulate), so the faces are
+    /// rebuilt from the triangles ([`Mesh::face_corners`]) and the meshes written keep them.
+    pub polygons: Option<Arc<Vec<u32>>>,
 }
 
 impl Mesh {
@@ -51,6 +56,7 @@ impl Mesh {
             uvs: None,
             corner_uvs: None,
             corner_normals: None,
+            polygons: None,
         }
     }
 
@@ -76,6 +82,40 @@ impl Mesh {
             uvs: self.uvs.clone(),
             corner_uvs: self.corner_uvs.clone(),
             corner_normals: self.corner_normals.clone(),
+            polygons: self.polygons.clone(),
+        }
+    }
+
+    /// The faces to write: each face's corner count, and per corner (face by face, in order)
+    /// the triangle and the corner of it (0 to 2) that carries its vertex and face-varying
+    /// indices. The input's polygons ([`Mesh::polygons`]) where they match the triangles,
+    /// otherwise the triangles themselves.
+    pub fn face_corners(&self) -> (Vec<u32>, Vec<(u32, u8)>) {
+        let fits = |p: &Vec<u32>| {
+            p.iter().all(|&n| n >= 3)
+                && p.iter().map(|&n| n as usize - 2).sum::<usize>() == self.triangles.len()
+        };
+        match self.polygons.as_deref().filter(|p| fits(p)) {
+            Some(p) => {
+                let mut corners = Vec::with_capacity(self.triangles.len() + 2 * p.len());
+                let mut t = 0u32;
+                for &n in p {
+                    // The fan (c0, c1, c2), (c0, c2, c3), ...: its first triangle's three
+                    // corners, then each next triangle's last.
+                    corners.extend([(t, 0), (t, 1), (t, 2)]);
+                    for k in 1..n - 2 {
+                        corners.push((t + k, 2));
+                    }
+                    t += n - 2;
+                }
+                (p.clone(), corners)
+            }
+            None => (
+                vec![3; self.triangles.len()],
+                (0..self.triangles.len() as u32)
+                    .flat_map(|t| [(t, 0), (t, 1), (t, 2)])
+                    .collect(),
+            ),
         }
     }
 
@@ -88,6 +128,7 @@ impl Mesh {
             uvs: self.uvs.clone(),
             corner_uvs: None,
             corner_normals: None,
+            polygons: None,
         }
     }
 
@@ -202,6 +243,7 @@ impl Mesh {
             uvs: None,
             corner_uvs: None,
             corner_normals: None,
+            polygons: None,
         };
         Some((mesh, of_vertex))
     }
@@ -479,6 +521,7 @@ mod tests {
             uvs: None,
             corner_uvs: None,
             corner_normals: None,
+            polygons: None,
         };
         let (t, turned) = m(outward.clone()).facing_outward();
         assert_eq!((t, turned), (outward.clone(), 0));
@@ -522,6 +565,7 @@ mod tests {
             uvs: None,
             corner_uvs: None,
             corner_normals: None,
+            polygons: None,
         };
         let (w, of) = m.welded().unwrap();
         assert_eq!(

@@ -18,16 +18,19 @@ pub(crate) fn usda(
     opts: &ExportOptions,
 ) -> String {
     let (f0, first) = (&frames[0].0, &frames[0].1);
+    // The input's polygons where it had them (a quad stays a quad), else the triangles; every
+    // face-varying table below follows the same corners.
+    let (counts, corners) = first.face_corners();
     let last = frames[frames.len() - 1].0;
     let mut o = String::new();
     let _ = writeln!(o, "#usda 1.0\n(");
     let _ = writeln!(
         o,
-        "    doc = \"modelflow {}: {} frames of a tracked mesh ({} vertices, {} triangles)\"",
+        "    doc = \"modelflow {}: {} frames of a tracked mesh ({} vertices, {} faces)\"",
         env!("CARGO_PKG_VERSION"),
         frames.len(),
         first.positions.len(),
-        first.triangles.len()
+        counts.len()
     );
     let _ = writeln!(o, "    defaultPrim = \"tracked\"");
     let _ = writeln!(o, "    startTimeCode = {f0}\n    endTimeCode = {last}");
@@ -45,10 +48,18 @@ pub(crate) fn usda(
     );
     let _ = writeln!(o, "        uniform token subdivisionScheme = \"none\"");
     let _ = writeln!(o, "        uniform token orientation = \"rightHanded\"");
+    let at = |index: &[[u32; 3]]| -> Vec<u32> {
+        corners
+            .iter()
+            .map(|&(t, k)| index[t as usize][k as usize])
+            .collect()
+    };
     let _ = write!(o, "        int[] faceVertexCounts = [");
-    list(&mut o, first.triangles.iter(), |o, _| o.push('3'));
+    list(&mut o, counts.iter(), |o, n| {
+        let _ = write!(o, "{n}");
+    });
     let _ = write!(o, "]\n        int[] faceVertexIndices = [");
-    list(&mut o, first.triangles.iter().flatten(), |o, v| {
+    list(&mut o, at(&first.triangles).iter(), |o, v| {
         let _ = write!(o, "{v}");
     });
     o.push_str("]\n");
@@ -73,7 +84,7 @@ pub(crate) fn usda(
                 let _ = write!(o, "({:?}, {:?})", uv[0] as f32, uv[1] as f32);
             });
         });
-        indices(&mut o, "primvars:st:indices", &t.index);
+        indices(&mut o, "primvars:st:indices", &at(&t.index));
     } else if let Some(uvs) = first
         .uvs
         .as_ref()
@@ -100,7 +111,7 @@ pub(crate) fn usda(
                 );
             });
         });
-        indices(&mut o, "primvars:normals:indices", &n.table.index);
+        indices(&mut o, "primvars:normals:indices", &at(&n.table.index));
     }
     if !confidence.is_empty() {
         let fields: [(&str, ConfidenceField); 3] = [
@@ -166,9 +177,9 @@ fn primvar(o: &mut String, decl: &str, interpolation: &str, values: impl FnOnce(
     );
 }
 
-fn indices(o: &mut String, name: &str, index: &[[u32; 3]]) {
+fn indices(o: &mut String, name: &str, index: &[u32]) {
     let _ = write!(o, "        int[] {name} = [");
-    list(o, index.iter().flatten(), |o, v| {
+    list(o, index.iter(), |o, v| {
         let _ = write!(o, "{v}");
     });
     o.push_str("]\n");

@@ -178,6 +178,8 @@ pub fn parse_obj(path: &Path, text: &str, checks: Checks) -> Result<Mesh> {
     let mut corner_vt: Option<Vec<[u32; 3]>> = Some(Vec::new());
     let mut corner_vn: Option<Vec<[u32; 3]>> = Some(Vec::new());
     let mut tri_lines: Vec<usize> = Vec::new();
+    // Each face's corner count (kept as the mesh's polygons when one has more than three).
+    let mut face_sizes: Vec<u32> = Vec::new();
     // Vertex -> vt index seen in faces; `uv_ok` turns false on any inconsistency.
     let mut uv_of: Vec<Option<usize>> = Vec::new();
     let mut uv_ok = true;
@@ -293,6 +295,7 @@ pub fn parse_obj(path: &Path, text: &str, checks: Checks) -> Result<Mesh> {
                 if corners.iter().any(|c| c.2.is_none()) {
                     corner_vn = None;
                 }
+                face_sizes.push(corners.len() as u32);
                 for k in 1..corners.len() - 1 {
                     let tri = [corners[0], corners[k], corners[k + 1]];
                     triangles.push(tri.map(|c| c.0));
@@ -328,6 +331,10 @@ pub fn parse_obj(path: &Path, text: &str, checks: Checks) -> Result<Mesh> {
     };
     let mut mesh = Mesh {
         uvs,
+        polygons: face_sizes
+            .iter()
+            .any(|&n| n > 3)
+            .then(|| Arc::new(face_sizes)),
         ..Mesh::new(positions, triangles)
     };
     validate(path, &mesh, checks, 1, |i| format!("line {}", tri_lines[i]))?;
@@ -409,10 +416,14 @@ pub fn write_obj(path: &Path, mesh: &Mesh) -> Result<()> {
             }
         }
         let vn_index = mesh.corner_normals.as_ref().map(|n| &n.table.index);
-        for (i, t) in mesh.triangles.iter().enumerate() {
+        // The input's polygons where it had them (a quad stays a quad), else the triangles.
+        let (counts, corners) = mesh.face_corners();
+        let mut corners = corners.into_iter();
+        for n in counts {
             w.write_all(b"f")?;
-            for k in 0..3 {
-                let v = t[k] as u64 + 1;
+            for (i, k) in corners.by_ref().take(n as usize) {
+                let (i, k) = (i as usize, k as usize);
+                let v = mesh.triangles[i][k] as u64 + 1;
                 let vt = match (&mesh.corner_uvs, vertex_uvs) {
                     (Some(c), _) => Some(c.index[i][k] as u64 + 1),
                     (None, Some(_)) => Some(v),
@@ -702,6 +713,7 @@ fn read_ply_body(
     let mut uvs: Vec<[f64; 2]> = Vec::new();
     let mut triangles = Vec::new();
     let mut tri_faces: Vec<usize> = Vec::new();
+    let mut face_sizes: Vec<u32> = Vec::new();
     let mut saw_vertex = false;
     let mut poly: Vec<u32> = Vec::new();
     for el in elements {
@@ -782,6 +794,7 @@ fn read_ply_body(
                                     format!("a face needs at least 3 vertices, got {}", poly.len()),
                                 ));
                             }
+                            face_sizes.push(poly.len() as u32);
                             for k in 1..poly.len() - 1 {
                                 triangles.push([poly[0], poly[k], poly[k + 1]]);
                                 tri_faces.push(i);
@@ -809,6 +822,10 @@ fn read_ply_body(
     let has_uv = !uvs.is_empty();
     let mesh = Mesh {
         uvs: has_uv.then_some(uvs),
+        polygons: face_sizes
+            .iter()
+            .any(|&n| n > 3)
+            .then(|| Arc::new(face_sizes)),
         ..Mesh::new(positions, triangles)
     };
     validate(path, &mesh, checks, 0, |i| {
