@@ -46,6 +46,22 @@ fn checks_section(o: &mut String, runs: &[RunSummary], plotted: bool) {
             "<span class=\"swatch\" style=\"background:{}\"></span>",
             crate::report::draw::css(crate::report::colormap::run_colour(i))
         );
+        if let Some(m) = &r.first_mesh_moved {
+            let _ = writeln!(
+                o,
+                "<p>{swatch}{}: the scene's mesh lay {:.1} px {} the surface the cameras agree on at the first frame (they agreed {:.1}× better there), so the tracker moved every vertex along its normal onto it before tracking (median {:.3}, at most {:.3} scene units) and the run starts from the moved mesh: its first frame is not the scene's mesh (docs/tracker.md, \"The first mesh must lie on the surface\").</p>",
+                esc(&r.name),
+                m.found.pixels.abs(),
+                match (m.found.closed, m.found.pixels < 0.0) {
+                    (true, true) => "outside",
+                    (true, false) => "inside",
+                    (false, _) => "off",
+                },
+                m.found.ratio,
+                m.median,
+                m.max
+            );
+        }
         match &r.checks {
             None => {
                 let _ = writeln!(

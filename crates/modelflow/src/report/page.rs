@@ -77,6 +77,9 @@ pub struct RunSummary {
     /// The frames the tracker's own checks flag, and why (`run::frames_to_check` over the
     /// run's `log.jsonl`); `None` when the run has no tracker log (the baseline, a bare folder).
     pub checks: Option<Vec<FrameCheck>>,
+    /// When the tracker moved the run's first mesh onto the surface before tracking (the
+    /// manifest's `first_mesh_moved`): the run's first frame is not the scene's mesh.
+    pub first_mesh_moved: Option<crate::tracker::SurfaceMove>,
 }
 
 /// What [`write_report`] wrote.
@@ -295,6 +298,8 @@ pub fn write_report(
                 photometric: None,
                 seconds_per_frame: *s,
                 checks: h.as_ref().map(|h| h.checks.clone()),
+                first_mesh_moved: first_mesh_moved(&r.dir)
+                    .map_err(|e| context(&r.name, &r.dir, e))?,
             });
         }
     } else {
@@ -338,6 +343,8 @@ pub fn write_report(
                 photometric: Some(c),
                 seconds_per_frame: *s,
                 checks: h.as_ref().map(|h| h.checks.clone()),
+                first_mesh_moved: first_mesh_moved(&r.dir)
+                    .map_err(|e| context(&r.name, &r.dir, e))?,
             });
         }
     }
@@ -600,6 +607,15 @@ fn read_health(scene: &Scene, dir: &Path) -> Result<Option<Health>> {
     }
     let measures = by_frame.into_iter().map(|(f, (i, c))| (f, i, c)).collect();
     Ok(Some(Health { checks, measures }))
+}
+
+/// The manifest's `first_mesh_moved`, when the folder has a manifest.
+fn first_mesh_moved(dir: &Path) -> Result<Option<crate::tracker::SurfaceMove>> {
+    let manifest = dir.join(crate::run::MANIFEST);
+    if !manifest.is_file() {
+        return Ok(None);
+    }
+    Ok(crate::run::Manifest::read(&manifest)?.first_mesh_moved)
 }
 
 /// Band colours: suspect frames, stalled frames.

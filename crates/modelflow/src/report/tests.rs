@@ -381,6 +381,33 @@ fn frames_the_tracker_doubts_are_listed_shaded_plotted_and_drawn() {
     tracker_log(&tracked, (5, 0.4), 8);
     make_run(&scene, &clean, 0.0, None);
     tracker_log(&clean, (0, 0.0), 0);
+    // The clean run's first mesh was moved onto the surface before tracking (its manifest says so).
+    let mut manifest = crate::run::Manifest::new(
+        crate::run::Method::ModelFlow,
+        &scene,
+        Vec::new(),
+        crate::run::Options {
+            given: Default::default(),
+            used: serde_json::Value::Null,
+        },
+    )
+    .unwrap();
+    manifest.first_mesh_moved = Some(crate::tracker::SurfaceMove {
+        found: crate::tracker::SurfaceOffset {
+            pixels: -4.93,
+            length: -0.0187,
+            ratio: 12.8,
+            at_limit: false,
+            closed: true,
+        },
+        median: 0.0181,
+        max: 0.0266,
+    });
+    std::fs::write(
+        clean.join(crate::run::MANIFEST),
+        serde_json::to_string(&manifest).unwrap(),
+    )
+    .unwrap();
     make_run(&scene, &baseline, 0.0, Some(&[0.1; 11]));
     let runs = vec![
         ("tracked".to_string(), tracked),
@@ -410,6 +437,10 @@ fn frames_the_tracker_doubts_are_listed_shaded_plotted_and_drawn() {
         "the other cameras contradict 40 % of where this frame left the surface, against 2 % at the first frame"
     ));
     assert!(html.contains("clean: <b>no frame to check</b>"));
+    assert!(
+        summary.runs[1].first_mesh_moved.is_some() && summary.runs[0].first_mesh_moved.is_none()
+    );
+    assert!(html.contains("clean: the scene's mesh lay 4.9 px outside the surface the cameras agree on at the first frame (they agreed 12.8× better there), so the tracker moved every vertex along its normal onto it before tracking (median 0.018, at most 0.027 scene units)"), "{html}");
     assert!(html.contains("baseline: no tracker log"));
     // The error plot shades the flagged frames: 4–5 suspect, 8 stalled.
     let svg = std::fs::read_to_string(out.join("error.svg")).unwrap();
