@@ -13,7 +13,7 @@ import sys
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 from objread import close, read_run, scale_of  # noqa: E402
-from pxr import Usd, UsdGeom  # noqa: E402
+from pxr import Gf, Usd, UsdGeom  # noqa: E402
 
 
 def main():
@@ -101,11 +101,48 @@ def main():
         checked_conf = f" and confidence at frame {f}"
     else:
         checked_conf = ""
+    # The cameras: each scene camera (K, R, t, as OpenCV projects: pixel centres at integer
+    # coordinates) projects the first frame's vertices where USD's own camera (Gf.Camera's
+    # frustum, its view and projection matrices) puts them, within 1e-3 px.
+    checked_cams = ""
+    manifest = os.path.join(a.run, "run.json")
+    if os.path.isfile(manifest):
+        import json
+        scene_path = json.load(open(manifest))["scene"]["path"]
+        scene = json.load(open(scene_path))
+        by_name = {}
+        cams_prim = stage.GetDefaultPrim().GetChild("cameras")
+        for p in (cams_prim.GetChildren() if cams_prim else []):
+            by_name[p.GetAttribute("modelflow:name").Get()] = p
+        worst = 0.0
+        for c in scene["cameras"]:
+            if not all(k in c for k in ("K", "R", "t")):
+                continue
+            p = by_name.get(c["name"])
+            if p is None:
+                fail.append(f"camera {c['name']}: no Camera prim")
+                continue
+            K, R, t = c["K"], c["R"], c["t"]
+            W, H = c["width"], c["height"]
+            frustum = UsdGeom.Camera(p).GetCamera(Usd.TimeCode(frames[0])).frustum
+            view, proj = frustum.ComputeViewMatrix(), frustum.ComputeProjectionMatrix()
+            for X in first["v"]:
+                xc = [sum(R[i][j] * X[j] for j in range(3)) + t[i] for i in range(3)]
+                u = (K[0][0] * xc[0] + K[0][1] * xc[1]) / xc[2] + K[0][2]
+                v = K[1][1] * xc[1] / xc[2] + K[1][2]
+                n = proj.Transform(view.Transform(Gf.Vec3d(*X)))
+                gu = (n[0] + 1) / 2 * W - 0.5
+                gv = (1 - n[1]) / 2 * H - 0.5
+                worst = max(worst, abs(gu - u), abs(gv - v))
+        if worst > 1e-3:
+            fail.append(f"cameras: USD projects the vertices up to {worst:.2e} px from the scene's cameras")
+        if by_name:
+            checked_cams = f", {len(by_name)} cameras project as the scene's (within {worst:.1e} px)"
     if fail:
         print(f"usd check FAILED ({a.usd}):\n  " + "\n  ".join(fail))
         sys.exit(1)
     print(f"usd check OK: {a.usd} opened by USD {Usd.GetVersion()}, {len(frames)} frames, "
-          f"points equal the run's OBJs at frames {checked} (within 1e-6 of {scale:.3g}){checked_conf}")
+          f"points equal the run's OBJs at frames {checked} (within 1e-6 of {scale:.3g}){checked_conf}{checked_cams}")
 
 
 main()

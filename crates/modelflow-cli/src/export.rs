@@ -56,8 +56,14 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     };
     let s = export_run(&args.run, format, &args.out, &opts)?;
     eprintln!(
-        "exported {} frames of {} vertices and {} triangles",
-        s.frames, s.vertices, s.triangles
+        "exported {} frames of {} vertices and {} triangles{}",
+        s.frames,
+        s.vertices,
+        s.triangles,
+        match s.cameras {
+            0 => String::new(),
+            n => format!(", with the scene's {n} cameras"),
+        }
     );
     for f in &s.files {
         println!("{}", f.display());

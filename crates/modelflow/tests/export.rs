@@ -143,6 +143,57 @@ fn usd_export_of_a_tracked_run_carries_its_confidence() {
 }
 
 #[test]
+fn usd_export_carries_the_scenes_cameras_as_pixar_usd_projects_them() {
+    // The real webcams of the caliscope sample: principal points off centre, fx ≠ fy, four
+    // cameras around the board. A run folder of its first frames (the fitted truth) whose
+    // run.json names the scene: the USD export holds one Camera prim per scene camera, and
+    // Pixar's own camera model (Gf.Camera's frustum) projects the mesh's vertices where the
+    // scene's K, R, t do, to a thousandth of a pixel (tools/check_usd.py).
+    let dir = tempfile::tempdir().unwrap();
+    let scene_path = repo().join("fixtures/caliscope-board-sample/scene.json");
+    let scene = modelflow::input::Scene::load(&scene_path)
+        .unwrap()
+        .with_frames(0, 2)
+        .unwrap();
+    let run = dir.path().join("run");
+    std::fs::create_dir_all(&run).unwrap();
+    for f in 0..=2u32 {
+        let truth =
+            read_mesh(&repo().join(format!("fixtures/caliscope-board-sample/truth/{f:04}.obj")))
+                .unwrap();
+        write_obj(&run.join(format!("{f:04}.obj")), &truth).unwrap();
+    }
+    let manifest = modelflow::run::Manifest::new(
+        modelflow::run::Method::ModelFlow,
+        &scene,
+        Vec::new(),
+        modelflow::run::Options {
+            given: Default::default(),
+            used: serde_json::Value::Null,
+        },
+    )
+    .unwrap();
+    std::fs::write(
+        run.join("run.json"),
+        serde_json::to_string(&manifest).unwrap(),
+    )
+    .unwrap();
+    let usd = dir.path().join("board.usda");
+    let s = export_run(&run, ExportFormat::Usda, &usd, &ExportOptions::default()).unwrap();
+    assert_eq!(s.cameras, 4);
+    let text = std::fs::read_to_string(&usd).unwrap();
+    assert_eq!(text.matches("def Camera \"").count(), 4);
+    check_usd(&run, &usd, &[]);
+    // Without a scene to read, the mesh alone.
+    std::fs::remove_file(run.join("run.json")).unwrap();
+    let s = export_run(&run, ExportFormat::Usda, &usd, &ExportOptions::default()).unwrap();
+    assert_eq!(s.cameras, 0);
+    assert!(!std::fs::read_to_string(&usd)
+        .unwrap()
+        .contains("def Camera"));
+}
+
+#[test]
 fn point_caches_come_with_the_first_frame_as_obj_and_glb_reads_back() {
     let dir = tempfile::tempdir().unwrap();
     let run = folded_run(dir.path());

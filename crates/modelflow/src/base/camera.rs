@@ -77,6 +77,33 @@ impl Projection {
         Ok(Projection { p, center })
     }
 
+    /// The calibration `K` (upper triangular, positive diagonal, `K[2][2] = 1`), rotation `R`
+    /// and translation `t` with `P = K·[R | t]` up to a positive scale: what `from_krt` was
+    /// given, for a matrix made from it. By RQ decomposition of `P`'s left 3×3 block, written
+    /// here from nalgebra's QR (it has no RQ): with `J` the row reversal, `(J·M)ᵀ = Q·U` gives
+    /// `M = (J·Uᵀ·J)·(J·Qᵀ)`, an upper triangular matrix times an orthogonal one.
+    pub fn krt(&self) -> (Matrix3<f64>, Matrix3<f64>, Vector3<f64>) {
+        let m: Matrix3<f64> = self.p.fixed_view::<3, 3>(0, 0).into_owned();
+        let j = Matrix3::new(0.0, 0.0, 1.0, 0.0, 1.0, 0.0, 1.0, 0.0, 0.0);
+        let qr = (j * m).transpose().qr();
+        let mut k = j * qr.r().transpose() * j;
+        let mut r = j * qr.q().transpose();
+        // M = (K·D)·(D·R) for D = diag(±1): make K's diagonal positive. `from_matrix` made
+        // det M > 0, so R is then a rotation (det +1).
+        for i in 0..3 {
+            if k[(i, i)] < 0.0 {
+                k.column_mut(i).neg_mut();
+                r.row_mut(i).neg_mut();
+            }
+        }
+        let s = k[(2, 2)];
+        let k = k / s;
+        let t = k
+            .try_inverse()
+            .map_or_else(Vector3::zeros, |ki| ki * self.p.column(3) / s);
+        (k, r, t)
+    }
+
     /// The normalised 3×4 matrix.
     pub fn matrix(&self) -> &Matrix3x4<f64> {
         &self.p
@@ -246,6 +273,25 @@ pub fn look_at(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn k_r_and_t_come_back_from_the_projection_matrix() {
+        // A principal point off centre, non-square pixels, a skew-free K; any scale and sign of
+        // the matrix gives the same camera back.
+        let k = Matrix3::new(812.5, 0.0, 330.25, 0.0, 798.0, 241.75, 0.0, 0.0, 1.0);
+        let r = nalgebra::Rotation3::from_scaled_axis(Vector3::new(0.3, -1.1, 0.45)).into_inner();
+        let t = Vector3::new(0.2, -0.15, 2.7);
+        let p = Projection::from_krt(&k, &r, &t).unwrap();
+        for scaled in [
+            p.clone(),
+            Projection::from_matrix(&(p.matrix() * -3.5)).unwrap(),
+        ] {
+            let (k2, r2, t2) = scaled.krt();
+            assert!((k2 - k).abs().max() < 1e-9, "{k2}");
+            assert!((r2 - r).abs().max() < 1e-12, "{r2}");
+            assert!((t2 - t).abs().max() < 1e-12, "{t2}");
+        }
+    }
 
     fn cam() -> Projection {
         let k = Matrix3::new(500.0, 0.0, 319.5, 0.0, 400.0, 239.5, 0.0, 0.0, 1.0);

@@ -3,8 +3,10 @@
 //! targets), or a PC2 / MDD point cache with the first frame's mesh as OBJ beside it. Topology,
 //! texture coordinates and normals come from the run's first frame, positions from every frame.
 //! The file formats are written by hand (no maintained Rust crate writes USD or point caches;
-//! glTF's JSON is small enough to build with `serde_json`), each atomically. This module knows
-//! nothing of cameras, images or tracking.
+//! glTF's JSON is small enough to build with `serde_json`), each atomically. USD also carries
+//! the scene's cameras ([`ExportCamera`]: their projections, as pinhole cameras), so the mesh
+//! can be looked at through them over the footage. This module knows nothing of images or
+//! tracking.
 
 mod cache;
 mod gltf;
@@ -75,12 +77,49 @@ impl Default for ExportOptions {
     }
 }
 
+/// A camera written into the USD export beside the mesh: its name, image size and projection
+/// (`P = K·[R | t]`, pixel centres at integer coordinates; the pinhole camera of the frames as
+/// the tracker sees them, lens distortion removed). `views`: one projection for a camera that
+/// does not move, else one per frame written.
+#[derive(Clone, Debug)]
+pub struct ExportCamera {
+    pub name: String,
+    pub width: u32,
+    pub height: u32,
+    pub views: Vec<(u32, crate::base::Projection)>,
+}
+
+impl ExportCamera {
+    /// The scene camera `camera` at `frames` (one view when it does not move).
+    pub fn of(camera: &crate::base::Camera, frames: impl IntoIterator<Item = u32>) -> Self {
+        let views = if camera.is_moving() {
+            frames
+                .into_iter()
+                .map(|f| (f, camera.at(f).clone()))
+                .collect()
+        } else {
+            vec![(
+                camera.first_frame(),
+                camera.at(camera.first_frame()).clone(),
+            )]
+        };
+        ExportCamera {
+            name: camera.name.clone(),
+            width: camera.width,
+            height: camera.height,
+            views,
+        }
+    }
+}
+
 /// What [`export`] wrote.
 #[derive(Clone, Debug, PartialEq)]
 pub struct ExportSummary {
     pub frames: usize,
     pub vertices: usize,
     pub triangles: usize,
+    /// Cameras written (USD only, when the run's scene could be read).
+    pub cameras: usize,
     /// The files written, the animated file first.
     pub files: Vec<PathBuf>,
 }
@@ -93,6 +132,19 @@ pub struct ExportSummary {
 pub fn export(
     frames: &[(u32, Mesh)],
     confidence: &[(u32, Vec<VertexConfidence>)],
+    format: ExportFormat,
+    out: &Path,
+    opts: &ExportOptions,
+) -> Result<ExportSummary> {
+    export_with_cameras(frames, confidence, &[], format, out, opts)
+}
+
+/// [`export`], with `cameras` written into USD beside the mesh (the other formats hold no
+/// cameras and ignore them).
+pub fn export_with_cameras(
+    frames: &[(u32, Mesh)],
+    confidence: &[(u32, Vec<VertexConfidence>)],
+    cameras: &[ExportCamera],
     format: ExportFormat,
     out: &Path,
     opts: &ExportOptions,
@@ -151,7 +203,7 @@ pub fn export(
     let mut files = vec![out.to_path_buf()];
     match format {
         ExportFormat::Usda => {
-            let text = usd::usda(frames, confidence, opts);
+            let text = usd::usda(frames, confidence, cameras, opts);
             write_atomic_with(out, |w| std::io::Write::write_all(w, text.as_bytes()))?;
         }
         ExportFormat::Glb => {
@@ -174,12 +226,18 @@ pub fn export(
         frames: frames.len(),
         vertices: first.positions.len(),
         triangles: first.triangles.len(),
+        cameras: if format == ExportFormat::Usda {
+            cameras.len()
+        } else {
+            0
+        },
         files,
     })
 }
 
 /// Reads a run folder ([`crate::read_run`]) and its confidence files, and [`export`]s it. Without `opts.units`, the unit is
-/// taken from the scene file named in the folder's `run.json`, when both can be read.
+/// taken from the scene file named in the folder's `run.json`, when both can be read; USD
+/// also gets that scene's cameras when it loads ([`ExportCamera`]).
 pub fn export_run(
     run: &Path,
     format: ExportFormat,
@@ -194,7 +252,10 @@ pub fn export_run(
             "no frame meshes (files like 0000.obj) in this folder",
         ));
     }
-    let units = opts.units.or_else(|| scene_units(run));
+    let scene = scene_of(run);
+    let units = opts
+        .units
+        .or_else(|| scene.as_ref().and_then(|(file, _)| file.units));
     let mut confidence = Vec::new();
     for (f, _) in &frames {
         let p = run.join(crate::run::confidence_file(*f));
@@ -202,21 +263,34 @@ pub fn export_run(
             confidence.push((*f, crate::run::read_confidence(&p)?));
         }
     }
-    export(
+    // The scene's cameras, for USD, when the scene loads.
+    let cameras: Vec<ExportCamera> = match (&scene, format) {
+        (Some((_, path)), ExportFormat::Usda) => crate::input::Scene::load(path)
+            .map(|s| {
+                s.cameras
+                    .iter()
+                    .map(|c| ExportCamera::of(c, frames.iter().map(|(f, _)| *f)))
+                    .collect()
+            })
+            .unwrap_or_default(),
+        _ => Vec::new(),
+    };
+    export_with_cameras(
         &frames,
         &confidence,
+        &cameras,
         format,
         out,
         &ExportOptions { units, ..*opts },
     )
 }
 
-/// The `units` of the scene a run folder's manifest names, when both files read.
-fn scene_units(run: &Path) -> Option<Units> {
+/// The scene file a run folder's manifest names, parsed, and its path, when both files read.
+fn scene_of(run: &Path) -> Option<(crate::input::SceneFile, PathBuf)> {
     let manifest = crate::run::Manifest::read(&run.join("run.json")).ok()?;
-    let path = &manifest.scene.path;
-    let text = std::fs::read_to_string(path).ok()?;
-    crate::input::SceneFile::parse(path, &text).ok()?.units
+    let path = manifest.scene.path;
+    let text = std::fs::read_to_string(&path).ok()?;
+    Some((crate::input::SceneFile::parse(&path, &text).ok()?, path))
 }
 
 /// Seconds of frame `frame` when `first` is at 0.

@@ -6,8 +6,9 @@
 //! per-vertex confidence becomes the `information`, `residual` and `sigma` primvars (per vertex,
 //! time samples at the solved frames; `sigma` is `inf` where nothing constrains the vertex).
 
-use super::ExportOptions;
+use super::{ExportCamera, ExportOptions};
 use crate::base::mesh::Mesh;
+use crate::base::Projection;
 use crate::tracker::VertexConfidence;
 use std::fmt::Write;
 
@@ -15,6 +16,7 @@ use std::fmt::Write;
 pub(crate) fn usda(
     frames: &[(u32, Mesh)],
     confidence: &[(u32, Vec<VertexConfidence>)],
+    cameras: &[ExportCamera],
     opts: &ExportOptions,
 ) -> String {
     let (f0, first) = (&frames[0].0, &frames[0].1);
@@ -135,8 +137,197 @@ pub(crate) fn usda(
             o.push_str("        }\n");
         }
     }
-    o.push_str("    }\n}\n");
+    o.push_str("    }\n");
+    if !cameras.is_empty() {
+        cameras_usda(&mut o, cameras, first);
+    }
+    o.push_str("}\n");
     o
+}
+
+/// The horizontal aperture every camera is written with: only the ratios of focal length and
+/// apertures to it matter for the projection, and at 36 (a full-frame sensor's width in mm)
+/// the focal length reads as a 35 mm-equivalent one.
+const APERTURE: f64 = 36.0;
+
+/// The cameras as `UsdGeomCamera` prims under `/tracked/cameras`: USD's camera looks down its
+/// −Z with +Y up, ours (OpenCV's) down +Z with +Y down, so its transform is
+/// camera-to-world with the Y and Z axes turned over; `K` becomes focal length, apertures and
+/// aperture offsets in the same units (`APERTURE` across the width), such that the image's
+/// edges (pixel −0.5 and width − 0.5, pixel centres at integer coordinates) are the aperture's
+/// edges. Non-square pixels make the vertical aperture `height·fx/fy` of the same scale. Skew
+/// and lens distortion have no USD equivalent (the frames the tracker compares are pinhole ones).
+/// The clipping range brackets the first frame's mesh (a tenth of its nearest depth to ten times
+/// its farthest).
+fn cameras_usda(o: &mut String, cameras: &[ExportCamera], first: &Mesh) {
+    let _ = writeln!(o, "\n    def Scope \"cameras\"\n    {{");
+    let mut names: Vec<String> = Vec::new();
+    for cam in cameras {
+        let name = usd_name(&cam.name, &names);
+        names.push(name.clone());
+        let _ = writeln!(o, "        def Camera \"{name}\"\n        {{");
+        let _ = writeln!(o, "            token projection = \"perspective\"");
+        let _ = writeln!(
+            o,
+            "            custom int2 modelflow:imageSize = ({}, {})",
+            cam.width, cam.height
+        );
+        let _ = writeln!(
+            o,
+            "            custom string modelflow:name = \"{}\"",
+            cam.name.replace('\\', "\\\\").replace('"', "\\\"")
+        );
+        let views: Vec<(u32, CameraValues)> = cam
+            .views
+            .iter()
+            .map(|(f, p)| (*f, CameraValues::of(p, cam.width, cam.height, first)))
+            .collect();
+        let fields: [CameraField; 7] = [
+            ("float", "focalLength", |v| format!("{:?}", v.focal as f32)),
+            ("float", "horizontalAperture", |v| {
+                format!("{:?}", v.aperture[0] as f32)
+            }),
+            ("float", "verticalAperture", |v| {
+                format!("{:?}", v.aperture[1] as f32)
+            }),
+            ("float", "horizontalApertureOffset", |v| {
+                format!("{:?}", v.offset[0] as f32)
+            }),
+            ("float", "verticalApertureOffset", |v| {
+                format!("{:?}", v.offset[1] as f32)
+            }),
+            ("float2", "clippingRange", |v| {
+                format!("({:?}, {:?})", v.clipping[0] as f32, v.clipping[1] as f32)
+            }),
+            ("matrix4d", "xformOp:transform", |v| {
+                let rows: Vec<String> = v
+                    .transform
+                    .iter()
+                    .map(|r| format!("({:?}, {:?}, {:?}, {:?})", r[0], r[1], r[2], r[3]))
+                    .collect();
+                format!("( {} )", rows.join(", "))
+            }),
+        ];
+        for (ty, attr, value) in fields {
+            match views.as_slice() {
+                [(_, v)] => {
+                    let _ = writeln!(o, "            {ty} {attr} = {}", value(v));
+                }
+                _ => {
+                    let _ = writeln!(o, "            {ty} {attr}.timeSamples = {{");
+                    for (f, v) in &views {
+                        let _ = writeln!(o, "                {f}: {},", value(v));
+                    }
+                    let _ = writeln!(o, "            }}");
+                }
+            }
+        }
+        let _ = writeln!(
+            o,
+            "            uniform token[] xformOpOrder = [\"xformOp:transform\"]\n        }}"
+        );
+    }
+    let _ = writeln!(o, "    }}");
+}
+
+/// A camera attribute: its USD type, name, and value at one frame.
+type CameraField = (&'static str, &'static str, fn(&CameraValues) -> String);
+
+/// A camera's USD numbers at one frame.
+struct CameraValues {
+    focal: f64,
+    aperture: [f64; 2],
+    offset: [f64; 2],
+    clipping: [f64; 2],
+    /// Camera-to-world, USD's row-vector convention (translation in the last row).
+    transform: [[f64; 4]; 4],
+}
+
+impl CameraValues {
+    fn of(p: &Projection, width: u32, height: u32, first: &Mesh) -> Self {
+        let (k, r, _) = p.krt();
+        let (w, h) = (width as f64, height as f64);
+        let (fx, fy, cx, cy) = (k[(0, 0)], k[(1, 1)], k[(0, 2)], k[(1, 2)]);
+        let s = APERTURE / w;
+        // Pixel u at ndc (2u + 1 − w)/w across the aperture; u = fx·x/z + cx (docs/export.md).
+        let focal = fx * s;
+        let aperture = [w * s, h * s * fx / fy];
+        let offset = [
+            s * ((w - 1.0) / 2.0 - cx),
+            s * fx / fy * (cy - (h - 1.0) / 2.0),
+        ];
+        // Rows 0–2: the camera's X, −Y, −Z axes in world coordinates (R's rows, the last two
+        // turned over); row 3: its centre.
+        let c = p.center();
+        let mut transform = [[0.0; 4]; 4];
+        for (i, sign) in [1.0, -1.0, -1.0].into_iter().enumerate() {
+            for j in 0..3 {
+                transform[i][j] = sign * r[(i, j)];
+            }
+        }
+        transform[3] = [c.x, c.y, c.z, 1.0];
+        // Depths of the mesh's bounding box corners.
+        let (lo, hi) = (
+            first.positions.iter().fold([f64::INFINITY; 3], |a, q| {
+                [a[0].min(q.x), a[1].min(q.y), a[2].min(q.z)]
+            }),
+            first.positions.iter().fold([f64::NEG_INFINITY; 3], |a, q| {
+                [a[0].max(q.x), a[1].max(q.y), a[2].max(q.z)]
+            }),
+        );
+        let depths: Vec<f64> = (0..8)
+            .map(|b| {
+                let q = nalgebra::Point3::new(
+                    if b & 1 == 0 { lo[0] } else { hi[0] },
+                    if b & 2 == 0 { lo[1] } else { hi[1] },
+                    if b & 4 == 0 { lo[2] } else { hi[2] },
+                );
+                p.depth(&q)
+            })
+            .collect();
+        let far = depths.iter().fold(0.0f64, |a, &d| a.max(d));
+        let near = depths
+            .iter()
+            .filter(|&&d| d > 0.0)
+            .fold(f64::INFINITY, |a, &d| a.min(d));
+        let clipping = if far > 0.0 && near.is_finite() {
+            [0.1 * near, 10.0 * far]
+        } else {
+            [1e-3, 1e6]
+        };
+        CameraValues {
+            focal,
+            aperture,
+            offset,
+            clipping,
+            transform,
+        }
+    }
+}
+
+/// A valid USD prim name for `name` (letters, digits and `_`, not starting with a digit), not
+/// among `taken`.
+fn usd_name(name: &str, taken: &[String]) -> String {
+    let mut n: String = name
+        .chars()
+        .map(|c| {
+            if c.is_ascii_alphanumeric() || c == '_' {
+                c
+            } else {
+                '_'
+            }
+        })
+        .collect();
+    if n.is_empty() || n.starts_with(|c: char| c.is_ascii_digit()) {
+        n.insert(0, '_');
+    }
+    let mut out = n.clone();
+    let mut i = 1;
+    while taken.contains(&out) {
+        out = format!("{n}_{i}");
+        i += 1;
+    }
+    out
 }
 
 /// One number of a vertex's confidence.
