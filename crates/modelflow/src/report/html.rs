@@ -31,7 +31,7 @@ const CHECK_ROWS: usize = 40;
 
 /// The tracker's own checks: per run, the frames to look at and why, and the plots of the two
 /// measures behind them.
-fn checks_section(o: &mut String, runs: &[RunSummary], plotted: bool) {
+fn checks_section(o: &mut String, runs: &[RunSummary], plotted: bool, len: Length) {
     if runs.iter().all(|r| r.checks.is_none()) {
         return;
     }
@@ -49,7 +49,7 @@ fn checks_section(o: &mut String, runs: &[RunSummary], plotted: bool) {
         if let Some(m) = &r.first_mesh_moved {
             let _ = writeln!(
                 o,
-                "<p>{swatch}{}: the scene's mesh lay {:.1} px {} the surface the cameras agree on at the first frame (they agreed {:.1}× better there), so the tracker moved every vertex along its normal onto it before tracking (median {:.3}, at most {:.3} scene units) and the run starts from the moved mesh: its first frame is not the scene's mesh (docs/tracker.md, \"The first mesh must lie on the surface\").</p>",
+                "<p>{swatch}{}: the scene's mesh lay {:.1} px {} the surface the cameras agree on at the first frame (they agreed {:.1}× better there), so the tracker moved every vertex along its normal onto it before tracking (median {} {}, at most {} {}) and the run starts from the moved mesh: its first frame is not the scene's mesh (docs/tracker.md, \"The first mesh must lie on the surface\").</p>",
                 esc(&r.name),
                 m.found.pixels.abs(),
                 match (m.found.closed, m.found.pixels < 0.0) {
@@ -58,8 +58,10 @@ fn checks_section(o: &mut String, runs: &[RunSummary], plotted: bool) {
                     (false, _) => "off",
                 },
                 m.found.ratio,
-                m.median,
-                m.max
+                len.show(m.median),
+                len.unit(),
+                len.show(m.max),
+                len.unit()
             );
         }
         match &r.checks {
@@ -389,7 +391,7 @@ pub(super) fn page(
             .join(", ")
     );
 
-    checks_section(&mut o, runs, figs.checks_plotted);
+    checks_section(&mut o, runs, figs.checks_plotted, len);
 
     let frame_list = frames
         .iter()

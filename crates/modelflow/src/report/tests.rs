@@ -440,7 +440,7 @@ fn frames_the_tracker_doubts_are_listed_shaded_plotted_and_drawn() {
     assert!(
         summary.runs[1].first_mesh_moved.is_some() && summary.runs[0].first_mesh_moved.is_none()
     );
-    assert!(html.contains("clean: the scene's mesh lay 4.9 px outside the surface the cameras agree on at the first frame (they agreed 12.8× better there), so the tracker moved every vertex along its normal onto it before tracking (median 0.018, at most 0.027 scene units)"), "{html}");
+    assert!(html.contains("clean: the scene's mesh lay 4.9 px outside the surface the cameras agree on at the first frame (they agreed 12.8× better there), so the tracker moved every vertex along its normal onto it before tracking (median 0.0181 scene units, at most 0.0266 scene units)"), "{html}");
     assert!(html.contains("baseline: no tracker log"));
     // The error plot shades the flagged frames: 4–5 suspect, 8 stalled.
     let svg = std::fs::read_to_string(out.join("error.svg")).unwrap();
