@@ -146,6 +146,75 @@ fn an_interrupted_run_resumes_to_the_files_of_an_uninterrupted_one() {
 }
 
 #[test]
+fn a_run_whose_first_mesh_was_moved_onto_the_surface_resumes_to_the_same_files() {
+    // The blob with its mesh 2 % of its size outside the surface (a visual hull): the tracker
+    // moves it onto the surface before tracking, writes the moved mesh as the first frame and
+    // records the move; interrupted and resumed, the run rebuilds the same first frame and ends
+    // with the uninterrupted run's files.
+    let dir = tempfile::tempdir().unwrap();
+    let opts = SynthOptions {
+        preset: modelflow::synth::Preset::Blob,
+        width: 320,
+        height: 240,
+        frames: 5,
+        supersample: 1,
+        ..SynthOptions::default()
+    };
+    let footage = dir.path().join("footage");
+    let scene_path = write_dataset(&opts, &footage, &|_, _| {}).unwrap();
+    let on = modelflow::input::read_mesh(&footage.join("mesh/initial.obj")).unwrap();
+    let normals = on.vertex_normals();
+    let size = on.bbox_diagonal();
+    let hull = on.with_positions(
+        on.positions
+            .iter()
+            .zip(&normals)
+            .map(|(p, n)| p + n * 0.02 * size)
+            .collect(),
+    );
+    modelflow::input::write_obj(&footage.join("mesh/initial.obj"), &hull).unwrap();
+    let reference = dir.path().join("reference");
+    track(&scene_path, &reference, &RunOptions::default()).unwrap();
+    let m = Manifest::read(&reference.join("run.json")).unwrap();
+    let moved = m.first_mesh_moved.expect("the move recorded");
+    assert!(
+        moved.found.pixels < -1.5 && moved.median > 0.01 * size,
+        "{moved:?}"
+    );
+    let first = modelflow::input::read_mesh(&reference.join("0000.obj")).unwrap();
+    let median_off = |mesh: &modelflow::base::Mesh| {
+        let mut d: Vec<f64> = mesh
+            .positions
+            .iter()
+            .zip(&on.positions)
+            .map(|(a, b)| (a - b).norm() / size)
+            .collect();
+        d.sort_by(f64::total_cmp);
+        d[d.len() / 2]
+    };
+    assert!(median_off(&first) < 0.004, "{}", median_off(&first));
+    let out = dir.path().join("interrupted");
+    let err = interrupted_after(&scene_path, &out, 2);
+    assert!(
+        matches!(err, Error::Interrupted { last_complete: 2 }),
+        "{err}"
+    );
+    assert_eq!(
+        track(&scene_path, &out, &resume()).unwrap(),
+        2,
+        "frames 3..=4"
+    );
+    assert_eq!(meshes(&out), meshes(&reference), "byte-identical meshes");
+    assert_eq!(logs_without_times(&out), logs_without_times(&reference));
+    assert_eq!(
+        Manifest::read(&out.join("run.json"))
+            .unwrap()
+            .first_mesh_moved,
+        Some(moved)
+    );
+}
+
+#[test]
 fn a_crash_s_leftovers_are_dropped_on_resume() {
     let (tmp, scene, reference) = shot();
     let out = tmp.path().join("crashed");

@@ -258,9 +258,11 @@ impl RunFolder {
         self.manifest.last_frame_check = Some(check);
     }
 
-    /// Records in the manifest that the tracker moved the first mesh onto the surface.
-    pub fn record_first_mesh_moved(&mut self, moved: crate::tracker::SurfaceMove) {
+    /// Records in the manifest that the tracker moved the first mesh onto the surface, and
+    /// writes the manifest now (a run killed before it ends still says so).
+    pub fn record_first_mesh_moved(&mut self, moved: crate::tracker::SurfaceMove) -> Result<()> {
         self.manifest.first_mesh_moved = Some(moved);
+        self.manifest.write(&self.dir.join(MANIFEST))
     }
 
     /// Records how the run ended in the manifest.

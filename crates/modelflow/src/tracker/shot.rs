@@ -93,7 +93,7 @@ fn track_into(
         None => {
             folder.write_first(&scene.mesh.with_positions(tracker.positions().to_vec()))?;
             if let Some(m) = first_mesh_moved {
-                folder.record_first_mesh_moved(m);
+                folder.record_first_mesh_moved(m)?;
             }
             scene.first
         }
