@@ -94,23 +94,59 @@ fn results_are_the_same_whatever_the_thread_count() {
 /// An artist's mesh has texture coordinates with seams and normals: `track` writes them into
 /// every frame as the input had them (the same `vt` table and indices), and `export` takes
 /// them on into USD.
+const CLOTH_SAMPLE: &str = concat!(
+    env!("CARGO_MANIFEST_DIR"),
+    "/../../fixtures/blender-cloth-sample"
+);
+
+/// The cloth sample's mesh and its `v` lines, in its vertex order (which the truth follows), for
+/// a test to add faces of its own to.
+fn cloth_sample_vertices() -> (modelflow::base::Mesh, String) {
+    let m =
+        modelflow::input::read_mesh(&std::path::Path::new(CLOTH_SAMPLE).join("mesh/initial.obj"))
+            .unwrap();
+    let text = m
+        .positions
+        .iter()
+        .map(|p| format!("v {} {} {}\n", p.x, p.y, p.z))
+        .collect();
+    (m, text)
+}
+
+/// `track` on frames 0..=2 of the cloth sample from `mesh`, into `out`.
+fn track_cloth_sample_from(mesh: &std::path::Path, out: &std::path::Path) {
+    let o = Command::new(env!("CARGO_BIN_EXE_modelflow"))
+        .args(["track", "--frames", "0..2", "--scene"])
+        .arg(format!("{CLOTH_SAMPLE}/scene.json"))
+        .arg("--mesh")
+        .arg(mesh)
+        .arg("--out")
+        .arg(out)
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+}
+
+/// `export` of the run folder `run` to the USD file `usd`.
+fn export_usd(run: &std::path::Path, usd: &std::path::Path) {
+    let o = Command::new(env!("CARGO_BIN_EXE_modelflow"))
+        .args(["export", "--run"])
+        .arg(run)
+        .arg("--out")
+        .arg(usd)
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+}
+
 #[test]
 fn a_quad_mesh_is_tracked_and_written_back_as_quads() {
     // An artist's cloth is a grid of quads. Tracked (as triangles, a fan per quad), every
     // frame's OBJ and the USD export keep the quads, and the track is the triangulated mesh's.
     let dir = tempfile::tempdir().unwrap();
-    let sample = concat!(
-        env!("CARGO_MANIFEST_DIR"),
-        "/../../fixtures/blender-cloth-sample"
-    );
-    let m = modelflow::input::read_mesh(&std::path::Path::new(sample).join("mesh/initial.obj"))
-        .unwrap();
+    let (m, mut text) = cloth_sample_vertices();
     let n = 41;
     assert_eq!(m.positions.len(), n * n, "the sample's 41×41 grid");
-    let mut text = String::new();
-    for p in &m.positions {
-        text += &format!("v {} {} {}\n", p.x, p.y, p.z);
-    }
     let mut quads = Vec::new();
     for r in 0..n - 1 {
         for c in 0..n - 1 {
@@ -124,16 +160,7 @@ fn a_quad_mesh_is_tracked_and_written_back_as_quads() {
     let mesh = dir.path().join("quads.obj");
     std::fs::write(&mesh, &text).unwrap();
     let out = dir.path().join("run");
-    let o = Command::new(env!("CARGO_BIN_EXE_modelflow"))
-        .args(["track", "--frames", "0..2", "--scene"])
-        .arg(format!("{sample}/scene.json"))
-        .arg("--mesh")
-        .arg(&mesh)
-        .arg("--out")
-        .arg(&out)
-        .output()
-        .unwrap();
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    track_cloth_sample_from(&mesh, &out);
     for f in 0..=2 {
         let written = std::fs::read_to_string(out.join(format!("{f:04}.obj"))).unwrap();
         let faces: Vec<&str> = written.lines().filter(|l| l.starts_with("f ")).collect();
@@ -141,7 +168,8 @@ fn a_quad_mesh_is_tracked_and_written_back_as_quads() {
     }
     // Tracked as the same surface: frame 2 within 1 % of the size of the truth.
     let truth =
-        modelflow::input::read_mesh(&std::path::Path::new(sample).join("truth/0002.obj")).unwrap();
+        modelflow::input::read_mesh(&std::path::Path::new(CLOTH_SAMPLE).join("truth/0002.obj"))
+            .unwrap();
     let got = modelflow::input::read_mesh(&out.join("0002.obj")).unwrap();
     let worst = got
         .positions
@@ -151,14 +179,7 @@ fn a_quad_mesh_is_tracked_and_written_back_as_quads() {
         .fold(0.0, f64::max);
     assert!(worst < 0.01 * m.bbox_diagonal(), "{worst}");
     let usd = dir.path().join("quads.usda");
-    let o = Command::new(env!("CARGO_BIN_EXE_modelflow"))
-        .args(["export", "--run"])
-        .arg(&out)
-        .arg("--out")
-        .arg(&usd)
-        .output()
-        .unwrap();
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    export_usd(&out, &usd);
     let usda = std::fs::read_to_string(&usd).unwrap();
     let counts = usda
         .lines()
@@ -171,18 +192,9 @@ fn a_quad_mesh_is_tracked_and_written_back_as_quads() {
 #[test]
 fn track_keeps_the_input_meshes_uvs_and_normals() {
     let dir = tempfile::tempdir().unwrap();
-    let sample = concat!(
-        env!("CARGO_MANIFEST_DIR"),
-        "/../../fixtures/blender-cloth-sample"
-    );
-    let m = modelflow::input::read_mesh(&std::path::Path::new(sample).join("mesh/initial.obj"))
-        .unwrap();
     // Every corner its own vt (a seam everywhere), one vn per vertex pointing +z... and vertex
     // order kept.
-    let mut text = String::new();
-    for p in &m.positions {
-        text += &format!("v {} {} {}\n", p.x, p.y, p.z);
-    }
+    let (m, mut text) = cloth_sample_vertices();
     for (i, _) in m.triangles.iter().enumerate() {
         for k in 0..3 {
             text += &format!("vt {} {}\n", (i % 97) as f64 / 97.0, k as f64 / 3.0);
@@ -198,16 +210,7 @@ fn track_keeps_the_input_meshes_uvs_and_normals() {
     let mesh = dir.path().join("artist.obj");
     std::fs::write(&mesh, &text).unwrap();
     let out = dir.path().join("run");
-    let o = Command::new(env!("CARGO_BIN_EXE_modelflow"))
-        .args(["track", "--frames", "0..2", "--scene"])
-        .arg(format!("{sample}/scene.json"))
-        .arg("--mesh")
-        .arg(&mesh)
-        .arg("--out")
-        .arg(&out)
-        .output()
-        .unwrap();
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    track_cloth_sample_from(&mesh, &out);
     let input = modelflow::input::read_mesh(&mesh).unwrap();
     for f in 0..=2 {
         let got = modelflow::input::read_mesh(&out.join(format!("{f:04}.obj"))).unwrap();
@@ -220,14 +223,7 @@ fn track_keeps_the_input_meshes_uvs_and_normals() {
         assert_eq!(n.table.values.len(), 2);
     }
     let usd = dir.path().join("artist.usda");
-    let o = Command::new(env!("CARGO_BIN_EXE_modelflow"))
-        .args(["export", "--run"])
-        .arg(&out)
-        .arg("--out")
-        .arg(&usd)
-        .output()
-        .unwrap();
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    export_usd(&out, &usd);
     let usda = std::fs::read_to_string(&usd).unwrap();
     assert!(usda.contains("int[] primvars:st:indices = [0, 1, 2, 3, 4, 5,"));
     assert!(usda.contains("interpolation = \"faceVarying\""));
