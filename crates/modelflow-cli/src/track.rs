@@ -315,11 +315,21 @@ pub fn run(args: Args, invocation: &Invocation) -> anyhow::Result<()> {
     let slivers = scene.mesh.slivers(SLIVER_RATIO);
     if let Some(&(first, r)) = slivers.first() {
         let [a, b, c] = scene.mesh.triangles[first].map(|v| v + 1);
+        // In a mesh of polygons, the face it was cut from (as the file counts faces).
+        let which = match scene.mesh.polygons {
+            Some(_) => format!(
+                "the triangle {a} {b} {c} of face {} (vertices and faces counted from 1 as in OBJ)",
+                scene.mesh.face_of_triangle(first) + 1
+            ),
+            None => format!(
+                "triangle {} (vertices {a} {b} {c}, counted from 1 as in OBJ)",
+                first + 1
+            ),
+        };
         eprintln!(
-            "warning: the mesh has {} sliver triangle(s), thinner than 1/{} of their longest edge; the first is triangle {} (vertices {a} {b} {c}, counted from 1 as in OBJ), {:.1e} of its edge. Slivers are tracked, but own almost no pixels.",
+            "warning: the mesh has {} sliver triangle(s), thinner than 1/{} of their longest edge; the first is {which}, {:.1e} of its edge. Slivers are tracked, but own almost no pixels.",
             slivers.len(),
             (1.0 / SLIVER_RATIO) as u32,
-            first + 1,
             r
         );
     }

@@ -86,6 +86,20 @@ impl Mesh {
         }
     }
 
+    /// The input face (counted from 0, in the file's order) that triangle `t` was cut from: `t`
+    /// itself unless the mesh keeps its input polygons ([`Mesh::polygons`]).
+    pub fn face_of_triangle(&self, t: usize) -> usize {
+        let (counts, _) = self.face_corners();
+        let mut first = 0;
+        for (f, n) in counts.iter().enumerate() {
+            first += *n as usize - 2;
+            if t < first {
+                return f;
+            }
+        }
+        t
+    }
+
     /// The faces to write: each face's corner count, and per corner (face by face, in order)
     /// the triangle and the corner of it (0 to 2) that carries its vertex and face-varying
     /// indices. The input's polygons ([`Mesh::polygons`]) where they match the triangles,
@@ -546,6 +560,43 @@ mod tests {
         t[3] = [t[3][0], t[3][2], t[3][1]];
         let (fixed, turned) = sheet.with_triangles(t).facing_outward();
         assert_eq!((fixed, turned), (sheet.triangles.clone(), 1));
+    }
+
+    #[test]
+    fn a_polygon_meshs_triangles_know_their_faces_and_corners() {
+        // A quad, a triangle and a pentagon, fan-triangulated as the readers do.
+        let p = |x: f64, y: f64| Point3::new(x, y, 0.0);
+        let positions = (0..9).map(|i| p(i as f64, (i % 3) as f64)).collect();
+        let triangles = vec![
+            [0, 1, 2],
+            [0, 2, 3],
+            [3, 2, 4],
+            [4, 5, 6],
+            [4, 6, 7],
+            [4, 7, 8],
+        ];
+        let m = Mesh {
+            polygons: Some(Arc::new(vec![4, 3, 5])),
+            ..Mesh::new(positions, triangles)
+        };
+        let faces: Vec<usize> = (0..6).map(|t| m.face_of_triangle(t)).collect();
+        assert_eq!(faces, [0, 0, 1, 2, 2, 2]);
+        let (counts, corners) = m.face_corners();
+        assert_eq!(counts, [4, 3, 5]);
+        let vertices: Vec<u32> = corners
+            .iter()
+            .map(|&(t, k)| m.triangles[t as usize][k as usize])
+            .collect();
+        assert_eq!(vertices, [0, 1, 2, 3, 3, 2, 4, 4, 5, 6, 7, 8]);
+        // Triangles that no longer match the faces are their own faces.
+        let other = m.with_triangles(vec![[0, 1, 2]]);
+        assert_eq!(other.face_corners().0, [3]);
+        let stale = Mesh {
+            polygons: Some(Arc::new(vec![4, 4])),
+            ..m.clone()
+        };
+        assert_eq!(stale.face_corners().0, [3; 6]);
+        assert_eq!(stale.face_of_triangle(5), 5);
     }
 
     #[test]
