@@ -209,6 +209,16 @@ pub fn surface_offset(
     })
 }
 
+/// How far (pixels of the level scanned) a vertex's own offset may lie on the other side of the
+/// mesh's as a whole before [`onto_surface`] distrusts it.
+const OTHER_SIDE_PX: f64 = 2.0;
+
+/// The median of `v` (the upper one of an even count; 0 when empty).
+fn median(mut v: Vec<f64>) -> f64 {
+    v.sort_by(f64::total_cmp);
+    v.get(v.len() / 2).copied().unwrap_or(0.0)
+}
+
 /// A first mesh found off the surface and moved onto it before tracking
 /// (`TrackOptions::onto_surface`, [`Tracker::first_mesh_moved`](crate::tracker::Tracker::first_mesh_moved)).
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
@@ -254,7 +264,8 @@ pub fn moved_onto_surface(
 /// `frame` (positions, one per vertex of `mesh`). Per vertex, the offset at which its
 /// triangles' cross-camera comparisons agree best (−10 to +10 px, refined by a parabola), trusted
 /// only with a clear minimum (the cost 3 px to either side at least 1.2 times it, not at the end
-/// of the range) and replaced by the median of the trusted ones in its ring; then filled in and
+/// of the range, not more than `OTHER_SIDE_PX` on the other side of the trusted ones' median)
+/// and replaced by the median of the trusted ones in its ring; then filled in and
 /// smoothed over the mesh (vertices no two cameras see take their neighbours'), and applied;
 /// `rounds` times from the moved mesh, the first at half resolution (twice the reach). For a
 /// mesh made from silhouettes (a visual hull), outside the surface by different amounts in
@@ -312,6 +323,15 @@ pub fn onto_surface(
                 (!at_limit && clear).then_some(p)
             })
             .collect();
+        // The mesh lies off the surface to one side (a visual hull: outside everywhere): a
+        // vertex whose clear minimum is well to the other side has found something else, most
+        // often the background, which two cameras see alike where a silhouette triangle has
+        // been moved off the object. Not trusted.
+        let side = median(own.iter().flatten().copied().collect());
+        let own: Vec<Option<f64>> = own
+            .into_iter()
+            .map(|o| o.filter(|&p| side.abs() < 1.0 || p * side.signum() > -OTHER_SIDE_PX))
+            .collect();
         let own: Vec<Option<f64>> = (0..nv)
             .map(|v| {
                 own[v]?;
@@ -327,9 +347,7 @@ pub fn onto_surface(
         // the median of the trusted offsets, not from where they are, so that the smoothing
         // below fills a large unseen region (the underside, the back) with what the seen
         // surface says about the mesh, rather than leaving its middle where it was.
-        let mut trusted: Vec<f64> = own.iter().flatten().copied().collect();
-        trusted.sort_by(f64::total_cmp);
-        let prior = trusted.get(trusted.len() / 2).copied().unwrap_or(0.0);
+        let prior = median(own.iter().flatten().copied().collect());
         let mut d: Vec<f64> = own.iter().map(|o| o.unwrap_or(prior)).collect();
         for _ in 0..200 {
             d = (0..nv)
