@@ -99,7 +99,8 @@ def frames_to_check(scene: Scene, run: _Path) -> Optional[List[Dict[str, Any]]]:
     baseline's)."""
 
 def export(run: _Path, out: _Path, fps: float = 24.0) -> List[str]:
-    """Writes a run folder as .usda, .glb, .pc2 or .mdd (from `out`'s extension)."""
+    """Writes a run folder as .usda, .glb, .pc2 or .mdd (from `out`'s extension); warns
+    (UserWarning) when a USD export cannot carry the scene's cameras."""
 
 def read_run(run: _Path) -> Dict[int, npt.NDArray[np.float64]]:
     """A run folder's frame meshes: {frame: (V, 3) positions}."""

@@ -388,10 +388,11 @@ fn frames_to_check<'py>(
 }
 
 /// Writes a run folder as one animated file for a 3D package; the format comes from `out`'s
-/// extension (.usda, .glb, .pc2, .mdd). Returns the files written.
+/// extension (.usda, .glb, .pc2, .mdd). Returns the files written. A USD export whose run's
+/// scene file cannot be read holds the mesh without the cameras and warns why (`UserWarning`).
 #[pyfunction]
 #[pyo3(signature = (run, out, fps=24.0))]
-fn export(run: PathBuf, out: PathBuf, fps: f64) -> PyResult<Vec<PathBuf>> {
+fn export(py: Python<'_>, run: PathBuf, out: PathBuf, fps: f64) -> PyResult<Vec<PathBuf>> {
     let format = mf::export::ExportFormat::from_path(&out).ok_or_else(|| {
         ModelflowError::new_err(format!(
             "{}: give a file ending in .usda, .glb, .pc2 or .mdd",
@@ -402,9 +403,20 @@ fn export(run: PathBuf, out: PathBuf, fps: f64) -> PyResult<Vec<PathBuf>> {
         fps,
         ..Default::default()
     };
-    Ok(mf::export::export_run(&run, format, &out, &opts)
-        .map_err(err)?
-        .files)
+    let summary = mf::export::export_run(&run, format, &out, &opts).map_err(err)?;
+    if let Some(why) = &summary.cameras_left_out {
+        let msg = std::ffi::CString::new(format!(
+            "the USD holds the mesh but not the scene's cameras: {why}"
+        ))
+        .unwrap_or_default();
+        PyErr::warn(
+            py,
+            &py.get_type::<pyo3::exceptions::PyUserWarning>(),
+            &msg,
+            1,
+        )?;
+    }
+    Ok(summary.files)
 }
 
 /// Lines up a mesh with the scene's first frame, as `modelflow align` does: the rigid pose (and

@@ -89,6 +89,10 @@ def test_track_scene_evaluate_and_export(cli_run, tmp_path):
     assert data[:12] == b"POINTCACHE2\0"
     pts = np.frombuffer(data[32:], dtype="<f4").reshape(12, 1681, 3)
     np.testing.assert_allclose(pts[11], ours[11], atol=1e-6)
+    # A USD export of a run without its run.json holds no cameras, and says why.
+    (tmp_path / "run" / "run.json").unlink()
+    with pytest.warns(UserWarning, match="not the scene's cameras: .*run.json"):
+        modelflow.export(tmp_path / "run", tmp_path / "cloth.usda")
 
 
 def test_options_are_checked_and_named():

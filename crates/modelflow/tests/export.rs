@@ -163,7 +163,7 @@ fn usd_export_carries_the_scenes_cameras_as_pixar_usd_projects_them() {
                 .unwrap();
         write_obj(&run.join(format!("{f:04}.obj")), &truth).unwrap();
     }
-    let manifest = modelflow::run::Manifest::new(
+    let mut manifest = modelflow::run::Manifest::new(
         modelflow::run::Method::ModelFlow,
         &scene,
         Vec::new(),
@@ -184,13 +184,41 @@ fn usd_export_carries_the_scenes_cameras_as_pixar_usd_projects_them() {
     let text = std::fs::read_to_string(&usd).unwrap();
     assert_eq!(text.matches("def Camera \"").count(), 4);
     check_usd(&run, &usd, &[]);
-    // Without a scene to read, the mesh alone.
+    assert_eq!(s.cameras_left_out, None);
+    // The footage archived, the scene file kept: the cameras come from the scene file alone.
+    let archived = dir.path().join("archived");
+    std::fs::create_dir_all(&archived).unwrap();
+    std::fs::copy(&scene_path, archived.join("scene.json")).unwrap();
+    manifest.scene.path = archived.join("scene.json");
+    std::fs::write(
+        run.join("run.json"),
+        serde_json::to_string(&manifest).unwrap(),
+    )
+    .unwrap();
+    let s = export_run(&run, ExportFormat::Usda, &usd, &ExportOptions::default()).unwrap();
+    assert_eq!((s.cameras, s.cameras_left_out), (4, None));
+    check_usd(&run, &usd, &[]);
+    // The scene file gone too: the mesh alone, and the summary says why.
+    std::fs::remove_file(archived.join("scene.json")).unwrap();
+    let s = export_run(&run, ExportFormat::Usda, &usd, &ExportOptions::default()).unwrap();
+    assert_eq!(s.cameras, 0);
+    let why = s.cameras_left_out.unwrap();
+    assert!(
+        why.contains("scene.json") && why.contains("cannot be read"),
+        "{why}"
+    );
+    // Without a run.json to name a scene, the same.
     std::fs::remove_file(run.join("run.json")).unwrap();
     let s = export_run(&run, ExportFormat::Usda, &usd, &ExportOptions::default()).unwrap();
     assert_eq!(s.cameras, 0);
+    assert!(s.cameras_left_out.unwrap().contains("run.json"));
     assert!(!std::fs::read_to_string(&usd)
         .unwrap()
         .contains("def Camera"));
+    // Formats that hold no cameras do not mention them.
+    let glb = dir.path().join("board.glb");
+    let s = export_run(&run, ExportFormat::Glb, &glb, &ExportOptions::default()).unwrap();
+    assert_eq!(s.cameras_left_out, None);
 }
 
 #[test]

@@ -120,6 +120,10 @@ pub struct ExportSummary {
     pub triangles: usize,
     /// Cameras written (USD only, when the run's scene could be read).
     pub cameras: usize,
+    /// Why a USD export of a run holds no cameras: the run names no scene, or its scene file
+    /// could not be read or has a camera that does not check (the message names the file and
+    /// the field). `None` when the cameras were written, and for the other formats.
+    pub cameras_left_out: Option<String>,
     /// The files written, the animated file first.
     pub files: Vec<PathBuf>,
 }
@@ -223,6 +227,7 @@ pub fn export_with_cameras(
         }
     }
     Ok(ExportSummary {
+        cameras_left_out: None,
         frames: frames.len(),
         vertices: first.positions.len(),
         triangles: first.triangles.len(),
@@ -255,7 +260,7 @@ pub fn export_run(
     let scene = scene_of(run);
     let units = opts
         .units
-        .or_else(|| scene.as_ref().and_then(|(file, _)| file.units));
+        .or_else(|| scene.as_ref().ok().and_then(|(file, _)| file.units));
     let mut confidence = Vec::new();
     for (f, _) in &frames {
         let p = run.join(crate::run::confidence_file(*f));
@@ -263,34 +268,54 @@ pub fn export_run(
             confidence.push((*f, crate::run::read_confidence(&p)?));
         }
     }
-    // The scene's cameras, for USD, when the scene loads.
-    let cameras: Vec<ExportCamera> = match (&scene, format) {
-        (Some((_, path)), ExportFormat::Usda) => crate::input::Scene::load(path)
-            .map(|s| {
-                s.cameras
-                    .iter()
+    // The scene's cameras, for USD: from the scene file alone (the footage may be archived).
+    let (cameras, left_out) = match (format, &scene) {
+        (ExportFormat::Usda, Ok((file, path))) => match file.cameras_of(path) {
+            Ok(cams) => (
+                cams.iter()
                     .map(|c| ExportCamera::of(c, frames.iter().map(|(f, _)| *f)))
-                    .collect()
-            })
-            .unwrap_or_default(),
-        _ => Vec::new(),
+                    .collect(),
+                None,
+            ),
+            Err(e) => (Vec::new(), Some(e.to_string())),
+        },
+        (ExportFormat::Usda, Err(why)) => (Vec::new(), Some(why.clone())),
+        _ => (Vec::new(), None),
     };
-    export_with_cameras(
+    let summary = export_with_cameras(
         &frames,
         &confidence,
         &cameras,
         format,
         out,
         &ExportOptions { units, ..*opts },
-    )
+    )?;
+    Ok(ExportSummary {
+        cameras_left_out: left_out,
+        ..summary
+    })
 }
 
-/// The scene file a run folder's manifest names, parsed, and its path, when both files read.
-fn scene_of(run: &Path) -> Option<(crate::input::SceneFile, PathBuf)> {
-    let manifest = crate::run::Manifest::read(&run.join("run.json")).ok()?;
+/// The scene file a run folder's manifest names, parsed, and its path; or why there is none
+/// (no manifest, or the scene file missing or unreadable), in words.
+fn scene_of(run: &Path) -> std::result::Result<(crate::input::SceneFile, PathBuf), String> {
+    let manifest_path = run.join("run.json");
+    if !manifest_path.is_file() {
+        return Err(format!(
+            "{} has no run.json naming its scene",
+            run.display()
+        ));
+    }
+    let manifest = crate::run::Manifest::read(&manifest_path).map_err(|e| e.to_string())?;
     let path = manifest.scene.path;
-    let text = std::fs::read_to_string(&path).ok()?;
-    Some((crate::input::SceneFile::parse(&path, &text).ok()?, path))
+    let text = std::fs::read_to_string(&path).map_err(|e| {
+        format!(
+            "{}: the run's scene file cannot be read: {e}",
+            path.display()
+        )
+    })?;
+    let file = crate::input::SceneFile::parse(&path, &text).map_err(|e| e.to_string())?;
+    Ok((file, path))
 }
 
 /// Seconds of frame `frame` when `first` is at 0.

@@ -405,6 +405,54 @@ pub const LENS_BYTES_PER_PIXEL: u64 = 12;
 pub const MIN_VISIBLE_SHARE: f64 = 0.25;
 
 impl SceneFile {
+    /// The scene's cameras, checked as [`Scene::load`] checks them, without the mesh or any
+    /// image (a run's export reads them after the footage may have been archived). Errors name
+    /// `path`.
+    pub fn cameras_of(&self, path: &Path) -> Result<Vec<Camera>> {
+        let (first, last) = (self.frames.first, self.frames.last);
+        if first > last {
+            return Err(Error::invalid(
+                path,
+                "frames",
+                format!("first ({first}) is after last ({last})"),
+            ));
+        }
+        if self.cameras.is_empty() {
+            return Err(Error::invalid(path, "cameras", "no camera"));
+        }
+        (0..self.cameras.len())
+            .map(|i| self.camera(path, i))
+            .collect()
+    }
+
+    /// Camera `i`, checked: a unique name, a lag within a frame, a valid calibration.
+    fn camera(&self, path: &Path, i: usize) -> Result<Camera> {
+        let c = &self.cameras[i];
+        if let Some(j) = self.cameras[..i].iter().position(|o| o.name == c.name) {
+            return Err(Error::invalid(
+                path,
+                format!("cameras[{i}].name"),
+                format!(
+                    "{:?} is also the name of cameras[{j}]; names must be unique",
+                    c.name
+                ),
+            ));
+        }
+        if !(c.time_offset.is_finite() && (-1.0..=1.0).contains(&c.time_offset)) {
+            return Err(Error::invalid(
+                path,
+                format!("cameras[{i}].time_offset"),
+                format!(
+                    "{} frames: expected a lag from -1 to 1 frame (a whole frame is frame_offset)",
+                    c.time_offset
+                ),
+            ));
+        }
+        let mut camera = build_camera(path, i, c, self.frames.first, self.frames.last)?;
+        camera.time_offset = c.time_offset;
+        Ok(camera)
+    }
+
     /// Writes the scene file as pretty-printed JSON, atomically. Refuses non-finite numbers
     /// (JSON cannot hold them; serde would write `null`).
     pub fn write(&self, path: &Path) -> Result<()> {
@@ -855,29 +903,7 @@ impl Scene {
         let mut cameras = Vec::with_capacity(file.cameras.len());
         let mut images = Vec::with_capacity(file.cameras.len());
         for (i, c) in file.cameras.iter().enumerate() {
-            if let Some(j) = file.cameras[..i].iter().position(|o| o.name == c.name) {
-                return Err(Error::invalid(
-                    path,
-                    format!("cameras[{i}].name"),
-                    format!(
-                        "{:?} is also the name of cameras[{j}]; names must be unique",
-                        c.name
-                    ),
-                ));
-            }
-            if !(c.time_offset.is_finite() && (-1.0..=1.0).contains(&c.time_offset)) {
-                return Err(Error::invalid(
-                    path,
-                    format!("cameras[{i}].time_offset"),
-                    format!(
-                        "{} frames: expected a lag from -1 to 1 frame (a whole frame is frame_offset)",
-                        c.time_offset
-                    ),
-                ));
-            }
-            let mut camera = build_camera(path, i, c, first, last)?;
-            camera.time_offset = c.time_offset;
-            cameras.push(camera);
+            cameras.push(file.camera(path, i)?);
             if first as i64 + c.frame_offset < 0 {
                 return Err(Error::invalid(
                     path,
