@@ -99,7 +99,14 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         );
     }
     let start = if reshape {
-        mesh.with_positions(onto_surface(&mesh, &scene.cameras, frame, &images, 3))
+        mesh.with_positions(onto_surface(
+            &mesh,
+            &scene.cameras,
+            frame,
+            &images,
+            3,
+            off.as_ref(),
+        ))
     } else {
         mesh.clone()
     };
@@ -111,6 +118,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             frame,
             &images,
             1,
+            None,
         );
         let o = off.expect("reshape implies an offset");
         eprintln!(

@@ -4,7 +4,8 @@
 //! nothing in the frames' own checks shows it. Before tracking, the mesh is moved along its
 //! vertex normals by whole pixels, −10 to +10, and at each offset the cameras are compared with
 //! each other as `align` compares them (each camera's pixels warped into every other camera that
-//! sees the triangle); where they agree best says how far off the surface the mesh is. Knows
+//! sees the triangle); where they agree best says how far off the surface the mesh is (farther
+//! than that: the valley the surface makes in the cost, found at coarser levels). Knows
 //! patches, projections and images; not the tracker's solve.
 
 use crate::base::{Camera, Mesh, Projection, RgbImage};
@@ -65,8 +66,8 @@ struct Frame<'a> {
 type Scanned = Option<(f64, Vec<(u32, f64, f64)>)>;
 
 impl Frame<'_> {
-    /// For offsets −RANGE..=RANGE pixels of `x` along `normals`: what the cameras' comparison
-    /// gives there (`None` where no two cameras see a common triangle).
+    /// For offsets `center`−RANGE..=`center`+RANGE pixels of `x` along `normals`: what the
+    /// cameras' comparison gives there (`None` where no two cameras see a common triangle).
     fn scan(
         &self,
         x: &[Point3<f64>],
@@ -74,6 +75,7 @@ impl Frame<'_> {
         triangles: &[[u32; 3]],
         edges: &[[u32; 2]],
         closed: bool,
+        center: i32,
     ) -> Vec<Scanned> {
         let popts = PatchOptions {
             margin: 1,
@@ -81,7 +83,7 @@ impl Frame<'_> {
             two_sided: !closed,
             checkerboard: false,
         };
-        (-RANGE..=RANGE)
+        (center - RANGE..=center + RANGE)
             .map(|k| {
                 let d = k as f64 / self.per_unit;
                 let xk: Vec<Point3<f64>> = x.iter().zip(normals).map(|(p, n)| p + n * d).collect();
@@ -133,6 +135,44 @@ fn best_offset(costs: &[f64]) -> Option<(f64, f64, bool)> {
     Some((pixels, c, best == 0 || best + 1 == costs.len()))
 }
 
+/// The clearest valley of `costs` (indexed from −RANGE): the interior local minimum whose
+/// cost is lowest against the highest cost within 3 px on its lower side (the minimum of the
+/// two sides' maxima), refined by the parabola through its neighbours, in pixels, and its cost;
+/// `None` without one at least `VALLEY` times as deep.
+fn clearest_valley(costs: &[f64]) -> Option<(f64, f64)> {
+    let n = costs.len();
+    let mut best: Option<(usize, f64)> = None;
+    for i in 1..n.saturating_sub(1) {
+        let c = costs[i];
+        if !(c.is_finite() && c > 0.0 && c < costs[i - 1] && c < costs[i + 1]) {
+            continue;
+        }
+        let side = |r: &[f64]| {
+            r.iter()
+                .copied()
+                .filter(|v| v.is_finite())
+                .fold(0.0, f64::max)
+        };
+        let depth =
+            side(&costs[i.saturating_sub(3)..i]).min(side(&costs[i + 1..(i + 4).min(n)])) / c;
+        if depth >= VALLEY && best.is_none_or(|(_, d)| depth > d) {
+            best = Some((i, depth));
+        }
+    }
+    let (i, _) = best?;
+    let (l, c, r) = (costs[i - 1], costs[i], costs[i + 1]);
+    let curve = l - 2.0 * c + r;
+    let refine = if curve > 0.0 {
+        0.5 * (l - r) / curve
+    } else {
+        0.0
+    };
+    Some((i as f64 - RANGE as f64 + refine, c))
+}
+
+/// How much deeper than its sides a valley of the offset scan must be to be followed.
+const VALLEY: f64 = 2.0;
+
 /// The comparison at pyramid `level` (of `pyramids`, blurred as the tracker's).
 fn frame_of<'a>(
     cameras: &[Camera],
@@ -182,24 +222,61 @@ pub fn surface_offset(
     let (m, _) = tracked_mesh(mesh);
     let closed = m.is_closed();
     let normals = m.vertex_normals();
+    let edges = m.edges();
     // Large frames are compared at a coarser level (at most 1280 px wide), so that a rig of 4K
     // cameras is checked in about the time a 720p one is; offsets are still given in pixels of
     // the frames themselves.
     let widest = cameras.iter().map(|c| c.width).max().unwrap_or(0);
     let level = (0..4).find(|&l| widest >> l <= CHECK_WIDTH).unwrap_or(4);
-    let pyramids = pyramids(images, level + 1);
-    let f = frame_of(cameras, frame, &pyramids, level, &m.positions)?;
+    let pyramids_here = pyramids(images, level + 1);
+    let f = frame_of(cameras, frame, &pyramids_here, level, &m.positions)?;
     let scale = (1u32 << level) as f64;
-    let costs: Vec<f64> = f
-        .scan(&m.positions, &normals, &m.triangles, &m.edges(), closed)
-        .into_iter()
-        .map(|s| s.map_or(f64::INFINITY, |(c, _)| c))
-        .collect();
+    let costs_of = |f: &Frame<'_>, center: i32| -> Vec<f64> {
+        f.scan(&m.positions, &normals, &m.triangles, &edges, closed, center)
+            .into_iter()
+            .map(|s| s.map_or(f64::INFINITY, |(c, _)| c))
+            .collect()
+    };
+    let costs = costs_of(&f, 0);
     let at_zero = costs[RANGE as usize];
     if !at_zero.is_finite() {
         return None;
     }
-    let (pixels, c, at_limit) = best_offset(&costs)?;
+    let (mut pixels, mut c, mut at_limit) = best_offset(&costs)?;
+    // A best offset at the end of the range may lie further, or be a slow drift (a mesh far
+    // off the surface compares nothing alike at any offset near it, and moving it one way puts
+    // more of it over a background the cameras see alike). The true surface is a narrow, deep
+    // valley of the cost, a few pixels wide at the level compared and wider at coarser ones:
+    // coarser levels, each reaching twice as far, are searched (centred where the mesh is) for
+    // a clear valley; the first found is followed back level by level to this one.
+    if at_limit {
+        let pyramids = pyramids(images, MAX_LEVEL + 1);
+        let valley = (level + 1..=MAX_LEVEL).find_map(|coarse| {
+            let fc = frame_of(cameras, frame, &pyramids, coarse, &m.positions)?;
+            let (p, _) = clearest_valley(&costs_of(&fc, 0))?;
+            Some((coarse, p * (1u32 << coarse) as f64))
+        });
+        if let Some((coarse, mut found)) = valley {
+            for l in (level..coarse).rev() {
+                let Some(fl) = frame_of(cameras, frame, &pyramids, l, &m.positions) else {
+                    continue;
+                };
+                let s = (1u32 << l) as f64;
+                let center = (found / s).round() as i32;
+                let costs = costs_of(&fl, center);
+                let Some((p, cl, lim)) = clearest_valley(&costs)
+                    .map(|(p, cl)| (p, cl, false))
+                    .or_else(|| best_offset(&costs))
+                else {
+                    continue;
+                };
+                found = (center as f64 + p) * s;
+                if l == level {
+                    (pixels, c, at_limit) = (found / s, cl, lim);
+                }
+            }
+        }
+    }
     Some(SurfaceOffset {
         pixels: pixels * scale,
         length: pixels / f.per_unit,
@@ -233,6 +310,31 @@ pub struct SurfaceMove {
 
 /// Rounds of [`onto_surface`] for a mesh moved before tracking (as `align --surface` does first).
 const ROUNDS: usize = 3;
+/// The offset (pixels of the level scanned) that [`onto_surface`]'s first round finds well
+/// inside its range of ±`RANGE`; a mesh found farther off is moved by the offset first.
+const REACH_PX: f64 = 8.0;
+/// The coarsest level the offset searches go to.
+const MAX_LEVEL: usize = 5;
+
+/// The pyramid level of each round of [`onto_surface`]: with more than one round, the first at
+/// half the finest's resolution (twice the reach), the rest at the finest. The finest is full
+/// resolution up to twice `CHECK_WIDTH` wide (a 1080p rig) and coarser beyond (half resolution
+/// for 4K: a 1920-pixel-wide comparison places a vertex as well as a 1080p rig does, at a
+/// quarter of the full frames' cost).
+fn round_levels(widest: u32, rounds: usize) -> Vec<usize> {
+    let finest = (0..MAX_LEVEL)
+        .find(|&l| widest >> l <= 2 * CHECK_WIDTH)
+        .unwrap_or(MAX_LEVEL);
+    (0..rounds)
+        .map(|r| {
+            if r == 0 && rounds > 1 {
+                finest + 1
+            } else {
+                finest
+            }
+        })
+        .collect()
+}
 
 /// When the cameras at `frame` agree clearly better with `mesh` moved along its normals
 /// ([`SurfaceOffset::is_off`]), its vertices moved onto the surface ([`onto_surface`]) and what
@@ -248,7 +350,7 @@ pub fn moved_onto_surface(
     if !found.is_off() {
         return None;
     }
-    let moved = onto_surface(mesh, cameras, frame, images, ROUNDS);
+    let moved = onto_surface(mesh, cameras, frame, images, ROUNDS, Some(&found));
     let mut d: Vec<f64> = moved
         .iter()
         .zip(&mesh.positions)
@@ -267,20 +369,34 @@ pub fn moved_onto_surface(
 /// of the range, not more than `OTHER_SIDE_PX` on the other side of the trusted ones' median)
 /// and replaced by the median of the trusted ones in its ring; then filled in and
 /// smoothed over the mesh (vertices no two cameras see take their neighbours'), and applied;
-/// `rounds` times from the moved mesh, the first at half resolution (twice the reach). For a
-/// mesh made from silhouettes (a visual hull), outside the surface by different amounts in
-/// different places. It keeps the triangulation and the vertices' tangential placement.
+/// `rounds` times (at least; [`round_levels`]) from the moved mesh, coarse to fine. `found`
+/// ([`surface_offset`]'s result for the mesh, when known): an offset beyond the first round's
+/// reach (more than `REACH_PX` pixels there) is applied to every vertex first, so that the
+/// rounds scan around the surface rather than around a mesh whose neighbourhood compares
+/// nothing alike. For a mesh made from silhouettes (a visual hull), outside the surface by
+/// different amounts in different places. It keeps the triangulation and the vertices'
+/// tangential placement.
 pub fn onto_surface(
     mesh: &Mesh,
     cameras: &[Camera],
     frame: u32,
     images: &[RgbImage],
     rounds: usize,
+    found: Option<&SurfaceOffset>,
 ) -> Vec<Point3<f64>> {
     let (m, of_vertex) = tracked_mesh(mesh);
     let closed = m.is_closed();
-    let pyramids = pyramids(images, 2);
+    let widest = cameras.iter().map(|c| c.width).max().unwrap_or(0);
+    let levels = round_levels(widest, rounds);
+    let pyramids = pyramids(images, levels.iter().max().map_or(1, |l| l + 1));
     let mut x = m.positions.clone();
+    let first = levels.first().copied().unwrap_or(0);
+    if let Some(f) = found.filter(|f| f.pixels.abs() / (1u32 << first) as f64 > REACH_PX) {
+        let normals = m.vertex_normals();
+        for (p, n) in x.iter_mut().zip(&normals) {
+            *p += n * f.length;
+        }
+    }
     let nv = x.len();
     let edges = m.edges();
     let mut neighbours: Vec<Vec<u32>> = vec![Vec::new(); nv];
@@ -288,13 +404,12 @@ pub fn onto_surface(
         neighbours[a as usize].push(b);
         neighbours[b as usize].push(a);
     }
-    for round in 0..rounds {
-        let level = usize::from(round == 0 && rounds > 1);
+    for &level in &levels {
         let Some(f) = frame_of(cameras, frame, &pyramids, level, &x) else {
             break;
         };
         let normals = m.with_positions(x.clone()).vertex_normals();
-        let scans = f.scan(&x, &normals, &m.triangles, &edges, closed);
+        let scans = f.scan(&x, &normals, &m.triangles, &edges, closed, 0);
         // Per vertex and offset: its triangles' cost and pixels.
         let n = scans.len();
         let mut cost = vec![0.0; nv * n];
@@ -375,5 +490,45 @@ pub fn onto_surface(
     match of_vertex {
         Some(of) => of.iter().map(|&v| x[v as usize]).collect(),
         None => x,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::{best_offset, clearest_valley, round_levels};
+
+    #[test]
+    fn the_rounds_end_at_a_comparison_as_fine_as_a_1080p_rigs() {
+        // 640 px and 1080p: half resolution, then full twice.
+        assert_eq!(round_levels(640, 3), [1, 0, 0]);
+        assert_eq!(round_levels(1920, 3), [1, 0, 0]);
+        // 4K: a quarter, then half resolution; no full-size round.
+        assert_eq!(round_levels(3840, 3), [2, 1, 1]);
+        // One round (a refinement): the finest level only.
+        assert_eq!(round_levels(640, 1), [0]);
+        assert_eq!(round_levels(3840, 1), [1]);
+        assert_eq!(round_levels(7680, 2), [3, 2]);
+        assert!(round_levels(640, 0).is_empty());
+    }
+
+    #[test]
+    fn a_clear_valley_is_found_beside_a_drift_and_a_shallow_one_is_not() {
+        // A drift falling toward +10 (the best offset at the end of the range) with a narrow,
+        // deep valley at −6.
+        let mut costs: Vec<f64> = (0..21).map(|i| 0.02 - 0.0003 * i as f64).collect();
+        costs[3] = 0.002;
+        costs[4] = 0.008;
+        costs[2] = 0.009;
+        let (p, c) = clearest_valley(&costs).unwrap();
+        assert!((p + 7.0).abs() < 0.5 && c == 0.002, "{p} {c}");
+        // Here the valley is also the global minimum, inside the range.
+        assert!(!best_offset(&costs).unwrap().2);
+        // The drift alone has no valley.
+        let drift: Vec<f64> = (0..21).map(|i| 0.02 - 0.0003 * i as f64).collect();
+        assert_eq!(clearest_valley(&drift), None);
+        // Nor has noise on it (a dip of 10 %).
+        let mut noisy = drift.clone();
+        noisy[8] *= 0.9;
+        assert_eq!(clearest_valley(&noisy), None);
     }
 }
