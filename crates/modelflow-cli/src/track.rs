@@ -275,34 +275,54 @@ const SLIVER_RATIO: f64 = 1e-3;
 /// views barely overlap: depth there is the regularisers' guess).
 const ONE_CAMERA_WARN: f64 = 0.5;
 
-/// Warns when the cameras agree best with the first mesh moved along its normals
-/// (`tracker::surface_offset`): a mesh off the surface is followed short of every turn. Only
-/// with --keep-shape: otherwise the tracker itself moves such a mesh onto the surface.
-fn surface_check(scene: &Scene) -> anyhow::Result<()> {
+/// Before tracking, from the first frame's images: whether the first mesh lies on the surface
+/// the cameras agree on (`tracker::surface_offset`; a mesh off it is followed short of every
+/// turn; warned only with --keep-shape, since otherwise the tracker itself moves such a mesh
+/// onto the surface), and, for a mesh on it, whether it is placed where the images put it
+/// (`tracker::placement`: a misplaced mesh is tracked as placed and stays that far off).
+fn first_mesh_checks(
+    scene: &Scene,
+    scene_path: &std::path::Path,
+    keep_shape: bool,
+) -> anyhow::Result<()> {
     let images = scene.load_images(scene.first)?;
-    let Some(off) =
-        modelflow::tracker::surface_offset(&scene.mesh, &scene.cameras, scene.first, &images)
-    else {
-        return Ok(());
-    };
-    if !off.is_off() {
+    let len = modelflow::base::Length::of(scene.units);
+    let off = modelflow::tracker::surface_offset(&scene.mesh, &scene.cameras, scene.first, &images);
+    if let Some(off) = off.filter(|o| o.is_off()) {
+        // A mesh off the surface pulls the pose the cameras agree on: no placement check.
+        if !keep_shape {
+            return Ok(());
+        }
+        let side = match (off.closed, off.pixels < 0.0) {
+            (true, true) => "it lies outside the surface (a visual hull made from silhouettes does), and the tracker will turn it short of every turn of the object",
+            (true, false) => "it lies inside the surface, and the tracker will turn it past every turn of the object",
+            (false, _) => "it lies off the surface, and the tracker will turn it short of or past every turn of the object",
+        };
+        eprintln!(
+            "warning: at frame {}, the cameras agree best with the mesh moved {}{:.1} px ({} {}) along its normals, {:.1}× better than where it is: {side} (docs/tracker.md, \"The first mesh must lie on the surface\"). Track without --keep-shape to have it moved onto the surface first (or modelflow align --surface).",
+            scene.first,
+            if off.at_limit { "at least " } else { "" },
+            off.pixels,
+            len.show(off.length),
+            len.unit(),
+            off.ratio
+        );
         return Ok(());
     }
-    let len = modelflow::base::Length::of(scene.units);
-    let side = match (off.closed, off.pixels < 0.0) {
-        (true, true) => "it lies outside the surface (a visual hull made from silhouettes does), and the tracker will turn it short of every turn of the object",
-        (true, false) => "it lies inside the surface, and the tracker will turn it past every turn of the object",
-        (false, _) => "it lies off the surface, and the tracker will turn it short of or past every turn of the object",
-    };
-    eprintln!(
-        "warning: at frame {}, the cameras agree best with the mesh moved {}{:.1} px ({} {}) along its normals, {:.1}× better than where it is: {side} (docs/tracker.md, \"The first mesh must lie on the surface\"). Track without --keep-shape to have it moved onto the surface first (or modelflow align --surface).",
-        scene.first,
-        if off.at_limit { "at least " } else { "" },
-        off.pixels,
-        len.show(off.length),
-        len.unit(),
-        off.ratio
-    );
+    let placed = modelflow::tracker::placement(&scene.mesh, &scene.cameras, scene.first, &images);
+    if let Some(p) = placed.filter(|p| p.is_off()) {
+        eprintln!(
+            "warning: at frame {}, the cameras agree best with the mesh moved as a whole by {} {} RMS ({:.1} % of its size; turned {:.1}°, its centre moved {} {}): it is not placed where the images put it, and the tracker will keep it that far off in every frame. Line it up first: modelflow align --scene {} --out aligned.obj (with the same --mesh and --frames), then track with --mesh aligned.obj (docs/tracker.md, \"Lining up the first mesh\").",
+            scene.first,
+            len.show(p.rms),
+            len.unit(),
+            100.0 * p.fraction,
+            p.degrees,
+            len.show(p.translation),
+            len.unit(),
+            scene_path.display()
+        );
+    }
     Ok(())
 }
 
@@ -366,8 +386,8 @@ pub fn run(args: Args, invocation: &Invocation) -> anyhow::Result<()> {
             100.0 * cover.one_camera_share()
         );
     }
-    if !opts.onto_surface {
-        surface_check(&scene)?;
+    if !args.resume {
+        first_mesh_checks(&scene, &args.scene, !opts.onto_surface)?;
     }
     let mut run = run_options(args.out.mode(args.resume), invocation);
     run.gpu = gpu;

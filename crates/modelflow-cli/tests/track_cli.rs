@@ -573,6 +573,59 @@ fn a_triangle_soup_is_tracked_as_the_surface_it_makes_and_written_as_given() {
 }
 
 #[test]
+fn a_first_mesh_placed_off_where_the_images_put_it_is_named_before_tracking() {
+    // The blob's mesh turned 5° and moved 3 % of its size (placed by hand): the tracker would
+    // keep it that far off in every frame, so `track` says so before tracking, with how far
+    // and what to run; the mesh where the images put it (every other test here) draws nothing.
+    use modelflow::input::write_obj;
+    let dir = tempfile::tempdir().unwrap();
+    let (scene, mesh) = small_blob(dir.path());
+    let placed = dir.path().join("placed.obj");
+    write_obj(
+        &placed,
+        &mesh.with_positions(modelflow::tracker::perturb(&mesh, 0.03, 5.0, 1)),
+    )
+    .unwrap();
+    let o = Command::new(env!("CARGO_BIN_EXE_modelflow"))
+        .args(["track", "--frames", "0..1", "--scene"])
+        .arg(&scene)
+        .arg("--mesh")
+        .arg(&placed)
+        .arg("--out")
+        .arg(dir.path().join("run"))
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(o.status.success(), "{err}");
+    let line = err
+        .lines()
+        .find(|l| l.contains("it is not placed where the images put it"))
+        .unwrap_or_else(|| panic!("no warning: {err}"));
+    assert!(line.contains("modelflow align --scene"), "{line}");
+    // How far: the RMS share of the size and the angle, close to what was done.
+    let pct: f64 = line
+        .split("RMS (")
+        .nth(1)
+        .unwrap()
+        .split(' ')
+        .next()
+        .unwrap()
+        .parse()
+        .unwrap();
+    let deg: f64 = line
+        .split("turned ")
+        .nth(1)
+        .unwrap()
+        .split('°')
+        .next()
+        .unwrap()
+        .parse()
+        .unwrap();
+    assert!((2.5..5.0).contains(&pct), "{line}");
+    assert!((4.0..6.0).contains(&deg), "{line}");
+}
+
+#[test]
 fn a_mesh_off_the_surface_is_moved_onto_it_before_tracking_and_named() {
     // The blob's mesh moved outward along its normals by 2 % of its size (a visual hull is
     // that far out and more): the cameras agree best with it moved back in, so `track` moves

@@ -164,6 +164,97 @@ pub struct OutlineSummary {
     pub moved_px: f64,
 }
 
+/// How far [`align`] would move a mesh to line it up with a frame: what `track` checks before
+/// tracking, since a mesh placed a few per cent off (by hand, by eye) is tracked as placed and
+/// stays that far off, every frame, with no frame flagged.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Placement {
+    /// RMS distance the vertices would move, scene units.
+    pub rms: f64,
+    /// The same as a fraction of the mesh's bounding-box diagonal.
+    pub fraction: f64,
+    /// The rotation's angle, degrees.
+    pub degrees: f64,
+    /// The translation of the mesh's centroid, scene units.
+    pub translation: f64,
+}
+
+impl Placement {
+    /// Off by enough to matter: [`PLACEMENT_WARN`] of the mesh's size or more (`align` from the
+    /// true placement moves our clips by 0.01–0.32 %: its noise, not a misplacement).
+    pub fn is_off(&self) -> bool {
+        self.fraction >= PLACEMENT_WARN
+    }
+}
+
+/// The misplacement, as a fraction of the mesh's size, worth a warning.
+pub const PLACEMENT_WARN: f64 = 0.01;
+/// The widest frame [`placement`] compares at full size.
+const PLACEMENT_WIDTH: u32 = 1280;
+
+/// What [`align`] with its default options would do to `mesh` at `frame` ([`Placement`]);
+/// `None` when it cannot tell (fewer than two cameras, or no two of them see a common
+/// triangle). A mesh that lies off the surface (`surface_offset`) pulls the pose: check that
+/// first. Frames wider than `PLACEMENT_WIDTH` are compared halved until they are not (a
+/// misplacement worth a warning is many pixels there too; an 8-camera 4K rig is checked in
+/// about the time a 720p one is).
+pub fn placement(
+    mesh: &Mesh,
+    cameras: &[Camera],
+    frame: u32,
+    images: &[RgbImage],
+) -> Option<Placement> {
+    let widest = cameras.iter().map(|c| c.width).max().unwrap_or(0);
+    let halvings = (0..8)
+        .find(|&l| widest >> l <= PLACEMENT_WIDTH)
+        .unwrap_or(8);
+    let a = if halvings == 0 {
+        align(mesh, cameras, frame, images, &AlignOptions::default()).ok()?
+    } else {
+        let small: Vec<RgbImage> = images
+            .par_iter()
+            .map(|img| {
+                let mut s = img.downsample2();
+                for _ in 1..halvings {
+                    s = s.downsample2();
+                }
+                s
+            })
+            .collect();
+        let cams: Vec<Camera> = cameras
+            .iter()
+            .zip(&small)
+            .map(|(c, img)| {
+                Camera::fixed(
+                    c.name.clone(),
+                    img.width() as u32,
+                    img.height() as u32,
+                    c.at(frame).downscaled(1 << halvings),
+                )
+            })
+            .collect();
+        align(mesh, &cams, 0, &small, &AlignOptions::default()).ok()?
+    };
+    let n = mesh.positions.len().max(1) as f64;
+    let rms = (mesh
+        .positions
+        .iter()
+        .zip(&a.positions)
+        .map(|(p, q)| (q - p).norm_squared())
+        .sum::<f64>()
+        / n)
+        .sqrt();
+    let size = mesh.bbox_diagonal();
+    let moved_centroid = centroid(&a.positions) - centroid(&mesh.positions);
+    let cos = ((a.rotation.trace() - 1.0) / 2.0).clamp(-1.0, 1.0);
+    Some(Placement {
+        rms,
+        fraction: if size > 0.0 { rms / size } else { 0.0 },
+        degrees: cos.acos().to_degrees(),
+        translation: moved_centroid.norm(),
+    })
+}
+
 /// Motions held less than this fraction as firmly as the best-held one are reported as loose.
 pub const LOOSE: f64 = 1e-2;
 

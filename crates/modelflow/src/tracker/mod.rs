@@ -29,8 +29,8 @@ pub(crate) mod warp;
 mod tests;
 
 pub use align::{
-    align, perturb, AlignLevel, AlignOptions, Alignment, LooseMotion, MotionKind, OutlineSummary,
-    LOOSE,
+    align, perturb, placement, AlignLevel, AlignOptions, Alignment, LooseMotion, MotionKind,
+    OutlineSummary, Placement, LOOSE, PLACEMENT_WARN,
 };
 pub use coverage::{coverage, Coverage};
 pub use gpu::{Gpu, GpuStats};
