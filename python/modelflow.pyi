@@ -105,6 +105,14 @@ def export(run: _Path, out: _Path, fps: float = 24.0) -> List[str]:
 def read_run(run: _Path) -> Dict[int, npt.NDArray[np.float64]]:
     """A run folder's frame meshes: {frame: (V, 3) positions}."""
 
+def first_mesh_check(
+    scene: Scene, positions: Optional[npt.NDArray[np.float64]] = None
+) -> Dict[str, Any]:
+    """What `modelflow track` checks before tracking, at the first frame, for the scene's mesh
+    (or the same triangles at `positions`, (V, 3)): {"surface": how far along its normals the
+    cameras agree best (or None), "placement": how far `align` would move the mesh (or None;
+    only for a mesh on the surface), "surface_off": bool, "misplaced": bool}."""
+
 def coverage(scene: Scene, options: Optional[Dict[str, Any]] = None) -> Dict[str, float]:
     """How much of the mesh's surface (by area, at the first frame) is seen by two or more
     cameras ("two_or_more"), by one only ("one"), by none ("none")."""

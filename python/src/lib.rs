@@ -436,25 +436,7 @@ fn align<'py>(
     outline: bool,
 ) -> PyResult<Bound<'py, PyDict>> {
     let s = &scene.inner;
-    let mesh = match positions {
-        None => s.mesh.clone(),
-        Some(a) => {
-            let a = a.as_array();
-            let n = s.mesh.positions.len();
-            if a.shape() != [n, 3] {
-                return Err(ModelflowError::new_err(format!(
-                    "positions: expected shape ({n}, 3) (one row per mesh vertex), got {:?}",
-                    a.shape()
-                )));
-            }
-            let p = a
-                .rows()
-                .into_iter()
-                .map(|r| nalgebra::Point3::new(r[0], r[1], r[2]))
-                .collect();
-            s.mesh.with_positions(p)
-        }
-    };
+    let mesh = scene_mesh(s, positions)?;
     let images = s.load_images(s.first).map_err(err)?;
     let opts = mf::tracker::AlignOptions {
         scale,
@@ -501,6 +483,58 @@ fn coverage<'py>(
     )
 }
 
+/// The scene's mesh, or the same triangles at `positions` ((V, 3), checked).
+fn scene_mesh(
+    s: &mf::Scene,
+    positions: Option<PyReadonlyArray2<'_, f64>>,
+) -> PyResult<mf::base::Mesh> {
+    Ok(match positions {
+        None => s.mesh.clone(),
+        Some(a) => {
+            let a = a.as_array();
+            let n = s.mesh.positions.len();
+            if a.shape() != [n, 3] {
+                return Err(ModelflowError::new_err(format!(
+                    "positions: expected shape ({n}, 3) (one row per mesh vertex), got {:?}",
+                    a.shape()
+                )));
+            }
+            let p = a
+                .rows()
+                .into_iter()
+                .map(|r| nalgebra::Point3::new(r[0], r[1], r[2]))
+                .collect();
+            s.mesh.with_positions(p)
+        }
+    })
+}
+
+/// What `modelflow track` checks about the first mesh before tracking, at the scene's first
+/// frame, as a dict: "surface" (how far along its normals the cameras agree best: "pixels",
+/// "length", "ratio", "at_limit", "closed"; None when no two cameras see a common triangle) and
+/// "placement" (how far `align` would move it: "rms", "fraction" of its size, "degrees",
+/// "translation"; only for a mesh on the surface, else None); "surface_off" and
+/// "misplaced" say whether either is worth a warning. `positions` ((V, 3)): another placement
+/// of the scene's mesh.
+#[pyfunction]
+#[pyo3(signature = (scene, positions=None))]
+fn first_mesh_check<'py>(
+    py: Python<'py>,
+    scene: &Scene,
+    positions: Option<PyReadonlyArray2<'py, f64>>,
+) -> PyResult<Bound<'py, PyDict>> {
+    let s = &scene.inner;
+    let mesh = scene_mesh(s, positions)?;
+    let images = s.load_images(s.first).map_err(err)?;
+    let c = mf::tracker::first_mesh_check(&mesh, &s.cameras, s.first, &images);
+    let d = PyDict::new(py);
+    d.set_item("surface", to_py(py, &c.surface)?)?;
+    d.set_item("placement", to_py(py, &c.placement)?)?;
+    d.set_item("surface_off", c.surface.is_some_and(|o| o.is_off()))?;
+    d.set_item("misplaced", c.placement.is_some_and(|p| p.is_off()))?;
+    Ok(d)
+}
+
 /// Reads a run folder's frame meshes: {frame: (V, 3) float64 positions}.
 #[pyfunction]
 fn read_run<'py>(py: Python<'py>, run: PathBuf) -> PyResult<Bound<'py, PyDict>> {
@@ -524,6 +558,7 @@ fn modelflow_py(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(export, m)?)?;
     m.add_function(wrap_pyfunction!(read_run, m)?)?;
     m.add_function(wrap_pyfunction!(coverage, m)?)?;
+    m.add_function(wrap_pyfunction!(first_mesh_check, m)?)?;
     m.add_function(wrap_pyfunction!(align, m)?)?;
     Ok(())
 }

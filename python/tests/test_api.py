@@ -179,3 +179,27 @@ def test_coverage_says_how_much_of_the_surface_two_cameras_see():
     # hardly any of the sheet is seen by both (6 % is, by one).
     strict = modelflow.coverage(modelflow.Scene.load(SCENE), {"min_cos": 0.999})
     assert strict["two_or_more"] < 0.01 and strict["none"] > 0.9
+
+
+def test_first_mesh_check_names_a_misplaced_mesh(tmp_path):
+    s = modelflow.Scene.load(SCENE)
+    c = modelflow.first_mesh_check(s)
+    assert not c["surface_off"] and not c["misplaced"]
+    assert c["placement"]["fraction"] < 0.01
+    # The cloth tilted 6° about an axis in its plane (what the images fix of a flat sheet; a
+    # lift along its normal is the surface check's, and the tracker moves that onto the
+    # surface itself): named, with how far.
+    p = s.positions
+    c0 = p.mean(axis=0)
+    _, _, vt = np.linalg.svd(p - c0)
+    axis = vt[0]
+    a = np.radians(6.0)
+    k = np.array([[0, -axis[2], axis[1]], [axis[2], 0, -axis[0]], [-axis[1], axis[0], 0]])
+    r = np.eye(3) + np.sin(a) * k + (1 - np.cos(a)) * k @ k
+    moved = (p - c0) @ r.T + c0
+    c = modelflow.first_mesh_check(s, moved)
+    assert c["misplaced"], c
+    assert 0.01 < c["placement"]["fraction"] < 0.06, c
+    assert 4.0 < c["placement"]["degrees"] < 8.0, c
+    with pytest.raises(modelflow.ModelflowError, match="positions"):
+        modelflow.first_mesh_check(s, moved[:10])

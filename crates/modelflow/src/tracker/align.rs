@@ -255,6 +255,34 @@ pub fn placement(
     })
 }
 
+/// What `track` checks about the first mesh before tracking ([`first_mesh_check`]).
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct FirstMeshCheck {
+    /// How far along its normals the cameras agree best (`surface_offset`); `None` when no two
+    /// cameras see a common triangle.
+    pub surface: Option<crate::tracker::SurfaceOffset>,
+    /// How far `align` would move the mesh ([`placement`]); only for a mesh on the surface (one
+    /// off it pulls the pose), `None` otherwise or when it cannot tell.
+    pub placement: Option<Placement>,
+}
+
+/// Whether `mesh` lies on the surface the cameras agree on at `frame`, and, when it does,
+/// whether it is placed where the images put it: the two checks `track` runs before tracking
+/// (a mesh off the surface is moved onto it unless kept as given; a misplaced one is named).
+pub fn first_mesh_check(
+    mesh: &Mesh,
+    cameras: &[Camera],
+    frame: u32,
+    images: &[RgbImage],
+) -> FirstMeshCheck {
+    let surface = crate::tracker::surface_offset(mesh, cameras, frame, images);
+    let placement = match surface {
+        Some(s) if s.is_off() => None,
+        _ => placement(mesh, cameras, frame, images),
+    };
+    FirstMeshCheck { surface, placement }
+}
+
 /// Motions held less than this fraction as firmly as the best-held one are reported as loose.
 pub const LOOSE: f64 = 1e-2;
 

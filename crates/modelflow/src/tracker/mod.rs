@@ -29,8 +29,8 @@ pub(crate) mod warp;
 mod tests;
 
 pub use align::{
-    align, perturb, placement, AlignLevel, AlignOptions, Alignment, LooseMotion, MotionKind,
-    OutlineSummary, Placement, LOOSE, PLACEMENT_WARN,
+    align, first_mesh_check, perturb, placement, AlignLevel, AlignOptions, Alignment,
+    FirstMeshCheck, LooseMotion, MotionKind, OutlineSummary, Placement, LOOSE, PLACEMENT_WARN,
 };
 pub use coverage::{coverage, Coverage};
 pub use gpu::{Gpu, GpuStats};
