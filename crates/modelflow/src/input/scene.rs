@@ -405,10 +405,8 @@ pub const LENS_BYTES_PER_PIXEL: u64 = 12;
 pub const MIN_VISIBLE_SHARE: f64 = 0.25;
 
 impl SceneFile {
-    /// The scene's cameras, checked as [`Scene::load`] checks them, without the mesh or any
-    /// image (a run's export reads them after the footage may have been archived). Errors name
-    /// `path`.
-    pub fn cameras_of(&self, path: &Path) -> Result<Vec<Camera>> {
+    /// The first and last frame, checked to be in order. Errors name `path`.
+    fn frame_range(&self, path: &Path) -> Result<(u32, u32)> {
         let (first, last) = (self.frames.first, self.frames.last);
         if first > last {
             return Err(Error::invalid(
@@ -417,6 +415,14 @@ impl SceneFile {
                 format!("first ({first}) is after last ({last})"),
             ));
         }
+        Ok((first, last))
+    }
+
+    /// The scene's cameras, checked as [`Scene::load`] checks them, without the mesh or any
+    /// image (a run's export reads them after the footage may have been archived). Errors name
+    /// `path`.
+    pub fn cameras_of(&self, path: &Path) -> Result<Vec<Camera>> {
+        self.frame_range(path)?;
         if self.cameras.is_empty() {
             return Err(Error::invalid(path, "cameras", "no camera"));
         }
@@ -878,14 +884,7 @@ impl Scene {
             ));
         }
         let base = path.parent().unwrap_or(Path::new("")).to_path_buf();
-        let (first, last) = (file.frames.first, file.frames.last);
-        if first > last {
-            return Err(Error::invalid(
-                path,
-                "frames",
-                format!("first ({first}) is after last ({last})"),
-            ));
-        }
+        let (first, last) = file.frame_range(path)?;
         // Mesh.
         let mesh_path = base.join(&file.mesh);
         if !mesh_path.is_file() {
