@@ -4,6 +4,7 @@
 
 fn main() {
     println!("cargo:rerun-if-changed=src/tracker/gpu/kernel.cu");
+    println!("cargo:rerun-if-changed=src/tracker/gpu/pcg.cu");
     println!("cargo:rerun-if-changed=src/tracker/gpu/emulate.c");
     cc::Build::new()
         .std("c99")

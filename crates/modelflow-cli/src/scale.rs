@@ -46,6 +46,8 @@ pub struct ScaleRow {
     pub ms_gpu_kernels: Option<f64>,
     /// With a GPU: copying positions up, sums back and each level's inputs up, per frame, ms.
     pub ms_gpu_transfers: Option<f64>,
+    /// With a GPU: of the linear solves, those that ran there, per frame (mean), ms.
+    pub ms_gpu_linear: Option<f64>,
     /// Peak resident memory of the process while the point ran (its images included), MiB;
     /// `None` where the system does not say (not Linux).
     pub peak_mib: Option<f64>,
@@ -186,6 +188,7 @@ pub fn measure(o: &ScaleOptions) -> anyhow::Result<ScaleReport> {
             ms_gpu_transfers: gpu_used.map(|g| {
                 (g.transfer_seconds + g.upload_copy_seconds + g.upload_host_seconds) * 1e3 / solved
             }),
+            ms_gpu_linear: gpu_used.map(|g| g.linear_solve_seconds * 1e3 / solved),
             peak_mib: peak,
         });
     }
@@ -256,13 +259,14 @@ pub fn print(r: &ScaleReport) {
     }
     for row in r.rows.iter().filter(|r| r.ms_gpu_kernels.is_some()) {
         println!(
-            "  on the GPU, {} x {}x{}, {} vertices: kernels {:.0} ms per frame, transfers and uploads {:.0} ms",
+            "  on the GPU, {} x {}x{}, {} vertices: kernels {:.0} ms per frame, transfers and uploads {:.0} ms, linear solves there {:.0} ms",
             row.cameras,
             row.width,
             row.height,
             row.vertices,
             row.ms_gpu_kernels.unwrap_or(0.0),
-            row.ms_gpu_transfers.unwrap_or(0.0)
+            row.ms_gpu_transfers.unwrap_or(0.0),
+            row.ms_gpu_linear.unwrap_or(0.0)
         );
     }
     match &r.fit {
@@ -293,6 +297,7 @@ mod tests {
             ms_linear_solver: 0.0,
             ms_gpu_kernels: None,
             ms_gpu_transfers: None,
+            ms_gpu_linear: None,
             peak_mib: None,
         }
     }

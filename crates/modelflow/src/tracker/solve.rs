@@ -1352,8 +1352,13 @@ impl Problem<'_> {
                 Motion::Free => {
                     let mut damped = cur.a.clone();
                     damped.damp(lm * mean_diag, lm);
-                    let (mut delta, cg) =
-                        solve_pcg(&damped, &cur.b, opts.cg_tolerance, opts.cg_max_iterations);
+                    let (tol, max) = (opts.cg_tolerance, opts.cg_max_iterations);
+                    // On the GPU when the problem's evaluations are there and the system is
+                    // large enough: the same step to the bit (`gpu::cg`).
+                    let (mut delta, cg) = self
+                        .gpu
+                        .and_then(|g| g.solve_pcg(&damped, &cur.b, tol, max))
+                        .unwrap_or_else(|| solve_pcg(&damped, &cur.b, tol, max));
                     delta.iter_mut().for_each(|d| *d *= shrink);
                     for ((t, p), d) in trial.iter_mut().zip(&x).zip(&delta) {
                         *t = p + d;

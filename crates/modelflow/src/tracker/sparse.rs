@@ -294,9 +294,9 @@ impl BlockSparse {
 /// are the same to the bit): the bench cloth's 1 681 rows 0.81 s on two threads against 0.67 s
 /// on one (20 frames), a 4 096-vertex cloth 0.37 s against 0.38 s, a 10 000-vertex one 0.90 s
 /// against 1.07 s.
-const PARALLEL_ROWS: usize = 4096;
+pub(crate) const PARALLEL_ROWS: usize = 4096;
 
-/// The most groups the coarsest level may have: its matrix (3 unknowns per group) is factorised
+/// The most groups the coarsest level may have: its matrix (3 unknowns per group) is inverted
 /// densely once per solve and applied at every CG iteration.
 const COARSE_MAX: usize = 64;
 
@@ -315,13 +315,15 @@ struct Aggregates {
     /// For each level from the finest aggregates to the coarsest, the group of every vertex
     /// and how many groups there are.
     levels: Vec<(Vec<u32>, usize)>,
-    /// For each level, every group's vertices in increasing order (CSR: `starts[g]..starts[g + 1]`
-    /// of `vertices`), so that a group's residual is summed in the same order whether the
-    /// groups are summed one after another or in parallel.
+    /// For each level, every group's children in increasing order (CSR: `starts[g]..starts[g + 1]`
+    /// of `vertices`): the vertices it holds at the first level, the groups of the level below
+    /// it at the others. A group's residual is its children's summed in that order (level by
+    /// level, each from the one below), whether the groups are summed one after another or in
+    /// parallel, on the CPU or on the GPU.
     members: Vec<Members>,
 }
 
-/// The vertices of each group of one aggregation level (see [`Aggregates::members`]).
+/// The children of each group of one aggregation level (see [`Aggregates::members`]).
 #[derive(Debug)]
 struct Members {
     starts: Vec<u32>,
@@ -383,7 +385,21 @@ impl Aggregates {
             count = c;
             levels.push((of.clone(), c));
         }
-        let members = levels.iter().map(|(of, c)| Members::of(of, *c)).collect();
+        // Each level's groups as groups of the level below's (nested by construction).
+        let members = (0..levels.len())
+            .map(|l| {
+                let (of, c) = &levels[l];
+                if l == 0 {
+                    return Members::of(of, *c);
+                }
+                let (below, nb) = &levels[l - 1];
+                let mut parent = vec![0u32; *nb];
+                for (&h, &g) in below.iter().zip(of) {
+                    parent[h as usize] = g;
+                }
+                Members::of(&parent, *c)
+            })
+            .collect();
         Aggregates { levels, members }
     }
 
@@ -422,14 +438,16 @@ impl Aggregates {
 
 /// The preconditioner: block-Jacobi on the vertices, plus on every coarser level of
 /// [`Aggregates`] the same for the groups moved as one (`P_lᵀ·A·P_l`'s diagonal blocks), plus the
-/// coarsest level solved exactly (Cholesky) — an additive multilevel preconditioner in the
+/// coarsest level solved exactly (its dense inverse) — an additive multilevel preconditioner in the
 /// manner of BPX, symmetric positive definite whenever `A` is.
 struct Preconditioner<'a> {
     fine: Vec<Matrix3<f64>>,
     /// Each intermediate level: the inverses of its groups' diagonal blocks.
     levels: Vec<Grouped<'a, Vec<Matrix3<f64>>>>,
-    /// The coarsest level: the Cholesky factor of its whole matrix.
-    coarsest: Option<Grouped<'a, nalgebra::Cholesky<f64, nalgebra::Dyn>>>,
+    /// The coarsest level: the inverse of its whole matrix (by Cholesky, symmetrised), applied
+    /// by [`dense_apply`]: a product, which the GPU runs one row per thread, where two
+    /// substitutions would be a chain of `2m` dependent steps.
+    coarsest: Option<Grouped<'a, nalgebra::DMatrix<f64>>>,
 }
 
 /// One aggregation level of the [`Preconditioner`]: each vertex's group, each group's vertices,
@@ -488,10 +506,13 @@ impl<'a> Preconditioner<'a> {
             let mut view = a0.fixed_view_mut::<3, 3>(ai, aj);
             view += b;
         });
-        out.coarsest = nalgebra::Cholesky::new(a0).map(|c| Grouped {
-            of,
-            members: last_members,
-            solve: c,
+        out.coarsest = nalgebra::Cholesky::new(a0).map(|c| {
+            let inv = c.inverse();
+            Grouped {
+                of,
+                members: last_members,
+                solve: (&inv + inv.transpose()) * 0.5,
+            }
         });
         out
     }
@@ -507,22 +528,44 @@ impl<'a> Preconditioner<'a> {
                 *zi = self.fine[k0 + k] * r[k0 + k];
             }
         });
+        // Every level's groups' residuals, each level's from the one below (the first's from
+        // the vertices'): a group's children summed in increasing order.
+        let members: Vec<&Members> = self
+            .levels
+            .iter()
+            .map(|l| l.members)
+            .chain(self.coarsest.as_ref().map(|c| c.members))
+            .collect();
+        scratch.gathered.resize_with(members.len(), Vec::new);
+        for (l, mem) in members.iter().enumerate() {
+            let (below, this) = scratch.gathered.split_at_mut(l);
+            let src: &[Vector3<f64>] = if l == 0 { r } else { &below[l - 1] };
+            let dst = &mut this[0];
+            dst.clear();
+            dst.resize(mem.starts.len() - 1, Vector3::zeros());
+            rows_mut(par, dst, |g0, ds| {
+                for (k, d) in ds.iter_mut().enumerate() {
+                    let mut acc = Vector3::zeros();
+                    for &c in mem.of_group(g0 + k) {
+                        acc += src[c as usize];
+                    }
+                    *d = acc;
+                }
+            });
+        }
         scratch.levels.resize_with(self.levels.len(), Vec::new);
-        // A group's residual: its vertices' summed in increasing order.
-        let gather = |mem: &Members, g: usize| {
-            let mut acc = Vector3::zeros();
-            for &i in mem.of_group(g) {
-                acc += r[i as usize];
-            }
-            acc
-        };
-        for (level, rl) in self.levels.iter().zip(&mut scratch.levels) {
-            let (of, mem, inv) = (level.of, level.members, &level.solve);
+        for ((level, rl), gathered) in self
+            .levels
+            .iter()
+            .zip(&mut scratch.levels)
+            .zip(&scratch.gathered)
+        {
+            let (of, inv) = (level.of, &level.solve);
             rl.clear();
             rl.resize(inv.len(), Vector3::zeros());
             rows_mut(par, rl, |g0, rs| {
                 for (k, v) in rs.iter_mut().enumerate() {
-                    *v = inv[g0 + k] * gather(mem, g0 + k);
+                    *v = inv[g0 + k] * gathered[g0 + k];
                 }
             });
             let rl = &*rl;
@@ -532,24 +575,11 @@ impl<'a> Preconditioner<'a> {
                 }
             });
         }
-        if let Some(Grouped {
-            of,
-            members: mem,
-            solve: chol,
-        }) = &self.coarsest
-        {
+        if let Some(Grouped { of, solve: inv, .. }) = &self.coarsest {
+            let gathered = scratch.gathered.last().expect("gathered above");
             let r0 = &mut scratch.coarsest;
-            let m = chol.l_dirty().nrows();
-            if r0.len() != m {
-                *r0 = nalgebra::DVector::zeros(m);
-            }
-            for g in 0..m / 3 {
-                let v = gather(mem, g);
-                r0[3 * g] = v.x;
-                r0[3 * g + 1] = v.y;
-                r0[3 * g + 2] = v.z;
-            }
-            chol.solve_mut(r0);
+            r0.resize(inv.nrows(), 0.0);
+            dense_apply(inv, flat_vectors(gathered), r0);
             let r0 = &*r0;
             rows_mut(par, z, |k0, zs| {
                 for (k, zi) in zs.iter_mut().enumerate() {
@@ -564,8 +594,11 @@ impl<'a> Preconditioner<'a> {
 /// Work space for [`Preconditioner::apply`].
 #[derive(Default)]
 struct Scratch {
+    /// Every level's groups' residuals.
+    gathered: Vec<Vec<Vector3<f64>>>,
+    /// Every intermediate level's corrections.
     levels: Vec<Vec<Vector3<f64>>>,
-    coarsest: nalgebra::DVector<f64>,
+    coarsest: Vec<f64>,
 }
 
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -581,27 +614,32 @@ fn parallel(n: usize) -> bool {
 }
 
 /// Rows summed together in a parallel dot product: fixed, so that the sum's order (rows in
-/// order within a run, runs in order) does not depend on the thread count.
-const DOT_RUN: usize = 1024;
+/// order within a run, runs in order) does not depend on the thread count. Short, so that the
+/// GPU (one thread per run) sums even a short vector in many pieces.
+pub(crate) const DOT_RUN: usize = 64;
 
-/// `aᵀb`. Below `PARALLEL_ROWS` rows summed in order; from there on in runs of `DOT_RUN` rows,
-/// each summed in order and the runs' sums added in order, on one thread or several alike.
+/// `aᵀb`: in runs of `DOT_RUN` rows, each summed in order, and the runs' sums added in order;
+/// on one thread below `PARALLEL_ROWS` rows, on several from there on, alike.
 fn dot(a: &[Vector3<f64>], b: &[Vector3<f64>]) -> f64 {
-    if a.len() < PARALLEL_ROWS {
-        return a.iter().zip(b).map(|(x, y)| x.dot(y)).sum();
-    }
     let run = |(x, y): (&[Vector3<f64>], &[Vector3<f64>])| -> f64 {
         x.iter().zip(y).map(|(x, y)| x.dot(y)).sum()
     };
-    let runs: Vec<f64> = if rayon::current_num_threads() > 1 {
-        a.par_chunks(DOT_RUN)
-            .zip(b.par_chunks(DOT_RUN))
-            .map(run)
-            .collect()
-    } else {
-        a.chunks(DOT_RUN).zip(b.chunks(DOT_RUN)).map(run).collect()
-    };
+    if !parallel(a.len()) {
+        return a.chunks(DOT_RUN).zip(b.chunks(DOT_RUN)).map(run).sum();
+    }
+    let runs: Vec<f64> = a
+        .par_chunks(DOT_RUN)
+        .zip(b.par_chunks(DOT_RUN))
+        .map(run)
+        .collect();
     runs.iter().sum()
+}
+
+/// Vectors as three `f64` each.
+pub(crate) fn flat_vectors(v: &[Vector3<f64>]) -> &[f64] {
+    const _: () = assert!(std::mem::size_of::<Vector3<f64>>() == 24);
+    // SAFETY: `Vector3<f64>` is three contiguous `f64`s (nalgebra's `ArrayStorage`).
+    unsafe { std::slice::from_raw_parts(v.as_ptr().cast::<f64>(), v.len() * 3) }
 }
 
 /// Calls `f(first row, rows)` over `v` split into one contiguous run per thread when `par`,
@@ -638,70 +676,279 @@ fn pcg(
     multilevel: bool,
 ) -> (Vec<Vector3<f64>>, CgSummary) {
     let n = a.dim();
-    let mut x = vec![Vector3::zeros(); n];
-    let bnorm = dot(b, b).sqrt();
+    let mut ops = CpuCg {
+        a,
+        multilevel,
+        pre: None,
+        scratch: Scratch::default(),
+        b,
+        x: vec![Vector3::zeros(); n],
+        r: Vec::new(),
+        z: vec![Vector3::zeros(); n],
+        p: Vec::new(),
+        ap: vec![Vector3::zeros(); n],
+    };
+    let summary = match cg_loop(&mut ops, tol, max_iter) {
+        Ok(s) => s,
+        Err(never) => match never {},
+    };
+    (ops.x, summary)
+}
+
+/// The vectors of the conjugate gradients, as [`CgOps`] names them.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) enum CgVec {
+    B,
+    R,
+    Z,
+    P,
+    Ap,
+}
+
+/// The operations of the preconditioned conjugate gradients on `A·x = b`, wherever the vectors
+/// live: here on the CPU ([`solve_pcg`]) or on the GPU (`tracker::gpu`). [`cg_loop`] drives
+/// them, so both paths take the same decisions in the same order; each operation is specified
+/// by the CPU's arithmetic (rows in order; dot products as [`dot`] sums them).
+pub(crate) trait CgOps {
+    type Error;
+    /// `aᵀb`, summed as [`dot`] sums it.
+    fn dot(&mut self, a: CgVec, b: CgVec) -> Result<f64, Self::Error>;
+    /// `x = 0`, `r = b`, `z = M⁻¹·r`, `p = z`.
+    fn start(&mut self) -> Result<(), Self::Error>;
+    /// `ap = A·p`.
+    fn mul_p(&mut self) -> Result<(), Self::Error>;
+    /// `x += p·α`, `r −= ap·α`.
+    fn step(&mut self, alpha: f64) -> Result<(), Self::Error>;
+    /// `z = M⁻¹·r`.
+    fn precondition(&mut self) -> Result<(), Self::Error>;
+    /// `p = z + p·β`.
+    fn update_p(&mut self, beta: f64) -> Result<(), Self::Error>;
+}
+
+/// Conjugate gradients from zero until the relative residual is below `tol` or after
+/// `max_iter` iterations (the solution is left in the operations' `x`).
+pub(crate) fn cg_loop<O: CgOps>(
+    ops: &mut O,
+    tol: f64,
+    max_iter: usize,
+) -> Result<CgSummary, O::Error> {
+    let bnorm = ops.dot(CgVec::B, CgVec::B)?.sqrt();
     if bnorm == 0.0 {
-        return (
-            x,
-            CgSummary {
-                iterations: 0,
-                relative_residual: 0.0,
-            },
-        );
+        return Ok(CgSummary {
+            iterations: 0,
+            relative_residual: 0.0,
+        });
     }
-    let pre = Preconditioner::new(a, multilevel);
-    let mut scratch = Scratch::default();
-    let mut precondition =
-        |r: &[Vector3<f64>], z: &mut [Vector3<f64>]| pre.apply(r, z, &mut scratch);
-    let r = b.to_vec();
-    let mut z = vec![Vector3::zeros(); n];
-    precondition(&r, &mut z);
-    let mut r = r;
-    let mut p = z.clone();
-    let mut ap = vec![Vector3::zeros(); n];
-    let mut rz = dot(&r, &z);
+    ops.start()?;
+    let mut rz = ops.dot(CgVec::R, CgVec::Z)?;
     let mut it = 0;
     let mut rnorm = bnorm;
     while it < max_iter {
-        a.mul(&p, &mut ap);
-        let pap = dot(&p, &ap);
+        ops.mul_p()?;
+        let pap = ops.dot(CgVec::P, CgVec::Ap)?;
         if pap.is_nan() || pap <= 0.0 {
             break;
         }
         let alpha = rz / pap;
-        let par = parallel(n);
-        rows_mut(par, &mut x, |k0, xs| {
+        ops.step(alpha)?;
+        it += 1;
+        rnorm = ops.dot(CgVec::R, CgVec::R)?.sqrt();
+        if rnorm <= tol * bnorm {
+            break;
+        }
+        ops.precondition()?;
+        let rz_new = ops.dot(CgVec::R, CgVec::Z)?;
+        let beta = rz_new / rz;
+        rz = rz_new;
+        ops.update_p(beta)?;
+    }
+    Ok(CgSummary {
+        iterations: it,
+        relative_residual: rnorm / bnorm,
+    })
+}
+
+/// [`CgOps`] on the CPU.
+struct CpuCg<'a> {
+    a: &'a BlockSparse,
+    multilevel: bool,
+    pre: Option<Preconditioner<'a>>,
+    scratch: Scratch,
+    b: &'a [Vector3<f64>],
+    x: Vec<Vector3<f64>>,
+    r: Vec<Vector3<f64>>,
+    z: Vec<Vector3<f64>>,
+    p: Vec<Vector3<f64>>,
+    ap: Vec<Vector3<f64>>,
+}
+
+impl CpuCg<'_> {
+    fn vec(&self, v: CgVec) -> &[Vector3<f64>] {
+        match v {
+            CgVec::B => self.b,
+            CgVec::R => &self.r,
+            CgVec::Z => &self.z,
+            CgVec::P => &self.p,
+            CgVec::Ap => &self.ap,
+        }
+    }
+}
+
+impl CgOps for CpuCg<'_> {
+    type Error = std::convert::Infallible;
+
+    fn dot(&mut self, a: CgVec, b: CgVec) -> Result<f64, Self::Error> {
+        Ok(dot(self.vec(a), self.vec(b)))
+    }
+
+    fn start(&mut self) -> Result<(), Self::Error> {
+        let pre = Preconditioner::new(self.a, self.multilevel);
+        self.r = self.b.to_vec();
+        pre.apply(&self.r, &mut self.z, &mut self.scratch);
+        self.pre = Some(pre);
+        self.p = self.z.clone();
+        Ok(())
+    }
+
+    fn mul_p(&mut self) -> Result<(), Self::Error> {
+        self.a.mul(&self.p, &mut self.ap);
+        Ok(())
+    }
+
+    fn step(&mut self, alpha: f64) -> Result<(), Self::Error> {
+        let par = parallel(self.x.len());
+        let (p, ap) = (&self.p, &self.ap);
+        rows_mut(par, &mut self.x, |k0, xs| {
             for (k, xi) in xs.iter_mut().enumerate() {
                 *xi += p[k0 + k] * alpha;
             }
         });
-        rows_mut(par, &mut r, |k0, rs| {
+        rows_mut(par, &mut self.r, |k0, rs| {
             for (k, ri) in rs.iter_mut().enumerate() {
                 *ri -= ap[k0 + k] * alpha;
             }
         });
-        it += 1;
-        rnorm = dot(&r, &r).sqrt();
-        if rnorm <= tol * bnorm {
-            break;
+        Ok(())
+    }
+
+    fn precondition(&mut self) -> Result<(), Self::Error> {
+        if let Some(pre) = &self.pre {
+            pre.apply(&self.r, &mut self.z, &mut self.scratch);
         }
-        precondition(&r, &mut z);
-        let rz_new = dot(&r, &z);
-        let beta = rz_new / rz;
-        rz = rz_new;
-        rows_mut(parallel(n), &mut p, |k0, ps| {
+        Ok(())
+    }
+
+    fn update_p(&mut self, beta: f64) -> Result<(), Self::Error> {
+        let z = &self.z;
+        rows_mut(parallel(z.len()), &mut self.p, |k0, ps| {
             for (k, pi) in ps.iter_mut().enumerate() {
                 *pi = z[k0 + k] + *pi * beta;
             }
         });
+        Ok(())
     }
-    (
-        x,
-        CgSummary {
-            iterations: it,
-            relative_residual: rnorm / bnorm,
-        },
-    )
+}
+
+/// `out = inv·r` for a dense square `inv`: each row summed over the columns in order, from
+/// zero (the GPU's `cg_coarse` sums each row so, one row per thread).
+fn dense_apply(inv: &nalgebra::DMatrix<f64>, r: &[f64], out: &mut [f64]) {
+    let m = r.len();
+    let a = inv.as_slice();
+    for (k, o) in out.iter_mut().enumerate() {
+        let mut acc = 0.0;
+        for (j, rj) in r.iter().enumerate() {
+            acc += a[k + j * m] * rj;
+        }
+        *o = acc;
+    }
+}
+
+/// A system and its preconditioner flattened for the GPU path (`tracker::gpu`): what
+/// [`CgOps`] reads there, in the layouts the CPU holds them (3×3 blocks column-major).
+pub(crate) struct FlatSystem<'a> {
+    pub n: usize,
+    pub row_ptr: Vec<u32>,
+    pub cols: &'a [u32],
+    /// Nine per block, column-major.
+    pub blocks: &'a [f64],
+    /// The scalar part `s·K ⊗ I₃`, if any.
+    pub scalar: Option<FlatScalar<'a>>,
+    /// Block-Jacobi's inverses, nine per vertex, column-major.
+    pub fine: Vec<f64>,
+    /// Each intermediate level: every vertex's group, the groups' children (starts, children:
+    /// vertices at the first level, the level below's groups at the others), and the groups'
+    /// inverses (nine each).
+    pub levels: Vec<FlatLevel<'a>>,
+    /// The coarsest level and its matrix's inverse (`m × m`, column-major).
+    pub coarsest: Option<(FlatLevel<'a>, Vec<f64>, usize)>,
+}
+
+/// `K`'s rows (CSR starts), columns and values, and its weight `s`, in [`FlatSystem`].
+pub(crate) type FlatScalar<'a> = (Vec<u32>, &'a [u32], &'a [f64], f64);
+
+/// One aggregation level in [`FlatSystem`].
+pub(crate) struct FlatLevel<'a> {
+    pub of: &'a [u32],
+    pub starts: &'a [u32],
+    pub vertices: &'a [u32],
+    pub groups: usize,
+    pub inverses: Vec<f64>,
+}
+
+fn flat_blocks(m: &[Matrix3<f64>]) -> &[f64] {
+    // SAFETY: `Matrix3<f64>` is nine contiguous `f64`s (nalgebra's `ArrayStorage`, `repr(C)`).
+    const _: () = assert!(std::mem::size_of::<Matrix3<f64>>() == 72);
+    unsafe { std::slice::from_raw_parts(m.as_ptr().cast::<f64>(), m.len() * 9) }
+}
+
+impl BlockSparse {
+    /// The system and its multilevel preconditioner (built here, on the CPU, as
+    /// [`solve_pcg`] builds it) flattened for the GPU.
+    pub(crate) fn flat(&self) -> FlatSystem<'_> {
+        let pre = Preconditioner::new(self, true);
+        let levels = pre
+            .levels
+            .iter()
+            .map(|g| FlatLevel {
+                of: g.of,
+                starts: &g.members.starts,
+                vertices: &g.members.vertices,
+                groups: g.solve.len(),
+                inverses: flat_blocks(&g.solve).to_vec(),
+            })
+            .collect();
+        let coarsest = pre.coarsest.as_ref().map(|g| {
+            let m = g.solve.nrows();
+            (
+                FlatLevel {
+                    of: g.of,
+                    starts: &g.members.starts,
+                    vertices: &g.members.vertices,
+                    groups: m / 3,
+                    inverses: Vec::new(),
+                },
+                g.solve.as_slice().to_vec(),
+                m,
+            )
+        });
+        FlatSystem {
+            n: self.dim(),
+            row_ptr: self.row_ptr.iter().map(|&k| k as u32).collect(),
+            cols: &self.cols,
+            blocks: flat_blocks(&self.blocks),
+            scalar: self.scalar.as_ref().map(|(k, s)| {
+                (
+                    k.row_ptr.iter().map(|&e| e as u32).collect(),
+                    &k.cols[..],
+                    &k.vals[..],
+                    *s,
+                )
+            }),
+            fine: flat_blocks(&pre.fine).to_vec(),
+            levels,
+            coarsest,
+        }
+    }
 }
 
 #[cfg(test)]

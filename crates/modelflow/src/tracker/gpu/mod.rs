@@ -20,8 +20,10 @@ use crate::tracker::solve::{GainModel, Interpolation, Loss, Problem, SolverOptio
 use nalgebra::{Matrix3, Point3, Vector3};
 use std::sync::{Arc, Mutex};
 
-/// The kernels' source.
-const KERNEL: &str = include_str!("kernel.cu");
+mod cg;
+
+/// The kernels' source: the evaluation's, then the linear solve's.
+const KERNEL: &str = concat!(include_str!("kernel.cu"), include_str!("pcg.cu"));
 
 /// Doubles per patch record and per triangle's blocks (see `kernel.cu`).
 const REC: usize = 67;
@@ -43,7 +45,14 @@ pub struct Gpu {
     backend: Backend,
     name: String,
     stats: Mutex<GpuStats>,
+    /// Systems of this many rows or more are solved on the GPU ([`Gpu::solves`]).
+    solve_from: usize,
 }
+
+/// Rows from which the linear solve runs on the GPU by default: below it a solve's dozens of
+/// small launches and read-backs cost more than the CPU's product (`MODELFLOW_GPU_SOLVE_FROM`
+/// sets another, for measuring; docs/gpu.md).
+const SOLVE_FROM: usize = 4096;
 
 /// Where the GPU path's time went since the [`Gpu`] was opened (wall time, seconds): what a
 /// benchmark reports to say whether the device, the bus or the host is the bottleneck.
@@ -61,6 +70,14 @@ pub struct GpuStats {
     pub kernel_seconds: f64,
     /// Copying the positions up and the sums back.
     pub transfer_seconds: f64,
+    /// Linear solves run on the GPU (from `MODELFLOW_GPU_SOLVE_FROM` rows, 4 096 by default).
+    pub linear_solves: u64,
+    /// Their conjugate-gradient iterations.
+    pub cg_iterations: u64,
+    /// Their wall time, uploads and the preconditioner's set-up on the CPU included.
+    pub linear_solve_seconds: f64,
+    /// Of it, the set-up: the preconditioner built on the CPU and the system uploaded.
+    pub linear_setup_seconds: f64,
 }
 
 impl GpuStats {
@@ -73,6 +90,10 @@ impl GpuStats {
             evaluations: self.evaluations - earlier.evaluations,
             kernel_seconds: self.kernel_seconds - earlier.kernel_seconds,
             transfer_seconds: self.transfer_seconds - earlier.transfer_seconds,
+            linear_solves: self.linear_solves - earlier.linear_solves,
+            cg_iterations: self.cg_iterations - earlier.cg_iterations,
+            linear_solve_seconds: self.linear_solve_seconds - earlier.linear_solve_seconds,
+            linear_setup_seconds: self.linear_setup_seconds - earlier.linear_setup_seconds,
         }
     }
 }
@@ -96,10 +117,15 @@ impl Gpu {
     /// what is missing: the driver library, the NVRTC library, a device, or the compile.
     pub fn open() -> Result<Gpu> {
         let (backend, name) = cuda::Cuda::open()?;
+        let solve_from = std::env::var("MODELFLOW_GPU_SOLVE_FROM")
+            .ok()
+            .and_then(|v| v.parse().ok())
+            .unwrap_or(SOLVE_FROM);
         Ok(Gpu {
             backend: Backend::Cuda(backend),
             name,
             stats: Mutex::new(GpuStats::default()),
+            solve_from,
         })
     }
 
@@ -119,12 +145,14 @@ impl Gpu {
         }
     }
 
+    /// The kernels emulated on the CPU, every linear solve on the "GPU" whatever its size.
     #[cfg(test)]
     pub(crate) fn emulated() -> Gpu {
         Gpu {
             backend: Backend::Emulated,
             name: "emulated on the CPU".into(),
             stats: Mutex::new(GpuStats::default()),
+            solve_from: 0,
         }
     }
 
@@ -316,6 +344,30 @@ impl Uploaded {
         Some((acc, s.hist.unwrap_or_default()))
     }
 
+    /// `sparse::solve_pcg` on the GPU for a system large enough to be worth it there
+    /// ([`Gpu::solves`]); `None` below that or after a failure on the device (kept for
+    /// [`Uploaded::failure`]), when the caller solves on the CPU.
+    pub(crate) fn solve_pcg(
+        &self,
+        a: &crate::tracker::sparse::BlockSparse,
+        b: &[Vector3<f64>],
+        tol: f64,
+        max_iter: usize,
+    ) -> Option<(Vec<Vector3<f64>>, crate::tracker::sparse::CgSummary)> {
+        if !self.gpu.solves(a.dim()) || self.failure.lock().map(|f| f.is_some()).unwrap_or(true) {
+            return None;
+        }
+        match self.gpu.solve_pcg(a, b, tol, max_iter) {
+            Ok(r) => Some(r),
+            Err(e) => {
+                if let Ok(mut f) = self.failure.lock() {
+                    f.get_or_insert(e);
+                }
+                None
+            }
+        }
+    }
+
     /// The first failure on the device since the upload, taken (so it is reported once).
     pub(crate) fn failure(&self) -> Option<Error> {
         self.failure.lock().ok().and_then(|mut f| f.take())
@@ -443,9 +495,10 @@ mod cuda {
     use std::sync::Arc;
 
     pub(super) struct Cuda {
-        stream: Arc<CudaStream>,
+        pub(super) stream: Arc<CudaStream>,
         evaluate: CudaFunction,
         sum: CudaFunction,
+        pub(super) cg: super::cg::cuda::CgKernels,
     }
 
     pub(super) struct Buffers {
@@ -483,6 +536,7 @@ mod cuda {
         #define BLOCK_DIM_X blockDim.x\n\
         #define SHARED __shared__\n\
         #define SYNCWARP() __syncwarp()\n\
+        #define SYNCTHREADS() __syncthreads()\n\
         #define LAUNCH_BOUNDS __launch_bounds__(128, 4)\n";
 
     /// The kernels compiled by NVRTC for compute capability `major.minor` (needs the NVRTC
@@ -552,12 +606,14 @@ mod cuda {
             let sum = module
                 .load_function("sum_triangles")
                 .map_err(gpu_err("loading sum_triangles"))?;
+            let cg = super::cg::cuda::CgKernels::load(&module)?;
             let stream = ctx.default_stream();
             Ok((
                 Cuda {
                     stream,
                     evaluate,
                     sum,
+                    cg,
                 },
                 name,
             ))
