@@ -273,17 +273,15 @@ impl BlockSparse {
 }
 
 impl BlockSparse {
-    /// Calls `f(i, j, block)` for every stored block and, as `s·K_ij·I₃`, every entry of the
-    /// scalar part, in a fixed order.
-    fn for_each_entry(&self, mut f: impl FnMut(usize, usize, Matrix3<f64>)) {
-        for i in 0..self.dim() {
-            for k in self.row_ptr[i]..self.row_ptr[i + 1] {
-                f(i, self.cols[k] as usize, self.blocks[k]);
-            }
-            if let Some((m, s)) = &self.scalar {
-                for e in m.row_ptr[i]..m.row_ptr[i + 1] {
-                    f(i, m.cols[e] as usize, Matrix3::identity() * (s * m.vals[e]));
-                }
+    /// Calls `f(j, block)` for every stored block of row `i` and, as `s·K_ij·I₃`, every entry
+    /// of the scalar part's row `i`, in a fixed order.
+    fn for_each_entry_of_row(&self, i: usize, mut f: impl FnMut(usize, Matrix3<f64>)) {
+        for k in self.row_ptr[i]..self.row_ptr[i + 1] {
+            f(self.cols[k] as usize, self.blocks[k]);
+        }
+        if let Some((m, s)) = &self.scalar {
+            for e in m.row_ptr[i]..m.row_ptr[i + 1] {
+                f(m.cols[e] as usize, Matrix3::identity() * (s * m.vals[e]));
             }
         }
     }
@@ -458,6 +456,77 @@ struct Grouped<'a, T> {
     solve: T,
 }
 
+/// A matrix over one aggregation level's groups, `P_lᵀ·A·P_l`: each group's row holds its
+/// blocks with the groups it touches, in the order they were first met.
+struct GroupMatrix {
+    rows: Vec<Vec<(u32, Matrix3<f64>)>>,
+}
+
+impl GroupMatrix {
+    /// Adds `b` at (g, h), `at[h]` remembering where row `g`'s entry for `h` is (a sparse
+    /// accumulator: no search; rows are filled one after another).
+    fn add(&mut self, at: &mut [(u32, u32)], g: u32, h: u32, b: Matrix3<f64>) {
+        let row = &mut self.rows[g as usize];
+        let (r, k) = at[h as usize];
+        if r == g {
+            row[k as usize].1 += b;
+        } else {
+            at[h as usize] = (g, row.len() as u32);
+            row.push((h, b));
+        }
+    }
+
+    /// The first level's, from `A`'s entries: group by group, each group's vertices' rows in
+    /// increasing order.
+    fn of(a: &BlockSparse, of: &[u32], members: &Members, count: usize) -> Self {
+        let mut m = GroupMatrix {
+            rows: vec![Vec::new(); count],
+        };
+        let mut at = vec![(u32::MAX, 0u32); count];
+        for g in 0..count {
+            for &i in members.of_group(g) {
+                a.for_each_entry_of_row(i as usize, |j, b| m.add(&mut at, g as u32, of[j], b));
+            }
+        }
+        m
+    }
+
+    /// The next level's: each of its groups' children's rows, children in increasing order.
+    fn coarser(&self, children: &Members, count: usize) -> Self {
+        let mut parent = vec![0u32; self.rows.len()];
+        for g in 0..count {
+            for &c in children.of_group(g) {
+                parent[c as usize] = g as u32;
+            }
+        }
+        let mut m = GroupMatrix {
+            rows: vec![Vec::new(); count],
+        };
+        let mut at = vec![(u32::MAX, 0u32); count];
+        for g in 0..count {
+            for &c in children.of_group(g) {
+                for &(h, b) in &self.rows[c as usize] {
+                    m.add(&mut at, g as u32, parent[h as usize], b);
+                }
+            }
+        }
+        m
+    }
+
+    /// Every group's block with itself.
+    fn diagonal(&self) -> Vec<Matrix3<f64>> {
+        self.rows
+            .iter()
+            .enumerate()
+            .map(|(g, row)| {
+                row.iter()
+                    .find(|(h, _)| *h as usize == g)
+                    .map_or(Matrix3::zeros(), |&(_, b)| b)
+            })
+            .collect()
+    }
+}
+
 fn invert_or_scale(d: Matrix3<f64>) -> Matrix3<f64> {
     d.try_inverse().unwrap_or_else(|| {
         let s = d.trace() / 3.0;
@@ -484,28 +553,30 @@ impl<'a> Preconditioner<'a> {
             return out;
         }
         let members = &a.aggregates.members;
-        let (last, rest) = all.split_last().expect("not empty");
-        for ((of, count), mem) in rest.iter().zip(members) {
-            let mut d = vec![Matrix3::zeros(); *count];
-            a.for_each_entry(|i, j, b| {
-                if of[i] == of[j] {
-                    d[of[i] as usize] += b;
-                }
-            });
-            out.levels.push(Grouped {
-                of,
-                members: mem,
-                solve: d.into_iter().map(invert_or_scale).collect(),
-            });
+        // Each level's matrix over its groups, `P_lᵀ·A·P_l`: the first level's from one pass over
+        // `A`'s entries, every further level's from the level below's (its groups' children).
+        let mut groups = GroupMatrix::of(a, &all[0].0, &members[0], all[0].1);
+        for l in 0..all.len() {
+            if l > 0 {
+                groups = groups.coarser(&members[l], all[l].1);
+            }
+            if l + 1 < all.len() {
+                out.levels.push(Grouped {
+                    of: &all[l].0,
+                    members: &members[l],
+                    solve: groups.diagonal().into_iter().map(invert_or_scale).collect(),
+                });
+            }
         }
-        let (of, m) = (&last.0[..], last.1);
+        let (of, m) = (&all[all.len() - 1].0[..], all[all.len() - 1].1);
         let last_members = &members[all.len() - 1];
         let mut a0 = nalgebra::DMatrix::<f64>::zeros(3 * m, 3 * m);
-        a.for_each_entry(|i, j, b| {
-            let (ai, aj) = (3 * of[i] as usize, 3 * of[j] as usize);
-            let mut view = a0.fixed_view_mut::<3, 3>(ai, aj);
-            view += b;
-        });
+        for (g, row) in groups.rows.iter().enumerate() {
+            for &(h, b) in row {
+                let mut view = a0.fixed_view_mut::<3, 3>(3 * g, 3 * h as usize);
+                view += b;
+            }
+        }
         out.coarsest = nalgebra::Cholesky::new(a0).map(|c| {
             let inv = c.inverse();
             Grouped {
@@ -1173,12 +1244,81 @@ mod tests {
     /// Block `(i, j)` of `a`, its scalar part included (zero where none is stored).
     fn a_entry(a: &BlockSparse, i: usize, j: usize) -> Matrix3<f64> {
         let mut out = Matrix3::zeros();
-        a.for_each_entry(|r, c, b| {
-            if r == i && c == j {
+        a.for_each_entry_of_row(i, |c, b| {
+            if c == j {
                 out += b;
             }
         });
         out
+    }
+
+    /// Every aggregation level's group matrix, built level by level from the one below, is
+    /// `P_lᵀ·A·P_l` summed directly from `A`'s entries (to rounding), with one entry per pair of
+    /// groups.
+    #[test]
+    fn each_levels_group_matrix_is_the_direct_sum_over_its_groups() {
+        let (w, h) = (50u32, 40u32);
+        let n = (w * h) as usize;
+        let edges = grid_edges(w, h);
+        let mut a = BlockSparse::new(n, &edges);
+        for (e, &[i, j]) in edges.iter().enumerate() {
+            let t = e as f64 * 0.7;
+            let k = Matrix3::new(
+                1.0 + t.sin().abs(),
+                0.2,
+                0.1,
+                0.2,
+                0.8,
+                t.cos() * 0.3,
+                0.1,
+                t.cos() * 0.3,
+                1.1,
+            );
+            a.add_edge(e, [i as usize, j as usize], &k);
+        }
+        let rows: Vec<Vec<(u32, f64)>> = edges
+            .iter()
+            .map(|&[i, j]| vec![(i, 1.0), (j, -1.0)])
+            .collect();
+        let k = Arc::new(ScalarSparse::gram(n, rows.iter().map(|r| &r[..])));
+        a.add_scalar(&k, 0.4);
+        let all = &a.aggregates.levels;
+        assert!(all.len() >= 2, "{} levels", all.len());
+        let members = &a.aggregates.members;
+        let mut groups = GroupMatrix::of(&a, &all[0].0, &members[0], all[0].1);
+        for (l, (of, count)) in all.iter().enumerate() {
+            if l > 0 {
+                groups = groups.coarser(&members[l], *count);
+            }
+            let mut direct = vec![vec![Matrix3::zeros(); *count]; *count];
+            for i in 0..n {
+                a.for_each_entry_of_row(i, |j, b| direct[of[i] as usize][of[j] as usize] += b);
+            }
+            let mut seen = 0;
+            for (g, row) in groups.rows.iter().enumerate() {
+                let mut hs: Vec<u32> = row.iter().map(|e| e.0).collect();
+                hs.sort_unstable();
+                hs.dedup();
+                assert_eq!(
+                    hs.len(),
+                    row.len(),
+                    "level {l}, group {g}: a pair held twice"
+                );
+                for &(h, b) in row {
+                    let d = direct[g][h as usize];
+                    assert!(
+                        (b - d).norm() <= 1e-12 * (1.0 + d.norm()),
+                        "level {l}, ({g}, {h})"
+                    );
+                    seen += 1;
+                }
+            }
+            let nonzero = direct.iter().flatten().filter(|m| m.norm() > 0.0).count();
+            assert!(
+                seen >= nonzero,
+                "level {l}: {seen} entries, {nonzero} pairs touch"
+            );
+        }
     }
 
     #[test]
