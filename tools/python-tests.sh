@@ -19,6 +19,10 @@ wheels="$root/target/python-wheels"
 rm -rf "$wheels"
 "$py" -m maturin build -q --profile dev -i "$py" -m python/Cargo.toml --out "$wheels"
 "$py" -m pip install -q --disable-pip-version-check --force-reinstall --no-deps "$wheels"/modelflow-*.whl
-export MODELFLOW_BIN="${MODELFLOW_BIN:-$root/target/debug/modelflow}"
-[ -x "$MODELFLOW_BIN" ] || cargo build -q --bin modelflow
+# The CLI the tests compare with is built from the same sources as the wheel (a stale binary
+# would differ from it by whatever changed since).
+if [ -z "${MODELFLOW_BIN:-}" ]; then
+    cargo build -q --bin modelflow
+    export MODELFLOW_BIN="$root/target/debug/modelflow"
+fi
 "$py" -m pytest -q python/tests
