@@ -165,6 +165,11 @@ impl BlockSparse {
         self.row_ptr.len() - 1
     }
 
+    /// Stored blocks, and entries of the scalar part.
+    pub(crate) fn entries(&self) -> usize {
+        self.cols.len() + self.scalar.as_ref().map_or(0, |(k, _)| k.cols.len())
+    }
+
     /// Sets every block, and the scalar part, to zero.
     pub fn clear(&mut self) {
         self.blocks.iter_mut().for_each(|b| *b = Matrix3::zeros());
@@ -295,7 +300,8 @@ impl BlockSparse {
 pub(crate) const PARALLEL_ROWS: usize = 4096;
 
 /// The most groups the coarsest level may have: its matrix (3 unknowns per group) is inverted
-/// densely once per solve and applied at every CG iteration.
+/// densely once per solve and applied at every CG iteration. (Where aggregation stops above it,
+/// on a mesh of more separate pieces, the last level is block-Jacobi like the others.)
 const COARSE_MAX: usize = 64;
 
 /// Nested partitions of the vertices into connected groups, for the preconditioner's coarser
@@ -456,6 +462,9 @@ struct Grouped<'a, T> {
     solve: T,
 }
 
+/// Groups from which a [`GroupMatrix`]'s rows are built on several threads.
+const GROUP_ROWS_PARALLEL: usize = 512;
+
 /// A matrix over one aggregation level's groups, `P_lᵀ·A·P_l`: each group's row holds its
 /// blocks with the groups it touches, in the order they were first met.
 struct GroupMatrix {
@@ -463,32 +472,41 @@ struct GroupMatrix {
 }
 
 impl GroupMatrix {
-    /// Adds `b` at (g, h), `at[h]` remembering where row `g`'s entry for `h` is (a sparse
-    /// accumulator: no search; rows are filled one after another).
-    fn add(&mut self, at: &mut [(u32, u32)], g: u32, h: u32, b: Matrix3<f64>) {
-        let row = &mut self.rows[g as usize];
-        let (r, k) = at[h as usize];
-        if r == g {
-            row[k as usize].1 += b;
+    /// `count` rows over `count` groups, row `g` from `fill(g, add)`, which calls `add(h, b)`
+    /// for each block `b` at (g, h) in its fixed order. Each row is summed on its own (the same
+    /// sums on one thread or several), with a sparse accumulator: `at[h]` remembers where the
+    /// row being filled keeps `h`, so there is no search.
+    fn build(count: usize, fill: impl Fn(usize, &mut dyn FnMut(u32, Matrix3<f64>)) + Sync) -> Self {
+        let row = |at: &mut Vec<(u32, u32)>, g: usize| {
+            let mut row: Vec<(u32, Matrix3<f64>)> = Vec::new();
+            fill(g, &mut |h, b| {
+                let (r, k) = at[h as usize];
+                if r == g as u32 {
+                    row[k as usize].1 += b;
+                } else {
+                    at[h as usize] = (g as u32, row.len() as u32);
+                    row.push((h, b));
+                }
+            });
+            row
+        };
+        let fresh = || vec![(u32::MAX, 0u32); count];
+        let rows = if count >= GROUP_ROWS_PARALLEL && rayon::current_num_threads() > 1 {
+            (0..count).into_par_iter().map_init(fresh, row).collect()
         } else {
-            at[h as usize] = (g, row.len() as u32);
-            row.push((h, b));
-        }
+            let mut at = fresh();
+            (0..count).map(|g| row(&mut at, g)).collect()
+        };
+        GroupMatrix { rows }
     }
 
-    /// The first level's, from `A`'s entries: group by group, each group's vertices' rows in
-    /// increasing order.
+    /// The first level's, from `A`'s entries: each group's vertices' rows in increasing order.
     fn of(a: &BlockSparse, of: &[u32], members: &Members, count: usize) -> Self {
-        let mut m = GroupMatrix {
-            rows: vec![Vec::new(); count],
-        };
-        let mut at = vec![(u32::MAX, 0u32); count];
-        for g in 0..count {
+        Self::build(count, |g, add| {
             for &i in members.of_group(g) {
-                a.for_each_entry_of_row(i as usize, |j, b| m.add(&mut at, g as u32, of[j], b));
+                a.for_each_entry_of_row(i as usize, |j, b| add(of[j], b));
             }
-        }
-        m
+        })
     }
 
     /// The next level's: each of its groups' children's rows, children in increasing order.
@@ -499,18 +517,13 @@ impl GroupMatrix {
                 parent[c as usize] = g as u32;
             }
         }
-        let mut m = GroupMatrix {
-            rows: vec![Vec::new(); count],
-        };
-        let mut at = vec![(u32::MAX, 0u32); count];
-        for g in 0..count {
+        Self::build(count, |g, add| {
             for &c in children.of_group(g) {
                 for &(h, b) in &self.rows[c as usize] {
-                    m.add(&mut at, g as u32, parent[h as usize], b);
+                    add(parent[h as usize], b);
                 }
             }
-        }
-        m
+        })
     }
 
     /// Every group's block with itself.
@@ -540,9 +553,16 @@ fn invert_or_scale(d: Matrix3<f64>) -> Matrix3<f64> {
 
 impl<'a> Preconditioner<'a> {
     fn new(a: &'a BlockSparse, multilevel: bool) -> Self {
-        let fine = (0..a.dim())
-            .map(|i| invert_or_scale(a.diagonal(i)))
-            .collect();
+        let fine = if parallel(a.dim()) {
+            (0..a.dim())
+                .into_par_iter()
+                .map(|i| invert_or_scale(a.diagonal(i)))
+                .collect()
+        } else {
+            (0..a.dim())
+                .map(|i| invert_or_scale(a.diagonal(i)))
+                .collect()
+        };
         let mut out = Preconditioner {
             fine,
             levels: Vec::new(),
@@ -555,18 +575,25 @@ impl<'a> Preconditioner<'a> {
         let members = &a.aggregates.members;
         // Each level's matrix over its groups, `P_lᵀ·A·P_l`: the first level's from one pass over
         // `A`'s entries, every further level's from the level below's (its groups' children).
+        // The last level is solved whole only when it is small: aggregation stops early on a mesh
+        // of many separate pieces (each piece ends as one group), and a dense inverse of
+        // thousands of unknowns would cost more than the solve. Then every level is block-Jacobi.
+        let dense = all[all.len() - 1].1 <= COARSE_MAX;
         let mut groups = GroupMatrix::of(a, &all[0].0, &members[0], all[0].1);
         for l in 0..all.len() {
             if l > 0 {
                 groups = groups.coarser(&members[l], all[l].1);
             }
-            if l + 1 < all.len() {
+            if l + 1 < all.len() || !dense {
                 out.levels.push(Grouped {
                     of: &all[l].0,
                     members: &members[l],
                     solve: groups.diagonal().into_iter().map(invert_or_scale).collect(),
                 });
             }
+        }
+        if !dense {
+            return out;
         }
         let (of, m) = (&all[all.len() - 1].0[..], all[all.len() - 1].1);
         let last_members = &members[all.len() - 1];
@@ -590,8 +617,9 @@ impl<'a> Preconditioner<'a> {
 
     /// `z = M⁻¹·r`, with `scratch` for the coarser levels' residuals (no allocation per call).
     /// From `PARALLEL_ROWS` rows on, the vertices and the groups are split over the threads;
-    /// every group's residual is summed over its vertices in increasing order either way, so
-    /// the result does not depend on the thread count.
+    /// every group's residual is summed over its children (vertices, or the level below's
+    /// groups) in increasing order either way, so the result does not depend on the thread
+    /// count.
     fn apply(&self, r: &[Vector3<f64>], z: &mut [Vector3<f64>], scratch: &mut Scratch) {
         let par = parallel(r.len());
         rows_mut(par, z, |k0, zs| {
@@ -601,14 +629,16 @@ impl<'a> Preconditioner<'a> {
         });
         // Every level's groups' residuals, each level's from the one below (the first's from
         // the vertices'): a group's children summed in increasing order.
-        let members: Vec<&Members> = self
+        let members = self
             .levels
             .iter()
             .map(|l| l.members)
-            .chain(self.coarsest.as_ref().map(|c| c.members))
-            .collect();
-        scratch.gathered.resize_with(members.len(), Vec::new);
-        for (l, mem) in members.iter().enumerate() {
+            .chain(self.coarsest.as_ref().map(|c| c.members));
+        scratch.gathered.resize_with(
+            self.levels.len() + usize::from(self.coarsest.is_some()),
+            Vec::new,
+        );
+        for (l, mem) in members.enumerate() {
             let (below, this) = scratch.gathered.split_at_mut(l);
             let src: &[Vector3<f64>] = if l == 0 { r } else { &below[l - 1] };
             let dst = &mut this[0];
@@ -1023,7 +1053,7 @@ impl BlockSparse {
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
 
     #[test]
@@ -1094,7 +1124,7 @@ mod tests {
     }
 
     /// The edges of a `w`×`h` grid of vertices (right and down neighbours).
-    fn grid_edges(w: u32, h: u32) -> Vec<[u32; 2]> {
+    pub(crate) fn grid_edges(w: u32, h: u32) -> Vec<[u32; 2]> {
         let mut edges = Vec::new();
         for y in 0..h {
             for x in 0..w {

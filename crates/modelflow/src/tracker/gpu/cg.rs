@@ -43,6 +43,20 @@ impl Gpu {
         tol: f64,
         max_iter: usize,
     ) -> Result<(Vec<Vector3<f64>>, CgSummary)> {
+        if b.len() != a.dim() {
+            return Err(Error::Gpu(format!(
+                "linear solve: {} rows but a right-hand side of {}",
+                a.dim(),
+                b.len()
+            )));
+        }
+        // The kernels index rows and entries with 32-bit integers.
+        if 3 * a.dim() > i32::MAX as usize || a.entries() > u32::MAX as usize {
+            return Err(Error::Gpu(format!(
+                "linear solve: {} rows are more than the kernels index",
+                a.dim()
+            )));
+        }
         let t0 = std::time::Instant::now();
         let sys = a.flat();
         let setup;
@@ -726,20 +740,10 @@ mod tests {
     /// Levenberg–Marquardt damping; and a right-hand side.
     fn grid_system(w: u32, h: u32) -> (BlockSparse, Vec<Vector3<f64>>) {
         let n = (w * h) as usize;
-        let mut edges = Vec::new();
-        for y in 0..h {
-            for x in 0..w {
-                let i = y * w + x;
-                if x + 1 < w {
-                    edges.push([i, i + 1]);
-                }
-                if y + 1 < h {
-                    edges.push([i, i + w]);
-                }
-                if x + 1 < w && y + 1 < h {
-                    edges.push([i, i + w + 1]);
-                }
-            }
+        // The grid's edges and one diagonal per square: a triangulated grid.
+        let mut edges = crate::tracker::sparse::tests::grid_edges(w, h);
+        for y in 0..h - 1 {
+            edges.extend((0..w - 1).map(|x| [y * w + x, y * w + x + w + 1]));
         }
         let mut a = BlockSparse::new(n, &edges);
         for (e, &[i, j]) in edges.iter().enumerate() {
@@ -775,8 +779,8 @@ mod tests {
 
     /// The emulated kernels (`pcg.cu` compiled as C) through the GPU path's host side give
     /// the CPU's solution to the bit, with the same iterations: on a system past
-    /// `PARALLEL_ROWS` (dot products in runs, several coarse levels) and on a small one (one
-    /// run, one level), converged and stopped at the iteration cap.
+    /// `PARALLEL_ROWS` (many dot-product runs, several coarse levels) and on a small one (two
+    /// runs, one level), converged and stopped at the iteration cap.
     #[test]
     fn the_gpu_conjugate_gradients_give_the_cpus_solution_to_the_bit() {
         let gpu = Gpu::emulated();
@@ -802,6 +806,57 @@ mod tests {
         let st = gpu.stats();
         assert_eq!(st.linear_solves, 6);
         assert!(st.cg_iterations > 20, "{st:?}");
+    }
+
+    /// The loop's edge cases on the emulated GPU, equal to the CPU's: a zero right-hand side
+    /// (no iteration), a zero matrix (the coarsest level's Cholesky fails, `pᵀAp = 0` stops the
+    /// loop), a mesh of many separate pieces (aggregation stops above the dense level's size:
+    /// every level block-Jacobi); and a right-hand side of the wrong length refused.
+    #[test]
+    fn the_gpu_conjugate_gradients_handle_what_the_cpu_handles() {
+        let gpu = Gpu::emulated();
+        let same = |a: &BlockSparse, b: &[Vector3<f64>], what: &str| {
+            let (x_cpu, s_cpu) = solve_pcg(a, b, 1e-8, 300);
+            let (x_gpu, s_gpu) = gpu.solve_pcg(a, b, 1e-8, 300).unwrap();
+            assert_eq!(s_cpu, s_gpu, "{what}");
+            assert!(x_cpu.iter().zip(&x_gpu).all(|(p, q)| p == q), "{what}");
+            s_cpu
+        };
+        let (a, b) = grid_system(30, 20);
+        let zero_b = vec![Vector3::zeros(); b.len()];
+        assert_eq!(same(&a, &zero_b, "zero b").iterations, 0);
+        let edges = crate::tracker::sparse::tests::grid_edges(30, 20);
+        let zero_a = BlockSparse::new(600, &edges);
+        assert!(
+            zero_a.flat().coarsest.is_none(),
+            "a zero matrix has no factor"
+        );
+        assert_eq!(same(&zero_a, &b, "zero A").iterations, 0);
+        // 400 separate triangles: each ends as one group, far more than the dense level takes.
+        let n = 1200;
+        let tris: Vec<[u32; 2]> = (0..400u32)
+            .flat_map(|t| {
+                [
+                    [3 * t, 3 * t + 1],
+                    [3 * t + 1, 3 * t + 2],
+                    [3 * t, 3 * t + 2],
+                ]
+            })
+            .collect();
+        let mut pieces = BlockSparse::new(n, &tris);
+        for (e, &[i, j]) in tris.iter().enumerate() {
+            let k = Matrix3::identity() * (1.0 + 0.3 * (e as f64).sin());
+            pieces.add_edge(e, [i as usize, j as usize], &k);
+        }
+        pieces.damp(1e-3, 0.01);
+        let flat = pieces.flat();
+        assert!(flat.coarsest.is_none() && !flat.levels.is_empty());
+        let rhs: Vec<Vector3<f64>> = (0..n)
+            .map(|i| Vector3::new((i as f64).sin(), 1.0, (i % 7) as f64))
+            .collect();
+        let s = same(&pieces, &rhs, "separate pieces");
+        assert!(s.relative_residual <= 1e-8, "{s:?}");
+        assert!(gpu.solve_pcg(&a, &b[1..], 1e-8, 10).is_err());
     }
 
     /// On a machine with an NVIDIA GPU, the same on the device (`pcg.cu` compiled by NVRTC, run

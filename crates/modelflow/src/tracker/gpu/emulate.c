@@ -1,6 +1,7 @@
-// `kernel.cu` compiled as plain C for the tests (one lane per warp, one patch per block, run
-// one after the other): the host side of the GPU path and the kernels' arithmetic are checked
-// against the CPU path on machines without a GPU (CI). Not used outside the tests.
+// `kernel.cu` and `pcg.cu` compiled as plain C for the tests (one lane per warp, one patch or
+// row per block, run one after the other): the host side of the GPU path and the kernels'
+// arithmetic are checked against the CPU path on machines without a GPU (CI). Not used outside
+// the tests.
 #include <math.h>
 #include <stdbool.h>
 
@@ -16,7 +17,6 @@ static int emu_block = 0;
 #define BLOCK_DIM_X 1
 #define SHARED
 #define SYNCWARP()
-#define SYNCTHREADS()
 #define LAUNCH_BOUNDS
 static inline void atomicAdd(unsigned long long* a, unsigned long long v) { *a += v; }
 
