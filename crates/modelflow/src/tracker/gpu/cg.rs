@@ -224,22 +224,6 @@ pub(super) mod cuda {
         }
     }
 
-    fn up<T: cudarc::driver::DeviceRepr>(
-        stream: &Arc<CudaStream>,
-        v: &[T],
-        what: &str,
-    ) -> Result<CudaSlice<T>> {
-        if v.is_empty() {
-            // SAFETY: never read (a zero-length allocation is refused by some drivers).
-            return unsafe { stream.alloc::<T>(1) }.map_err(gpu_err(what));
-        }
-        stream.clone_htod(v).map_err(gpu_err(what))
-    }
-
-    fn zeros(stream: &Arc<CudaStream>, n: usize, what: &str) -> Result<CudaSlice<f64>> {
-        stream.alloc_zeros::<f64>(n.max(1)).map_err(gpu_err(what))
-    }
-
     impl super::super::cuda::Cuda {
         /// Uploads a system, its preconditioner and its right-hand side.
         pub(in crate::tracker::gpu) fn cg_upload<'k>(
@@ -258,55 +242,55 @@ pub(super) mod cuda {
             let mut gathered = Vec::with_capacity(lv.gather.len());
             for &(starts, children, groups) in &lv.gather {
                 gather.push((
-                    up(st, starts, "uploading the levels' groups")?,
-                    up(st, children, "uploading the levels' groups")?,
+                    self.up(starts, "uploading the levels' groups")?,
+                    self.up(children, "uploading the levels' groups")?,
                     groups as i32,
                 ));
-                gathered.push(zeros(st, 3 * groups, "allocating the levels' residuals")?);
+                gathered.push(self.zeros(3 * groups, "allocating the levels' residuals")?);
             }
             let inverses = lv
                 .inverses
                 .iter()
-                .map(|inv| up(st, inv, "uploading the levels' inverses"))
+                .map(|inv| self.up(inv, "uploading the levels' inverses"))
                 .collect::<Result<Vec<_>>>()?;
             let coarse = match lv.coarse {
                 Some((inv, m)) => Some((
-                    up(st, inv, "uploading the coarsest level's inverse")?,
+                    self.up(inv, "uploading the coarsest level's inverse")?,
                     m as i32,
                 )),
                 None => None,
             };
             let m = lv.coarse.map_or(0, |c| c.1);
             let (_, runs) = dot_runs(n);
-            let bd = up(st, b, "uploading the right-hand side")?;
+            let bd = self.up(b, "uploading the right-hand side")?;
             Ok(CudaCg {
                 stream: Arc::clone(st),
                 k: &self.cg,
                 n: n as i32,
-                row_ptr: up(st, &sys.row_ptr, "uploading the matrix")?,
-                cols: up(st, sys.cols, "uploading the matrix")?,
-                blocks: up(st, sys.blocks, "uploading the matrix")?,
-                k_ptr: up(st, k_ptr, "uploading the scalar part")?,
-                k_cols: up(st, k_cols, "uploading the scalar part")?,
-                k_vals: up(st, k_vals, "uploading the scalar part")?,
+                row_ptr: self.up(&sys.row_ptr, "uploading the matrix")?,
+                cols: self.up(sys.cols, "uploading the matrix")?,
+                blocks: self.up(sys.blocks, "uploading the matrix")?,
+                k_ptr: self.up(k_ptr, "uploading the scalar part")?,
+                k_cols: self.up(k_cols, "uploading the scalar part")?,
+                k_vals: self.up(k_vals, "uploading the scalar part")?,
                 s,
                 has_scalar: i32::from(sys.scalar.is_some()),
-                fine: up(st, &sys.fine, "uploading block-Jacobi's inverses")?,
-                of: up(st, &lv.of, "uploading the levels' groups")?,
+                fine: self.up(&sys.fine, "uploading block-Jacobi's inverses")?,
+                of: self.up(&lv.of, "uploading the levels' groups")?,
                 gather,
                 gathered,
                 inverses,
-                rl: zeros(st, lv.rl_len, "allocating the levels' corrections")?,
-                rl_off_dev: up(st, &lv.rl_off, "uploading the levels' offsets")?,
+                rl: self.zeros(lv.rl_len, "allocating the levels' corrections")?,
+                rl_off_dev: self.up(&lv.rl_off, "uploading the levels' offsets")?,
                 rl_off: lv.rl_off,
                 coarse,
-                r0: zeros(st, m, "allocating the coarsest level's correction")?,
-                x: zeros(st, 3 * n, "allocating x")?,
-                r: zeros(st, 3 * n, "allocating r")?,
-                z: zeros(st, 3 * n, "allocating z")?,
-                p: zeros(st, 3 * n, "allocating p")?,
-                ap: zeros(st, 3 * n, "allocating Ap")?,
-                runs: zeros(st, runs, "allocating the dot products' runs")?,
+                r0: self.zeros(m, "allocating the coarsest level's correction")?,
+                x: self.zeros(3 * n, "allocating x")?,
+                r: self.zeros(3 * n, "allocating r")?,
+                z: self.zeros(3 * n, "allocating z")?,
+                p: self.zeros(3 * n, "allocating p")?,
+                ap: self.zeros(3 * n, "allocating Ap")?,
+                runs: self.zeros(runs, "allocating the dot products' runs")?,
                 b: bd,
             })
         }

@@ -618,7 +618,7 @@ mod cuda {
             ))
         }
 
-        fn up<T: DeviceRepr>(&self, v: &[T], what: &str) -> Result<CudaSlice<T>> {
+        pub(super) fn up<T: DeviceRepr>(&self, v: &[T], what: &str) -> Result<CudaSlice<T>> {
             if v.is_empty() {
                 // A zero-length allocation is refused by some drivers: one element instead.
                 // SAFETY: never read (the kernel reads it only when its flag says it holds data).
@@ -627,7 +627,7 @@ mod cuda {
             self.stream.clone_htod(v).map_err(gpu_err(what))
         }
 
-        fn zeros<T: DeviceRepr + ValidAsZeroBits>(
+        pub(super) fn zeros<T: DeviceRepr + ValidAsZeroBits>(
             &self,
             n: usize,
             what: &str,
