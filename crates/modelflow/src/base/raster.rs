@@ -13,15 +13,67 @@ use nalgebra::Point3;
 /// Marks a pixel covered by no triangle.
 pub const NONE: u32 = u32::MAX;
 
-/// Per-pixel owner triangle and depth of one camera's view of a mesh.
-#[derive(Clone, Debug)]
-pub struct IndexBuffer {
+/// A rectangle of an image's pixels: columns `x0..x0 + width`, rows `y0..y0 + height`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Window {
+    pub x0: usize,
+    pub y0: usize,
     pub width: usize,
     pub height: usize,
-    /// Owner triangle per pixel (row-major), or [`NONE`].
-    pub owner: Vec<u32>,
-    /// Depth (camera z) per pixel; `f32::INFINITY` where no triangle.
-    pub depth: Vec<f32>,
+}
+
+impl Window {
+    /// The index of pixel `(x, y)` in a row-major buffer of the window, if it lies inside.
+    #[inline]
+    pub fn index(&self, x: usize, y: usize) -> Option<usize> {
+        let (dx, dy) = (x.wrapping_sub(self.x0), y.wrapping_sub(self.y0));
+        (dx < self.width && dy < self.height).then(|| dy * self.width + dx)
+    }
+
+    /// The image pixel `(x, y)` of index `i` of a row-major buffer of the window.
+    #[inline]
+    pub fn pixel(&self, i: usize) -> (usize, usize) {
+        (self.x0 + i % self.width, self.y0 + i / self.width)
+    }
+
+    /// The number of pixels in the window.
+    pub fn len(&self) -> usize {
+        self.width * self.height
+    }
+
+    /// The window grown by `r` pixels on every side, within a `w`×`h` image.
+    pub fn grown(&self, r: usize, w: usize, h: usize) -> Window {
+        if self.len() == 0 {
+            return *self;
+        }
+        let (x0, y0) = (self.x0.saturating_sub(r), self.y0.saturating_sub(r));
+        let x1 = (self.x0 + self.width - 1 + r).min(w - 1);
+        let y1 = (self.y0 + self.height - 1 + r).min(h - 1);
+        Window {
+            x0,
+            y0,
+            width: x1 + 1 - x0,
+            height: y1 + 1 - y0,
+        }
+    }
+}
+
+/// Per-pixel owner triangle and depth of one camera's view of a mesh.
+///
+/// Only the *window* of the image that the mesh's projection covers is stored (every covered
+/// pixel lies in it; the rest of the image is covered by no triangle): the work of building,
+/// masking and sorting a template grows with the pixels the mesh covers, not with the image.
+#[derive(Clone, Debug)]
+pub struct IndexBuffer {
+    /// The image's size.
+    pub width: usize,
+    pub height: usize,
+    /// Where `owner` and `depth` lie in the image.
+    pub window: Window,
+    /// Owner triangle per pixel of the window (row-major), or [`NONE`].
+    owner: Vec<u32>,
+    /// Depth (camera z) per pixel of the window; `f32::INFINITY` where no triangle.
+    depth: Vec<f32>,
     /// Per triangle, its plane's inverse depth as an affine function of the pixel position:
     /// `1/z = a·x + b·y + c` (`[a, b, c]`; NaN for a triangle not rasterized).
     pub planes: Vec<[f64; 3]>,
@@ -29,10 +81,24 @@ pub struct IndexBuffer {
     pub footprint: f64,
 }
 
-#[cfg(test)]
 impl IndexBuffer {
+    /// The triangle that owns pixel `(x, y)` of the image, or [`NONE`].
+    #[inline]
     pub fn owner_at(&self, x: usize, y: usize) -> u32 {
-        self.owner[y * self.width + x]
+        self.window.index(x, y).map_or(NONE, |i| self.owner[i])
+    }
+
+    /// The depth seen at pixel `(x, y)` of the image (`f32::INFINITY` where no triangle).
+    #[inline]
+    pub fn depth_at(&self, x: usize, y: usize) -> f32 {
+        self.window
+            .index(x, y)
+            .map_or(f32::INFINITY, |i| self.depth[i])
+    }
+
+    /// The owners of the window's pixels, row-major ([`IndexBuffer::window`]).
+    pub fn owners(&self) -> &[u32] {
+        &self.owner
     }
 }
 
@@ -95,16 +161,55 @@ pub fn rasterize(
         nalgebra::Vector3::new(m[(2, 0)], m[(2, 1)], m[(2, 2)]),
     );
     let focal = r1.cross(&r3).norm() / r3.norm_squared();
+    let projected: Vec<Option<Projected>> = triangles
+        .iter()
+        .map(|tri| project_triangle(positions, tri, proj))
+        .collect();
+    // The window: the pixel rows and columns the triangles' corners span, one column wider on
+    // each side than their extremes' pixel centres (a covered column is found from the edges'
+    // crossings, which can round past a corner's own coordinate); the spans are held to it.
+    let (mut x0, mut y0, mut x1, mut y1) = (
+        f64::INFINITY,
+        f64::INFINITY,
+        f64::NEG_INFINITY,
+        f64::NEG_INFINITY,
+    );
+    for t in projected.iter().flatten() {
+        for q in &t.p {
+            (x0, x1, y0, y1) = (x0.min(q[0]), x1.max(q[0]), y0.min(q[1]), y1.max(q[1]));
+        }
+    }
+    let (x0, x1) = (
+        (x0.ceil() - 1.0).max(0.0),
+        (x1.floor() + 1.0).min(width as f64 - 1.0),
+    );
+    let (y0, y1) = (y0.ceil().max(0.0), y1.floor().min(height as f64 - 1.0));
+    let window = if x0 <= x1 && y0 <= y1 {
+        Window {
+            x0: x0 as usize,
+            y0: y0 as usize,
+            width: (x1 - x0) as usize + 1,
+            height: (y1 - y0) as usize + 1,
+        }
+    } else {
+        Window {
+            x0: 0,
+            y0: 0,
+            width: 0,
+            height: 0,
+        }
+    };
     let mut ib = IndexBuffer {
         width,
         height,
-        owner: vec![NONE; width * height],
-        depth: vec![f32::INFINITY; width * height],
+        window,
+        owner: vec![NONE; window.len()],
+        depth: vec![f32::INFINITY; window.len()],
         planes: vec![[f64::NAN; 3]; triangles.len()],
         footprint: 1.0 / focal,
     };
-    for (ti, tri) in triangles.iter().enumerate() {
-        let Some(t) = project_triangle(positions, tri, proj) else {
+    for (ti, t) in projected.iter().enumerate() {
+        let Some(t) = t else {
             continue;
         };
         // 1/z is affine in the image over a plane: read it at three pixel positions.
@@ -114,61 +219,81 @@ pub fn rasterize(
         };
         let c = inv_z(0.0, 0.0);
         ib.planes[ti] = [inv_z(1.0, 0.0) - c, inv_z(0.0, 1.0) - c, c];
-        let ymin =
-            t.p.iter()
-                .map(|q| q[1])
-                .fold(f64::INFINITY, f64::min)
-                .ceil()
-                .max(0.0);
-        let ymax =
-            t.p.iter()
-                .map(|q| q[1])
-                .fold(f64::NEG_INFINITY, f64::max)
-                .floor()
-                .min(height as f64 - 1.0);
-        if ymin > ymax {
+        if window.len() == 0 {
             continue;
         }
-        let s = t.area.signum();
-        for y in ymin as usize..=ymax as usize {
+        let (wx0, wx1) = (window.x0, window.x0 + window.width);
+        for_each_span(t, width, height, |y, xa, xb| {
             let yf = y as f64;
-            // Each edge function E(x) = A·x + B must be >= 0 (times the orientation sign).
-            let (mut xl, mut xr) = (0.0f64, width as f64 - 1.0);
-            let mut empty = false;
-            for k in 0..3 {
-                let [xi, yi] = t.p[k];
-                let [xj, yj] = t.p[(k + 1) % 3];
-                // E(x, y) = (xj - xi)(y - yi) - (yj - yi)(x - xi): positive inside for area > 0.
-                let a = -s * (yj - yi);
-                let b = s * ((xj - xi) * (yf - yi) + (yj - yi) * xi);
-                if a > 0.0 {
-                    xl = xl.max(-b / a);
-                } else if a < 0.0 {
-                    xr = xr.min(-b / a);
-                } else if b < 0.0 {
-                    empty = true;
-                }
-            }
-            if empty {
-                continue;
-            }
-            let (x0, x1) = (xl.ceil(), xr.floor());
-            if x0 > x1 {
-                continue;
-            }
-            for x in x0 as usize..=x1 as usize {
+            let row = (y - window.y0) * window.width;
+            for x in xa.max(wx0)..=xb.min(wx1 - 1) {
                 let b = screen_barycentric(&t.p, t.area, x as f64, yf);
                 let inv_z = b[0] * t.inv_z[0] + b[1] * t.inv_z[1] + b[2] * t.inv_z[2];
                 let z = (1.0 / inv_z) as f32;
-                let i = y * width + x;
+                let i = row + x - window.x0;
                 if z < ib.depth[i] {
                     ib.depth[i] = z;
                     ib.owner[i] = ti as u32;
                 }
             }
-        }
+        });
     }
     ib
+}
+
+/// Calls `f(y, x_first, x_last)` for every row `y` of a `width`×`height` image in which the
+/// projected triangle covers pixel centres, with the first and last covered column.
+#[inline]
+fn for_each_span(
+    t: &Projected,
+    width: usize,
+    height: usize,
+    mut f: impl FnMut(usize, usize, usize),
+) {
+    let ymin =
+        t.p.iter()
+            .map(|q| q[1])
+            .fold(f64::INFINITY, f64::min)
+            .ceil()
+            .max(0.0);
+    let ymax =
+        t.p.iter()
+            .map(|q| q[1])
+            .fold(f64::NEG_INFINITY, f64::max)
+            .floor()
+            .min(height as f64 - 1.0);
+    if ymin > ymax {
+        return;
+    }
+    let s = t.area.signum();
+    for y in ymin as usize..=ymax as usize {
+        let yf = y as f64;
+        // Each edge function E(x) = A·x + B must be >= 0 (times the orientation sign).
+        let (mut xl, mut xr) = (0.0f64, width as f64 - 1.0);
+        let mut empty = false;
+        for k in 0..3 {
+            let [xi, yi] = t.p[k];
+            let [xj, yj] = t.p[(k + 1) % 3];
+            // E(x, y) = (xj - xi)(y - yi) - (yj - yi)(x - xi): positive inside for area > 0.
+            let a = -s * (yj - yi);
+            let b = s * ((xj - xi) * (yf - yi) + (yj - yi) * xi);
+            if a > 0.0 {
+                xl = xl.max(-b / a);
+            } else if a < 0.0 {
+                xr = xr.min(-b / a);
+            } else if b < 0.0 {
+                empty = true;
+            }
+        }
+        if empty {
+            continue;
+        }
+        let (x0, x1) = (xl.ceil(), xr.floor());
+        if x0 > x1 {
+            continue;
+        }
+        f(y, x0 as usize, x1 as usize);
+    }
 }
 
 #[inline]
@@ -231,6 +356,9 @@ const CONTINUOUS_PX: f64 = 1.5;
 ///
 /// With `checkerboard`, only pixels with even `x + y` are considered (the rest are `false`
 /// without being tested): the tracker keeps only those at full resolution.
+///
+/// The mask covers the index buffer's window ([`IndexBuffer::window`], row-major): no pixel
+/// outside it is covered, so none is trackable.
 pub fn trackable_mask(
     ib: &IndexBuffer,
     triangles: &[[u32; 3]],
@@ -239,49 +367,69 @@ pub fn trackable_mask(
     checkerboard: bool,
 ) -> Vec<bool> {
     let (w, h) = (ib.width, ib.height);
-    let mut mask = vec![false; w * h];
+    let win = ib.window;
+    let mut mask = vec![false; win.len()];
     let m = margin as isize;
     let step = if checkerboard { 2 } else { 1 };
-    for y in 0..h {
-        for x in (if checkerboard { y % 2 } else { 0 }..w).step_by(step) {
-            let t = ib.owner[y * w + x];
+    for y in win.y0..win.y0 + win.height {
+        let row = (y - win.y0) * win.width;
+        // The checkerboard keeps the pixels with even x + y of the image.
+        let first = if checkerboard {
+            win.x0 + (win.x0 + y) % 2
+        } else {
+            win.x0
+        };
+        for x in (first..win.x0 + win.width).step_by(step) {
+            let t = ib.owner[row + x - win.x0];
             if t == NONE || !usable[t as usize] {
                 continue;
             }
             let tv = triangles[t as usize];
-            let mut ok = true;
-            'nb: for dy in -m..=m {
-                for dx in -m..=m {
-                    let (xx, yy) = (x as isize + dx, y as isize + dy);
-                    if xx < 0 || yy < 0 || xx >= w as isize || yy >= h as isize {
-                        ok = false;
-                        break 'nb;
-                    }
-                    let o = ib.owner[yy as usize * w + xx as usize];
-                    if o == t {
-                        continue;
-                    }
-                    if o == NONE {
-                        ok = false;
-                        break 'nb;
-                    }
-                    if triangles[o as usize].iter().any(|v| tv.contains(v)) {
-                        continue;
-                    }
-                    // Not a mesh neighbour: the same surface only if the depth seen there lies
-                    // on this triangle's plane (within the tolerance).
-                    let [a, b, c] = ib.planes[t as usize];
-                    let z = ib.depth[yy as usize * w + xx as usize] as f64;
-                    let inv = a * xx as f64 + b * yy as f64 + c;
-                    let on_plane =
-                        inv > 0.0 && (1.0 / inv - z).abs() <= CONTINUOUS_PX * ib.footprint * z;
-                    if !on_plane {
-                        ok = false;
-                        break 'nb;
-                    }
+            // Whether neighbour `(xx, yy)` (inside the image) shows the same surface as `t`.
+            let same = |o: u32, xx: usize, yy: usize| {
+                if o == t {
+                    return true;
                 }
-            }
-            mask[y * w + x] = ok;
+                if o == NONE {
+                    return false;
+                }
+                if triangles[o as usize].iter().any(|v| tv.contains(v)) {
+                    return true;
+                }
+                // Not a mesh neighbour: the same surface only if the depth seen there lies
+                // on this triangle's plane (within the tolerance).
+                let [a, b, c] = ib.planes[t as usize];
+                let z = ib.depth_at(xx, yy) as f64;
+                let inv = a * xx as f64 + b * yy as f64 + c;
+                inv > 0.0 && (1.0 / inv - z).abs() <= CONTINUOUS_PX * ib.footprint * z
+            };
+            let ok = if x >= win.x0 + margin
+                && x + margin < win.x0 + win.width
+                && y >= win.y0 + margin
+                && y + margin < win.y0 + win.height
+            {
+                // The whole neighbourhood lies in the window (so in the image): read the
+                // owners by offset, row by row, and look closer only where one differs.
+                (y - margin..=y + margin).all(|yy| {
+                    let r = (yy - win.y0) * win.width;
+                    ib.owner[r + x - margin - win.x0..=r + x + margin - win.x0]
+                        .iter()
+                        .zip(x - margin..)
+                        .all(|(&o, xx)| o == t || same(o, xx, yy))
+                })
+            } else {
+                (-m..=m).all(|dy| {
+                    (-m..=m).all(|dx| {
+                        let (xx, yy) = (x as isize + dx, y as isize + dy);
+                        if xx < 0 || yy < 0 || xx >= w as isize || yy >= h as isize {
+                            return false;
+                        }
+                        let (xx, yy) = (xx as usize, yy as usize);
+                        same(ib.owner_at(xx, yy), xx, yy)
+                    })
+                })
+            };
+            mask[row + x - win.x0] = ok;
         }
     }
     mask
@@ -291,6 +439,11 @@ pub fn trackable_mask(
 mod tests {
     use super::*;
     use nalgebra::{Matrix3, Vector3};
+
+    /// Whether image pixel `(x, y)` is kept by `mask` (over `ib`'s window).
+    fn at(ib: &IndexBuffer, mask: &[bool], x: usize, y: usize) -> bool {
+        ib.window.index(x, y).is_some_and(|i| mask[i])
+    }
 
     fn camera() -> Projection {
         let k = Matrix3::new(100.0, 0.0, 31.5, 0.0, 100.0, 23.5, 0.0, 0.0, 1.0);
@@ -304,7 +457,7 @@ mod tests {
         let to3 = |u: f64, v: f64| Point3::new((u - 31.5) / 100.0, (v - 23.5) / 100.0, 1.0);
         let pos = vec![to3(10.0, 10.0), to3(20.0, 10.0), to3(10.0, 20.0)];
         let ib = rasterize(&pos, &[[0, 1, 2]], &p, 64, 48);
-        let covered: usize = ib.owner.iter().filter(|&&o| o == 0).count();
+        let covered: usize = ib.owners().iter().filter(|&&o| o == 0).count();
         // Pixel centres with x>=10, y>=10, (x-10)+(y-10) <= 10: 11+10+...+1 = 66.
         assert_eq!(covered, 66);
         assert_eq!(ib.owner_at(10, 10), 0);
@@ -312,7 +465,70 @@ mod tests {
         assert_eq!(ib.owner_at(15, 15), 0);
         assert_eq!(ib.owner_at(16, 15), NONE);
         assert_eq!(ib.owner_at(9, 10), NONE);
-        assert!((ib.depth[15 * 64 + 12] - 1.0).abs() < 1e-6);
+        assert!((ib.depth_at(12, 15) - 1.0).abs() < 1e-6);
+    }
+
+    #[test]
+    fn only_the_window_the_mesh_spans_is_stored_and_every_covered_pixel_lies_in_it() {
+        // Two triangles near the top-left corner of a 640×480 image, one of them reaching past
+        // its left edge: the buffer stores the rows whose centres the corners span (11 to 41)
+        // and their columns, one more on each side (0 to 51), and reads outside as uncovered.
+        let k = Matrix3::new(100.0, 0.0, 319.5, 0.0, 100.0, 239.5, 0.0, 0.0, 1.0);
+        let p = Projection::from_krt(&k, &Matrix3::identity(), &Vector3::zeros()).unwrap();
+        let to3 = |u: f64, v: f64| Point3::new((u - 319.5) / 100.0, (v - 239.5) / 100.0, 1.0);
+        let pos = vec![
+            to3(-20.3, 10.2),
+            to3(30.7, 12.0),
+            to3(5.5, 40.6),
+            to3(50.2, 41.0),
+        ];
+        let tris = [[0u32, 1, 2], [1, 3, 2]];
+        let ib = rasterize(&pos, &tris, &p, 640, 480);
+        assert_eq!(
+            ib.window,
+            Window {
+                x0: 0,
+                y0: 11,
+                width: 52,
+                height: 31
+            }
+        );
+        assert_eq!(ib.owners().len(), 52 * 31);
+        // Every pixel of the image: covered exactly where a centre lies inside a triangle
+        // (none on an edge here), and only inside the window.
+        let inside = |t: &[u32; 3], x: f64, y: f64| {
+            let q = t.map(|v| {
+                let h = p.project(&pos[v as usize]).unwrap();
+                [h.x, h.y]
+            });
+            let e =
+                |a: [f64; 2], b: [f64; 2]| (b[0] - a[0]) * (y - a[1]) - (b[1] - a[1]) * (x - a[0]);
+            let s = [e(q[0], q[1]), e(q[1], q[2]), e(q[2], q[0])];
+            s.iter().all(|&v| v > 0.0) || s.iter().all(|&v| v < 0.0)
+        };
+        let mut covered = 0;
+        for y in 0..480 {
+            for x in 0..640 {
+                let want = tris.iter().position(|t| inside(t, x as f64, y as f64));
+                let got = ib.owner_at(x, y);
+                assert_eq!(got, want.map_or(NONE, |t| t as u32), "pixel ({x}, {y})");
+                if got != NONE {
+                    covered += 1;
+                    assert!(ib.window.index(x, y).is_some());
+                    assert!((ib.depth_at(x, y) - 1.0).abs() < 1e-6);
+                } else {
+                    assert_eq!(ib.depth_at(x, y), f32::INFINITY);
+                }
+            }
+        }
+        assert!(covered > 1000);
+        // Nothing in front of the camera: an empty window, and nothing covered.
+        let behind: Vec<_> = pos.iter().map(|q| Point3::new(q.x, q.y, -1.0)).collect();
+        let ib = rasterize(&behind, &tris, &p, 640, 480);
+        assert_eq!(ib.window.len(), 0);
+        assert_eq!(ib.owner_at(20, 20), NONE);
+        let mask = trackable_mask(&ib, &tris, &[true, true], 1, false);
+        assert!(mask.is_empty());
     }
 
     #[test]
@@ -346,9 +562,9 @@ mod tests {
         let z = 3.0 / (1.0 - rx);
         let _ = v;
         assert!(
-            (ib.depth[v * 64 + u] as f64 - z).abs() < 1e-5,
+            (ib.depth_at(u, v) as f64 - z).abs() < 1e-5,
             "{} vs {z}",
-            ib.depth[v * 64 + u]
+            ib.depth_at(u, v)
         );
     }
 
@@ -395,11 +611,11 @@ mod tests {
         let mask = trackable_mask(&ib, &tris, &usable, 1, false);
         let interior = (12..37).flat_map(|y| (12..39).map(move |x| (x, y)));
         let (n, kept) = interior.fold((0, 0), |(n, k), (x, y)| {
-            (n + 1, k + mask[y * 64 + x] as usize)
+            (n + 1, k + at(&ib, &mask, x, y) as usize)
         });
         assert_eq!(kept, n, "every interior pixel of the fine grid is kept");
         assert!(
-            !mask[8 * 64 + 20],
+            !at(&ib, &mask, 20, 8),
             "the border next to the background is not"
         );
         // A second fine sheet half as far again behind it, sticking out on the right: where the
@@ -417,20 +633,20 @@ mod tests {
         // the full mask keeps.
         let half = trackable_mask(&ib, &all_tris, &usable, 1, true);
         for (i, (&full, &cb)) in mask.iter().zip(&half).enumerate() {
-            let (x, y) = (i % 64, i / 64);
+            let (x, y) = ib.window.pixel(i);
             assert_eq!(cb, full && (x + y) % 2 == 0, "pixel ({x}, {y})");
         }
         assert!(half.iter().any(|&k| k));
         assert!(
-            !mask[20 * 64 + 40],
+            !at(&ib, &mask, 40, 20),
             "the near sheet's edge over the far sheet"
         );
         assert!(
-            !mask[20 * 64 + 41],
+            !at(&ib, &mask, 41, 20),
             "the far sheet next to the near one's edge"
         );
         assert!(
-            mask[20 * 64 + 30] && mask[20 * 64 + 48],
+            at(&ib, &mask, 30, 20) && at(&ib, &mask, 48, 20),
             "both sheets away from the edge"
         );
     }
@@ -452,9 +668,9 @@ mod tests {
         let two_sided = usable_triangles(&pos, &tris, &p, true, 0.1);
         assert!(two_sided[0]);
         let mask = trackable_mask(&ib, &tris, &two_sided, 1, false);
-        assert!(mask[10 * 64 + 10], "interior pixel is trackable");
+        assert!(at(&ib, &mask, 10, 10), "interior pixel is trackable");
         assert!(
-            !mask[5 * 64 + 20],
+            !at(&ib, &mask, 20, 5),
             "pixel on the border next to the background is not"
         );
         let none = trackable_mask(&ib, &tris, &[false], 1, false);

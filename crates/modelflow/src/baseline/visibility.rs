@@ -46,10 +46,10 @@ pub fn visible_vertices(
             }
             let x = (u.round().max(0.0) as usize).min(w - 1);
             let y = (v.round().max(0.0) as usize).min(h - 1);
-            let k = y * w + x;
-            ib.owner[k] == NONE
-                || triangles[ib.owner[k] as usize].contains(&(vi as u32))
-                || z <= ib.depth[k] as f64 * (1.0 + DEPTH_TOLERANCE)
+            let owner = ib.owner_at(x, y);
+            owner == NONE
+                || triangles[owner as usize].contains(&(vi as u32))
+                || z <= ib.depth_at(x, y) as f64 * (1.0 + DEPTH_TOLERANCE)
         })
         .collect()
 }

@@ -262,7 +262,7 @@ fn seen_vertices(cameras: &[Camera], frame: u32, truth: &Mesh) -> Vec<bool> {
             cam.height as usize,
         );
         let mut owns = vec![false; truth.triangles.len()];
-        for &t in ib.owner.iter().filter(|&&t| t != NONE) {
+        for &t in ib.owners().iter().filter(|&&t| t != NONE) {
             owns[t as usize] = true;
         }
         for (tri, _) in truth.triangles.iter().zip(&owns).filter(|(_, &o)| o) {

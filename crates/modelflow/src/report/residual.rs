@@ -76,7 +76,7 @@ pub(crate) fn residual_map(
         .enumerate()
         .for_each(|(y, row)| {
             for (x, out) in row.iter_mut().enumerate() {
-                let tri = ib_t.owner[y * w + x];
+                let tri = ib_t.owner_at(x, y);
                 if tri == NONE {
                     continue;
                 }
@@ -96,7 +96,7 @@ pub(crate) fn residual_map(
                 if !img_r.inside(u, v) {
                     continue;
                 }
-                let d = ib_r.depth[v.round() as usize * wr + u.round() as usize];
+                let d = ib_r.depth_at(u.round() as usize, v.round() as usize);
                 // A point on the outline may miss the nearest pixel centre (infinite depth).
                 if d.is_finite() && hr_.z as f32 > d * (1.0 + DEPTH_TOLERANCE) {
                     continue;

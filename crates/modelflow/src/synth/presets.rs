@@ -1372,14 +1372,16 @@ mod tests {
         // Pixels the body owns at frame 0 that the arm owns later: the most over the clip.
         let half = s.mesh.triangles.len() / 2;
         let owners = |cam: usize, f: u32| {
-            crate::base::raster::rasterize(
+            let ib = crate::base::raster::rasterize(
                 &s.truth[f as usize],
                 &s.mesh.triangles,
                 s.cameras[cam].at(f),
                 640,
                 480,
-            )
-            .owner
+            );
+            (0..640 * 480)
+                .map(|i| ib.owner_at(i % 640, i / 640))
+                .collect::<Vec<u32>>()
         };
         let covered = |cam: usize| -> usize {
             let first = owners(cam, 0);

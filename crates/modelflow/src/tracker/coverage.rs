@@ -60,7 +60,7 @@ pub fn coverage(mesh: &Mesh, cameras: &[Camera], frame: u32, opts: &TrackOptions
             let (ib, mask) =
                 trackable_pixels(&mesh.positions, triangles, cam.at(frame), size, &popts);
             let mut seen = vec![false; triangles.len()];
-            for (&owner, _) in ib.owner.iter().zip(&mask).filter(|(_, m)| **m) {
+            for (&owner, _) in ib.owners().iter().zip(&mask).filter(|(_, m)| **m) {
                 seen[owner as usize] = true;
             }
             seen

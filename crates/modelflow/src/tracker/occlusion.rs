@@ -24,7 +24,7 @@
 //! its own warps. Deterministic whatever the thread count.
 
 use crate::base::camera::Projection;
-use crate::base::raster::{rasterize, IndexBuffer, NONE};
+use crate::base::raster::{rasterize, IndexBuffer, Window, NONE};
 use crate::tracker::patch::PatchSet;
 use nalgebra::Point3;
 use rayon::prelude::*;
@@ -88,34 +88,38 @@ pub(crate) fn drop_at_depth_edges(
 /// surface neighbouring pixels differ by the slant over one pixel only, far below the tolerance.
 struct View {
     ib: IndexBuffer,
+    /// The index buffer's window grown by `reach` (within the image): where `near_edge` lies.
+    area: Window,
     near_edge: Vec<bool>,
 }
 
 impl View {
     fn new(ib: IndexBuffer, tolerance: f64, reach: usize) -> Self {
         let (w, h) = (ib.width, ib.height);
+        let (win, area) = (ib.window, ib.window.grown(reach, w, h));
         let tol = tolerance as f32;
-        let mut edge = vec![false; w * h];
-        let mut mark = |i: usize, j: usize| {
-            if ib.owner[i] != NONE && ib.owner[j] != NONE && (ib.depth[i] - ib.depth[j]).abs() > tol
-            {
-                edge[i] = true;
-                edge[j] = true;
+        let mut edge = vec![false; area.len()];
+        // Only covered pixels mark an edge, and all of them lie in the window.
+        let mut mark = |(x, y): (usize, usize), (xx, yy): (usize, usize)| {
+            let (a, b) = (ib.owner_at(x, y), ib.owner_at(xx, yy));
+            if a != NONE && b != NONE && (ib.depth_at(x, y) - ib.depth_at(xx, yy)).abs() > tol {
+                edge[area.index(x, y).expect("in the area")] = true;
+                edge[area.index(xx, yy).expect("in the area")] = true;
             }
         };
-        for y in 0..h {
-            for x in 0..w {
-                let i = y * w + x;
+        for y in win.y0..win.y0 + win.height {
+            for x in win.x0..win.x0 + win.width {
                 if x + 1 < w {
-                    mark(i, i + 1);
+                    mark((x, y), (x + 1, y));
                 }
                 if y + 1 < h {
-                    mark(i, i + w);
+                    mark((x, y), (x, y + 1));
                 }
             }
         }
         View {
-            near_edge: grow(&edge, w, h, reach),
+            near_edge: grow(&edge, area.width, area.height, reach),
+            area,
             ib,
         }
     }
@@ -135,10 +139,10 @@ impl View {
         if !(u >= 0.0 && v >= 0.0 && u < ib.width as f64 && v < ib.height as f64) {
             return false;
         }
-        let i = v as usize * ib.width + u as usize;
-        let owner = ib.owner[i];
-        self.near_edge[i]
-            || (owner != NONE && owner != own && f64::from(ib.depth[i]) < h.z - tolerance)
+        let (px, py) = (u as usize, v as usize);
+        let owner = ib.owner_at(px, py);
+        self.area.index(px, py).is_some_and(|i| self.near_edge[i])
+            || (owner != NONE && owner != own && f64::from(ib.depth_at(px, py)) < h.z - tolerance)
     }
 }
 

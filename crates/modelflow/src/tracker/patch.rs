@@ -52,7 +52,8 @@ pub struct PatchOptions {
 }
 
 /// The index buffer of `positions` seen through `proj` in a `w`×`h` image, and which of its
-/// pixels may be compared (`opts`): what every template, and the rig's coverage, start from.
+/// pixels may be compared (`opts`; over the buffer's window): what every template, and the
+/// rig's coverage, start from.
 pub(crate) fn trackable_pixels(
     positions: &[Point3<f64>],
     triangles: &[[u32; 3]],
@@ -89,11 +90,13 @@ impl PatchSet {
     ) {
         let (w, h) = (image.width(), image.height());
         let (ib, mask) = trackable_pixels(positions, triangles, proj, (w, h), opts);
-        // Counting sort of the kept pixels by owner triangle.
+        let owners = ib.owners();
+        // Counting sort of the kept pixels by owner triangle (indices into the index buffer's
+        // window, which holds every covered pixel, row-major: the image's order).
         let mut count = vec![0u32; triangles.len() + 1];
         for (i, &m) in mask.iter().enumerate() {
             if m {
-                count[ib.owner[i] as usize + 1] += 1;
+                count[owners[i] as usize + 1] += 1;
             }
         }
         for t in 0..triangles.len() {
@@ -103,7 +106,7 @@ impl PatchSet {
         let mut next = count.clone();
         for (i, &m) in mask.iter().enumerate() {
             if m {
-                let t = ib.owner[i] as usize;
+                let t = owners[i] as usize;
                 order[next[t] as usize] = i as u32;
                 next[t] += 1;
             }
@@ -119,8 +122,8 @@ impl PatchSet {
             };
             let start = self.pixels.len() as u32;
             for &pi in &order[a..b] {
-                let (px, py) = (pi as usize % w, pi as usize / w);
-                debug_assert!(ib.owner[pi as usize] != NONE);
+                let (px, py) = ib.window.pixel(pi as usize);
+                debug_assert!(owners[pi as usize] != NONE);
                 let l = barycentric(&s_inv, px as f64, py as f64);
                 self.pixels.push(PixelSample {
                     lambda: [l[0] as f32, l[1] as f32, l[2] as f32],
