@@ -13,6 +13,9 @@ use nalgebra::Point3;
 /// Marks a pixel covered by no triangle.
 pub const NONE: u32 = u32::MAX;
 
+/// Pixels of a row whose depths the rasteriser computes before it z-tests them.
+const SPAN_RUN: usize = 64;
+
 /// A rectangle of an image's pixels: columns `x0..x0 + width`, rows `y0..y0 + height`.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct Window {
@@ -226,15 +229,27 @@ pub fn rasterize(
         for_each_span(t, width, height, |y, xa, xb| {
             let yf = y as f64;
             let row = (y - window.y0) * window.width;
-            for x in xa.max(wx0)..=xb.min(wx1 - 1) {
-                let b = screen_barycentric(&t.p, t.area, x as f64, yf);
-                let inv_z = b[0] * t.inv_z[0] + b[1] * t.inv_z[1] + b[2] * t.inv_z[2];
-                let z = (1.0 / inv_z) as f32;
-                let i = row + x - window.x0;
-                if z < ib.depth[i] {
-                    ib.depth[i] = z;
-                    ib.owner[i] = ti as u32;
+            let (mut x, end) = (xa.max(wx0), xb.min(wx1 - 1) + 1);
+            // A run of depths first (no branch: the compiler computes them two or four
+            // abreast), then the z-test; the same arithmetic per pixel as one at a time.
+            let mut zs = [0.0f32; SPAN_RUN];
+            while x < end {
+                let n = (end - x).min(SPAN_RUN);
+                let x0 = x as f64;
+                for (k, z) in zs[..n].iter_mut().enumerate() {
+                    let b = screen_barycentric(&t.p, t.area, x0 + k as i32 as f64, yf);
+                    let inv_z = b[0] * t.inv_z[0] + b[1] * t.inv_z[1] + b[2] * t.inv_z[2];
+                    *z = (1.0 / inv_z) as f32;
                 }
+                let at = row + x - window.x0;
+                let (depth, owner) = (&mut ib.depth[at..at + n], &mut ib.owner[at..at + n]);
+                for ((d, o), &z) in depth.iter_mut().zip(owner.iter_mut()).zip(&zs[..n]) {
+                    if z < *d {
+                        *d = z;
+                        *o = ti as u32;
+                    }
+                }
+                x += n;
             }
         });
     }
