@@ -103,6 +103,9 @@ impl PatchSet {
             count[t + 1] += count[t];
         }
         let mut order = vec![0u32; count[triangles.len()] as usize];
+        // Grown once, not doubled (and copied) as the pixels are pushed.
+        self.pixels.reserve(order.len());
+        self.patches.reserve(triangles.len().min(order.len()));
         let mut next = count.clone();
         for (i, &m) in mask.iter().enumerate() {
             if m {

@@ -937,6 +937,8 @@ impl Tracker {
             // Anchor patches only where the triangle is seen in the previous frame too
             // (otherwise it has turned away or been covered since the first frame).
             let cover = set.coverage(self.triangles.len(), ncam);
+            set.pixels.reserve(anchor.pixels.len());
+            set.patches.reserve(anchor.patches.len());
             for p in &anchor.patches {
                 if cover[p.triangle as usize * ncam + p.camera as usize] {
                     set.push_copy(anchor, *p);
@@ -1251,7 +1253,13 @@ fn build_pyramids(images: &[RgbImage], levels: usize, blur: f64) -> Vec<Pyramid>
 }
 
 fn merge(sets: Vec<PatchSet>) -> PatchSet {
-    let mut out = PatchSet::default();
+    let pixels = sets.iter().map(|s| s.pixels.len()).sum::<usize>();
+    let patches = sets.iter().map(|s| s.patches.len()).sum::<usize>();
+    let mut sets = sets.into_iter();
+    // The first set grown once to hold them all, the others appended (no copy of the first).
+    let mut out = sets.next().unwrap_or_default();
+    out.pixels.reserve(pixels - out.pixels.len());
+    out.patches.reserve(patches - out.patches.len());
     for s in sets {
         merge_into(&mut out, s);
     }
