@@ -513,7 +513,8 @@ fn scene_mesh(
 /// frame, as a dict: "surface" (how far along its normals the cameras agree best: "pixels",
 /// "length", "ratio", "at_limit", "closed"; None when no two cameras see a common triangle) and
 /// "placement" (how far `align` would move it: "rms", "fraction" of its size, "degrees",
-/// "translation"; only for a mesh on the surface, else None); "surface_off" and
+/// "translation", with the "loose_left_out" motions the images hold loosely, such as a nearly
+/// round object's spin, left out; only for a mesh on the surface, else None); "surface_off" and
 /// "misplaced" say whether either is worth a warning. `positions` ((V, 3)): another placement
 /// of the scene's mesh.
 #[pyfunction]

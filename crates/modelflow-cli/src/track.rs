@@ -311,8 +311,15 @@ fn first_mesh_checks(
     }
     let placed = modelflow::tracker::placement(&scene.mesh, &scene.cameras, scene.first, &images);
     if let Some(p) = placed.filter(|p| p.is_off()) {
+        // Along what the images hold loosely (a nearly round object's spin) `align` follows
+        // their noise: those motions are not counted (`Placement::loose_left_out`).
+        let loose = match p.loose_left_out {
+            0 => String::new(),
+            1 => ", leaving out a motion the images hold loosely".to_string(),
+            n => format!(", leaving out {n} motions the images hold loosely"),
+        };
         eprintln!(
-            "warning: at frame {}, the cameras agree best with the mesh moved as a whole by {} {} RMS ({:.1} % of its size; turned {:.1}°, its centre moved {} {}): it is not placed where the images put it, and the tracker will keep it that far off in every frame. Line it up first: modelflow align --scene {} --out aligned.obj (with the same --mesh and --frames), then track with --mesh aligned.obj (docs/tracker.md, \"Lining up the first mesh\").",
+            "warning: at frame {}, the cameras agree best with the mesh moved as a whole by {} {} RMS ({:.1} % of its size; turned {:.1}°, its centre moved {} {}{loose}): it is not placed where the images put it, and the tracker will keep it that far off in every frame. Line it up first: modelflow align --scene {} --out aligned.obj (with the same --mesh and --frames), then track with --mesh aligned.obj (docs/tracker.md, \"Lining up the first mesh\").",
             scene.first,
             len.show(p.rms),
             len.unit(),

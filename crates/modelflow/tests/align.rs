@@ -5,7 +5,7 @@
 use modelflow::base::{centroid, rms_distance};
 use modelflow::input::Scene;
 use modelflow::synth::{Preset, SynthOptions, Synthetic};
-use modelflow::tracker::{align, perturb, AlignOptions, MotionKind};
+use modelflow::tracker::{align, perturb, placement, AlignOptions, MotionKind};
 use nalgebra::{Point3, Vector3};
 use std::path::Path;
 
@@ -64,6 +64,58 @@ fn misplaced_meshes_are_brought_back_within_a_tenth_of_a_percent() {
         );
         assert!((a.scale - 1.0).abs() < 1e-12);
     }
+}
+
+#[test]
+fn a_nearly_round_surface_in_noisy_footage_is_not_called_misplaced_for_its_loose_spin() {
+    // The limb (a capsule) in footage with 2 % noise: `align` from the true placement spins it
+    // about its axis, which the images hold loosely (the noise decides where it ends: 0.1–4.7 %
+    // of its size over noise 0.02–0.04 and four seeds, 0.015–0.067 % with the spin left out).
+    // `track`'s placement check must not call that a misplacement; moved 3 % of its size
+    // across the axis, the mesh is misplaced, and named.
+    let syn = Synthetic::generate(&SynthOptions {
+        preset: Preset::Limb,
+        width: 320,
+        height: 240,
+        frames: 2,
+        noise: 0.02,
+        seed: 2,
+        ..SynthOptions::default()
+    })
+    .unwrap();
+    let images: Vec<_> = (0..syn.cameras.len()).map(|c| syn.render(c, 0)).collect();
+    let size = syn.mesh.bbox_diagonal();
+    let a = align(
+        &syn.mesh,
+        &syn.cameras,
+        0,
+        &images,
+        &AlignOptions::default(),
+    )
+    .unwrap();
+    let spun = rms_pct(&a.positions, &syn.mesh.positions, size);
+    assert!(
+        spun > 1.0,
+        "the case this guards: align moved it {spun:.2} %"
+    );
+    assert!(
+        a.loose.iter().any(|m| m.kind == MotionKind::Rotation),
+        "{:?}",
+        a.loose
+    );
+    let p = placement(&syn.mesh, &syn.cameras, 0, &images).unwrap();
+    assert!(!p.is_off() && p.loose_left_out >= 1, "{p:?}");
+    let axis = Vector3::from(a.loose[0].axis);
+    let across = axis.cross(&Vector3::z()).normalize();
+    let moved = syn.mesh.with_positions(
+        syn.mesh
+            .positions
+            .iter()
+            .map(|q| q + across * (0.03 * size))
+            .collect(),
+    );
+    let p = placement(&moved, &syn.cameras, 0, &images).unwrap();
+    assert!(p.is_off() && (p.fraction - 0.03).abs() < 0.006, "{p:?}");
 }
 
 #[test]

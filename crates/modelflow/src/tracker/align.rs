@@ -152,6 +152,9 @@ pub struct Alignment {
     /// With `AlignOptions::outline` (and a mesh with a border and free motions): how the border
     /// was fitted to the outline.
     pub outline: Option<OutlineSummary>,
+    /// The loose motions' pose eigenvectors `(ω·r, v, σ·r)` about the solution's centroid, in
+    /// `loose`'s order ([`placement`] leaves them out).
+    pub(crate) loose_twists: Vec<[f64; 7]>,
 }
 
 /// What the outline fit did (see [`AlignOptions::outline`]).
@@ -177,6 +180,10 @@ pub struct Placement {
     pub degrees: f64,
     /// The translation of the mesh's centroid, scene units.
     pub translation: f64,
+    /// How many whole-mesh motions the images hold loosely ([`LOOSE`]: a nearly round
+    /// object's spin, a flat sheet's slide) were left out of the figures above: along those,
+    /// where `align` ends is the images' noise, not the user's misplacement.
+    pub loose_left_out: usize,
 }
 
 impl Placement {
@@ -235,23 +242,33 @@ pub fn placement(
             .collect();
         align(mesh, &cams, 0, &small, &AlignOptions::default()).ok()?
     };
+    // Along the motions the images hold loosely (a capsule's or a squashed sphere's spin about
+    // its axis), noisy footage moves `align` by many degrees from a correct placement, and a
+    // warning would send the user to apply that noise: the move is measured with them undone.
+    let held = if a.loose_twists.is_empty() {
+        a.positions.clone()
+    } else {
+        back_to_placement(&a.positions, &mesh.positions, &a.loose_twists)
+    };
     let n = mesh.positions.len().max(1) as f64;
     let rms = (mesh
         .positions
         .iter()
-        .zip(&a.positions)
+        .zip(&held)
         .map(|(p, q)| (q - p).norm_squared())
         .sum::<f64>()
         / n)
         .sqrt();
     let size = mesh.bbox_diagonal();
-    let moved_centroid = centroid(&a.positions) - centroid(&mesh.positions);
-    let cos = ((a.rotation.trace() - 1.0) / 2.0).clamp(-1.0, 1.0);
+    let moved_centroid = centroid(&held) - centroid(&mesh.positions);
+    let (rotation, _, _) = similarity(&mesh.positions, &held);
+    let cos = ((rotation.trace() - 1.0) / 2.0).clamp(-1.0, 1.0);
     Some(Placement {
         rms,
         fraction: if size > 0.0 { rms / size } else { 0.0 },
         degrees: cos.acos().to_degrees(),
         translation: moved_centroid.norm(),
+        loose_left_out: a.loose_twists.len(),
     })
 }
 
@@ -757,6 +774,11 @@ pub fn align(
         }
     }
     let (rotation, translation, scale) = similarity(&start, &x);
+    let loose_twists: Vec<[f64; 7]> = stiffness
+        .iter()
+        .filter(|(s, _)| *s < LOOSE)
+        .map(|(_, v)| *v)
+        .collect();
     let loose = stiffness
         .into_iter()
         .filter(|(s, _)| *s < LOOSE)
@@ -770,6 +792,7 @@ pub fn align(
         levels: out_levels,
         loose,
         outline: outline_fit,
+        loose_twists,
     })
 }
 
