@@ -103,6 +103,11 @@ impl IndexBuffer {
     pub fn owners(&self) -> &[u32] {
         &self.owner
     }
+
+    /// The depths of the window's pixels, row-major.
+    pub fn depths(&self) -> &[f32] {
+        &self.depth
+    }
 }
 
 /// Screen-space data of one projected triangle: corners in pixels, `1/z` at each, signed area.

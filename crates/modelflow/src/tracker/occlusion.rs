@@ -95,25 +95,32 @@ struct View {
 
 impl View {
     fn new(ib: IndexBuffer, tolerance: f64, reach: usize) -> Self {
-        let (w, h) = (ib.width, ib.height);
-        let (win, area) = (ib.window, ib.window.grown(reach, w, h));
+        let (win, area) = (ib.window, ib.window.grown(reach, ib.width, ib.height));
         let tol = tolerance as f32;
         let mut edge = vec![false; area.len()];
-        // Only covered pixels mark an edge, and all of them lie in the window.
-        let mut mark = |(x, y): (usize, usize), (xx, yy): (usize, usize)| {
-            let (a, b) = (ib.owner_at(x, y), ib.owner_at(xx, yy));
-            if a != NONE && b != NONE && (ib.depth_at(x, y) - ib.depth_at(xx, yy)).abs() > tol {
-                edge[area.index(x, y).expect("in the area")] = true;
-                edge[area.index(xx, yy).expect("in the area")] = true;
-            }
-        };
-        for y in win.y0..win.y0 + win.height {
-            for x in win.x0..win.x0 + win.width {
-                if x + 1 < w {
-                    mark((x, y), (x + 1, y));
+        // Only covered pixels mark an edge, and all of them lie in the window: each pixel of
+        // the window against its right and lower neighbours there (`i`: the window's index,
+        // `j`: the area's).
+        let (owner, depth) = (ib.owners(), ib.depths());
+        let (dx, dy) = (win.x0 - area.x0, win.y0 - area.y0);
+        for wy in 0..win.height {
+            for wx in 0..win.width {
+                let i = wy * win.width + wx;
+                if owner[i] == NONE {
+                    continue;
                 }
-                if y + 1 < h {
-                    mark((x, y), (x, y + 1));
+                let j = (wy + dy) * area.width + wx + dx;
+                let mut mark = |ni: usize, nj: usize| {
+                    if owner[ni] != NONE && (depth[i] - depth[ni]).abs() > tol {
+                        edge[j] = true;
+                        edge[nj] = true;
+                    }
+                };
+                if wx + 1 < win.width {
+                    mark(i + 1, j + 1);
+                }
+                if wy + 1 < win.height {
+                    mark(i + win.width, j + area.width);
                 }
             }
         }
