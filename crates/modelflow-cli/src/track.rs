@@ -142,6 +142,10 @@ pub struct TrackArgs {
     /// brightness constancy), one constant gain, or a gain varying linearly over the triangle.
     #[arg(long, value_enum, default_value_t = GainArg::Linear)]
     pub gain: GainArg,
+    /// The largest brightness change the gains may take up, as a ratio either way (1 to 100):
+    /// shading after a turn under the lights, exposure between cameras.
+    #[arg(long, default_value_t = TrackOptions::default().solver.gain_range)]
+    pub gain_range: f64,
 }
 
 /// `--loss`'s values (the library's `solve::Loss`).
@@ -235,6 +239,7 @@ impl TrackArgs {
                     GainArg::Constant => GainModel::Constant,
                     GainArg::Linear => GainModel::Linear,
                 },
+                gain_range: self.gain_range,
                 ..d.solver
             },
             ..d

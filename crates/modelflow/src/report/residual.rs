@@ -19,6 +19,7 @@ use crate::base::camera::Projection;
 use crate::base::image::RgbImage;
 use crate::base::mesh::Mesh;
 use crate::base::raster::{self, NONE};
+use crate::tracker::solve::DEFAULT_GAIN_RANGE;
 use rayon::prelude::*;
 
 /// Relative depth slack of the visibility test at the reference frame.
@@ -105,7 +106,7 @@ pub(crate) fn residual_map(
             }
         });
     // Pass 2: the brightness gain of each triangle, as the tracker fits it (shading changes as
-    // the surface turns: `I_t ≈ g·I_r`, least squares, clamped to [0.5, 2]), summed in pixel
+    // the surface turns: `I_t ≈ g·I_r`, least squares, within the tracker's default range), summed in pixel
     // order so the result does not depend on the thread count; then the residuals.
     let mut sums = vec![[0.0f64; 2]; mesh_t.triangles.len()];
     for (t, a, r) in pairs.iter().flatten() {
@@ -119,7 +120,7 @@ pub(crate) fn residual_map(
         .iter()
         .map(|[ar, rr]| {
             if *rr > 0.0 {
-                (ar / rr).clamp(0.5, 2.0) as f32
+                (ar / rr).clamp(1.0 / DEFAULT_GAIN_RANGE, DEFAULT_GAIN_RANGE) as f32
             } else {
                 1.0
             }

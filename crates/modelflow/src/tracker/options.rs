@@ -318,6 +318,13 @@ impl TrackOptions {
                 why: "fraction of the pixels' thresholds, 0 = off",
             },
             Range {
+                option: "--gain-range",
+                value: s.gain_range,
+                low: (1.0, true),
+                high: (100.0, true),
+                why: "the largest brightness ratio between template and frame; 1 = no change",
+            },
+            Range {
                 option: "--max-iterations",
                 value: s.max_iterations as f64,
                 low: (1.0, true),

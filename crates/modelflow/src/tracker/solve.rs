@@ -71,6 +71,12 @@ pub struct SolverOptions {
     /// Brightness gain compensated per (triangle, camera) (diffuse shading changes as the
     /// surface turns).
     pub gain: GainModel,
+    /// The fitted gains are kept within `[1 / gain_range, gain_range]`: how far a patch's
+    /// brightness may change between the template and the frame solved (a surface turning
+    /// from facing its light to 75° off it darkens about 4×). Options written before it
+    /// existed (a run's manifest) read as 2, which is how those builds ran.
+    #[serde(default = "legacy_gain_range")]
+    pub gain_range: f64,
     /// How the next frame is sampled at warped positions (the tracker uses it at the finest
     /// pyramid level and bilinear at coarser ones, which only bring the mesh near the solution).
     pub interpolation: Interpolation,
@@ -102,6 +108,16 @@ fn default_tukey_min() -> f64 {
 
 fn default_patch_scale() -> f64 {
     0.5
+}
+
+/// The default `gain_range`: a Lambertian surface turned from facing its light to 75° off it
+/// (cos 75° ≈ 0.26). The earlier bound, 2, held the first frame's view of a turning object to a
+/// brightness it no longer had (docs/tracker.md, "Brightness gains").
+pub(crate) const DEFAULT_GAIN_RANGE: f64 = 4.0;
+
+/// `gain_range` of the builds before it was an option.
+fn legacy_gain_range() -> f64 {
+    2.0
 }
 
 /// The robust loss `ρ(e²)` on a pixel's RGB residual norm `e` (both are `e²` for small `e`).
@@ -148,6 +164,7 @@ impl Default for SolverOptions {
             cg_tolerance: 1e-3,
             cg_max_iterations: 100,
             gain: GainModel::Linear,
+            gain_range: DEFAULT_GAIN_RANGE,
             interpolation: Interpolation::Cubic,
         }
     }
@@ -759,9 +776,10 @@ impl Problem<'_> {
                 gm6[0], gm6[3], gm6[4], gm6[3], gm6[1], gm6[5], gm6[4], gm6[5], gm6[2],
             );
             let gr = Vector3::from(gr3);
+            let lo = 1.0 / opts.gain_range;
             let constant = |gm: &Matrix3<f64>, gr: &Vector3<f64>| {
                 let g = gr.sum() / gm.sum();
-                let c = g.clamp(0.5, 2.0);
+                let c = g.clamp(lo, opts.gain_range);
                 (
                     [c as f32; 3],
                     if c == g {
@@ -777,7 +795,7 @@ impl Problem<'_> {
                 GainModel::Linear if warped.len() >= 12 => match gm.try_inverse() {
                     Some(inv) if (inv * gm).iter().all(|v| v.is_finite()) => {
                         let g = inv * gr;
-                        let c = g.map(|v| v.clamp(0.5, 2.0));
+                        let c = g.map(|v| v.clamp(lo, opts.gain_range));
                         let fitted = if c == g { Fitted::Linear } else { Fitted::None };
                         ([c.x as f32, c.y as f32, c.z as f32], fitted)
                     }

@@ -27,12 +27,12 @@ void modelflow_emu_evaluate_patches(
     const double* x, const double* x0, const double* prev, const double* proj, const double* lag,
     double gap, const unsigned* tris, const unsigned* patches, const float* weights,
     const float* pixels, const float* images, const unsigned long long* img_off,
-    const int* img_size, int npatches, double huber, double tukey_px, double patch_scale,
+    const int* img_size, int npatches, double huber, double tukey_px, double patch_scale, double gain_range,
     int flags, const double* edges, double* out, unsigned long long* hist) {
     for (int b = 0; b < npatches; b++) {
         emu_block = b;
         evaluate_patches(x, x0, prev, proj, lag, gap, tris, patches, weights, pixels, images,
-                         img_off, img_size, npatches, huber, tukey_px, patch_scale, flags, edges,
+                         img_off, img_size, npatches, huber, tukey_px, patch_scale, gain_range, flags, edges,
                          out, hist);
     }
 }

@@ -263,7 +263,7 @@ DEV void evaluate_patch(
     const double* x, const double* x0, const double* prev, const double* proj,
     const double* lag, double gap, const unsigned* tris, const unsigned* patches,
     const float* weights, const float* pixels, const float* images, const unsigned long long* img_off,
-    const int* img_size, int npatches, double huber, double tukey_px, double patch_scale,
+    const int* img_size, int npatches, double huber, double tukey_px, double patch_scale, double gain_range,
     int flags, const double* edges, double* out, unsigned long long* hist) {
     SHARED double sv[PATCHES_PER_BLOCK][WARP][NV];
     SHARED int svalid[PATCHES_PER_BLOCK][WARP];
@@ -452,6 +452,8 @@ DEV void evaluate_patch(
     int fitted = FIT_NONE;
     double trace = gm[0] + gm[4] + gm[8];
     if (gain_model != GAIN_OFF && trace > 0.0) {
+        // The gains are kept within [1 / gain_range, gain_range] (`SolverOptions::gain_range`).
+        const double lo = 1.0 / gain_range;
         bool done = false;
         if (gain_model == GAIN_LINEAR && count >= 12.0) {
             double inv[9];
@@ -462,7 +464,7 @@ DEV void evaluate_patch(
                     bool same = true;
                     for (int r = 0; r < 3; r++) {
                         double g = inv[3 * r] * gr[0] + inv[3 * r + 1] * gr[1] + inv[3 * r + 2] * gr[2];
-                        double c = g < 0.5 ? 0.5 : (g > 2.0 ? 2.0 : g);
+                        double c = g < lo ? lo : (g > gain_range ? gain_range : g);
                         if (!(c == g)) same = false;
                         gains[r] = (float)c;
                     }
@@ -474,7 +476,7 @@ DEV void evaluate_patch(
         if (!done) {
             double gs = gr[0] + gr[1] + gr[2];
             double g = gs / sum9_colmajor(gm);
-            double c = g < 0.5 ? 0.5 : (g > 2.0 ? 2.0 : g);
+            double c = g < lo ? lo : (g > gain_range ? gain_range : g);
             gains[0] = gains[1] = gains[2] = (float)c;
             fitted = (c == g) ? FIT_CONSTANT : FIT_NONE;
         }
@@ -708,9 +710,9 @@ KERNEL void evaluate_patches(
     const double* x, const double* x0, const double* prev, const double* proj,
     const double* lag, double gap, const unsigned* tris, const unsigned* patches,
     const float* weights, const float* pixels, const float* images, const unsigned long long* img_off,
-    const int* img_size, int npatches, double huber, double tukey_px, double patch_scale,
+    const int* img_size, int npatches, double huber, double tukey_px, double patch_scale, double gain_range,
     int flags, const double* edges, double* out, unsigned long long* hist) {
-    evaluate_patch(x, x0, prev, proj, lag, gap, tris, patches, weights, pixels, images, img_off, img_size, npatches, huber, tukey_px, patch_scale, flags, edges, out, hist);
+    evaluate_patch(x, x0, prev, proj, lag, gap, tris, patches, weights, pixels, images, img_off, img_size, npatches, huber, tukey_px, patch_scale, gain_range, flags, edges, out, hist);
 }
 
 // ...and held to 128 registers, for four blocks of four warps per SM instead of two, at the
@@ -719,9 +721,9 @@ KERNEL LAUNCH_BOUNDS void evaluate_patches_bounded(
     const double* x, const double* x0, const double* prev, const double* proj,
     const double* lag, double gap, const unsigned* tris, const unsigned* patches,
     const float* weights, const float* pixels, const float* images, const unsigned long long* img_off,
-    const int* img_size, int npatches, double huber, double tukey_px, double patch_scale,
+    const int* img_size, int npatches, double huber, double tukey_px, double patch_scale, double gain_range,
     int flags, const double* edges, double* out, unsigned long long* hist) {
-    evaluate_patch(x, x0, prev, proj, lag, gap, tris, patches, weights, pixels, images, img_off, img_size, npatches, huber, tukey_px, patch_scale, flags, edges, out, hist);
+    evaluate_patch(x, x0, prev, proj, lag, gap, tris, patches, weights, pixels, images, img_off, img_size, npatches, huber, tukey_px, patch_scale, gain_range, flags, edges, out, hist);
 }
 
 // Sums each triangle's patch records in order (one thread per triangle), as the CPU's

@@ -414,6 +414,7 @@ impl Uploaded {
             huber: opts.huber,
             tukey_px: opts.tukey_px,
             patch_scale: opts.patch_scale,
+            gain_range: opts.gain_range,
             flags,
             system,
         };
@@ -478,6 +479,7 @@ struct KernelScalars {
     huber: f64,
     tukey_px: f64,
     patch_scale: f64,
+    gain_range: f64,
     flags: i32,
     system: bool,
 }
@@ -727,6 +729,7 @@ mod cuda {
                     .arg(&k.huber)
                     .arg(&k.tukey_px)
                     .arg(&k.patch_scale)
+                    .arg(&k.gain_range)
                     .arg(&k.flags)
                     .arg(&b.edges)
                     .arg(&mut b.recs)
@@ -840,6 +843,7 @@ mod emulated {
             huber: f64,
             tukey_px: f64,
             patch_scale: f64,
+            gain_range: f64,
             flags: i32,
             edges: *const f64,
             out: *mut f64,
@@ -887,6 +891,7 @@ mod emulated {
                 k.huber,
                 k.tukey_px,
                 k.patch_scale,
+                k.gain_range,
                 k.flags,
                 h.edges.as_ptr(),
                 recs.as_mut_ptr(),
