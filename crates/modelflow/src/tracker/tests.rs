@@ -529,33 +529,65 @@ fn frame1_problem<'a>(
     }
 }
 
+/// The tests on one plane moved between two frames: the rig, the plane at frame 0 and moved
+/// 5 mm at frame 1, and its 4×4 mesh at frame 0.
+struct MovedPlane {
+    rig: Rig,
+    at0: Plane,
+    at1: Plane,
+    mesh: Mesh,
+    cams: Vec<Camera>,
+}
+
+impl MovedPlane {
+    fn new() -> Self {
+        let rig = rig();
+        let at0 = plane_at(Vector3::zeros());
+        let at1 = plane_at(Vector3::new(0.004, 0.0, -0.003));
+        let mesh = grid(4, 4, |s, t| at0.at(s, t));
+        let cams = rig.cameras();
+        MovedPlane {
+            rig,
+            at0,
+            at1,
+            mesh,
+            cams,
+        }
+    }
+
+    /// Each camera's one-level pyramid of `plane`, the light scaled by `light`.
+    fn pyramids(&self, plane: &Plane, light: f32) -> Vec<Pyramid> {
+        self.rig
+            .images(plane)
+            .into_iter()
+            .map(|mut img| {
+                if light != 1.0 {
+                    img.pixels_mut()
+                        .iter_mut()
+                        .for_each(|px| *px = px.map(|c| light * c));
+                }
+                Pyramid::new(&img, 1, 1.0)
+            })
+            .collect()
+    }
+}
+
 #[test]
 fn assembled_gradient_matches_finite_differences_of_the_cost() {
-    let rig = rig();
-    let plane0 = plane_at(Vector3::zeros());
-    let plane1 = plane_at(Vector3::new(0.004, 0.0, -0.003));
-    let mesh = grid(4, 4, |s, t| plane0.at(s, t));
-    let cams = rig.cameras();
-    let src: Vec<Pyramid> = rig
-        .images(&plane0)
-        .iter()
-        .map(|i| Pyramid::new(i, 1, 1.0))
-        .collect();
-    let dst: Vec<Pyramid> = rig
-        .images(&plane1)
-        .iter()
-        .map(|i| Pyramid::new(i, 1, 1.0))
-        .collect();
-    let mut set = frame0_patches(&mesh, &cams, &src);
+    let moved = MovedPlane::new();
+    let (mesh, cams) = (&moved.mesh, &moved.cams);
+    let src = moved.pyramids(&moved.at0, 1.0);
+    let dst = moved.pyramids(&moved.at1, 1.0);
+    let mut set = frame0_patches(mesh, cams, &src);
     let by_triangle = set.by_triangle();
-    let edges = Arc::new(EdgeSet::new(&mesh));
+    let edges = Arc::new(EdgeSet::new(mesh));
     // A stretched spring (k = 5) and a membrane term are included too.
     let reg = Regularisation {
         spring_k: 5.0,
         bending: 0.0,
         ..Regularisation::default()
     };
-    let mut regularisers = regularise::build(&mesh, &edges, &reg);
+    let mut regularisers = regularise::build(mesh, &edges, &reg);
     for r in &mut regularisers {
         r.begin_frame(&FrameContext {
             previous: &mesh.positions,
@@ -563,11 +595,11 @@ fn assembled_gradient_matches_finite_differences_of_the_cost() {
         });
     }
     let problem = frame1_problem(
-        &mesh,
+        mesh,
         &set,
         &by_triangle,
         &dst,
-        &cams,
+        cams,
         &edges.edges,
         &regularisers,
     );
@@ -1184,35 +1216,18 @@ fn normal_equations_are_the_curvature_of_the_cost_with_its_gains_refitted() {
 /// is the texture itself, a residual no position explains.
 #[test]
 fn a_patch_darkened_to_under_half_is_compared_up_to_its_gain() {
-    let rig = rig();
-    let plane0 = plane_at(Vector3::zeros());
-    let plane1 = plane_at(Vector3::new(0.004, 0.0, -0.003));
-    let mesh = grid(4, 4, |s, t| plane0.at(s, t));
-    let truth = grid(4, 4, |s, t| plane1.at(s, t)).positions;
-    let cams = rig.cameras();
-    let src: Vec<Pyramid> = rig
-        .images(&plane0)
-        .iter()
-        .map(|i| Pyramid::new(i, 1, 1.0))
-        .collect();
-    let mut set = frame0_patches(&mesh, &cams, &src);
+    let moved = MovedPlane::new();
+    let (mesh, cams) = (&moved.mesh, &moved.cams);
+    let truth = grid(4, 4, |s, t| moved.at1.at(s, t)).positions;
+    let src = moved.pyramids(&moved.at0, 1.0);
+    let mut set = frame0_patches(mesh, cams, &src);
     let by_triangle = set.by_triangle();
-    let edges = EdgeSet::new(&mesh);
+    let edges = EdgeSet::new(mesh);
     // The cost at the truth (every pixel kept) and where the solve from the first frame's
     // mesh ends (m from the truth), with the light at `light` and the gains within `range`.
     let solved = |light: f32, range: f64| {
-        let dst: Vec<Pyramid> = rig
-            .images(&plane1)
-            .iter()
-            .map(|i| {
-                let mut img = i.clone();
-                img.pixels_mut()
-                    .iter_mut()
-                    .for_each(|px| *px = px.map(|c| light * c));
-                Pyramid::new(&img, 1, 1.0)
-            })
-            .collect();
-        let problem = frame1_problem(&mesh, &set, &by_triangle, &dst, &cams, &edges.edges, &[]);
+        let dst = moved.pyramids(&moved.at1, light);
+        let problem = frame1_problem(mesh, &set, &by_triangle, &dst, cams, &edges.edges, &[]);
         let opts = SolverOptions {
             gain_range: range,
             ..SolverOptions::default()
@@ -1415,22 +1430,16 @@ fn the_gpu_kernels_give_the_cpu_sums() {
         assert!(uploaded.failure().is_none());
     };
 
-    let rig = rig();
-    let plane0 = plane_at(Vector3::zeros());
-    let plane1 = plane_at(Vector3::new(0.004, 0.0, -0.003));
-    let mesh = grid(4, 4, |s, t| plane0.at(s, t));
-    let cams = rig.cameras();
-    let pyr = |p: &Plane| -> Vec<Pyramid> {
-        rig.images(p)
-            .iter()
-            .map(|i| Pyramid::new(i, 1, 1.0))
-            .collect()
-    };
-    let (src, dst) = (pyr(&plane0), pyr(&plane1));
-    let mut set = frame0_patches(&mesh, &cams, &src);
+    let moved = MovedPlane::new();
+    let (mesh, cams) = (&moved.mesh, &moved.cams);
+    let (src, dst) = (
+        moved.pyramids(&moved.at0, 1.0),
+        moved.pyramids(&moved.at1, 1.0),
+    );
+    let mut set = frame0_patches(mesh, cams, &src);
     let by_triangle = set.by_triangle();
-    let edges = Arc::new(EdgeSet::new(&mesh));
-    let problem = frame1_problem(&mesh, &set, &by_triangle, &dst, &cams, &edges.edges, &[]);
+    let edges = Arc::new(EdgeSet::new(mesh));
+    let problem = frame1_problem(mesh, &set, &by_triangle, &dst, cams, &edges.edges, &[]);
     let mut x = mesh.positions.clone();
     x[5].x += 0.02;
     x[6].z -= 0.01;
