@@ -449,6 +449,24 @@ mod tests {
     }
 
     #[test]
+    fn a_run_recorded_before_the_gains_range_was_widened_resumes_with_the_old_bound() {
+        // Its run.json names no `gain_range`: the gains were held within [1/2, 2] then, and a
+        // resumed run must go on so, while a new run takes the wider default.
+        assert_eq!(TrackOptions::default().solver.gain_range, 4.0);
+        let mut old = serde_json::to_value(TrackOptions::default()).expect("options as JSON");
+        old["solver"]
+            .as_object_mut()
+            .expect("the solver's options")
+            .remove("gain_range")
+            .expect("the field is written");
+        let read: TrackOptions = serde_json::from_value(old).expect("an old run's options");
+        assert_eq!(read.solver.gain_range, 2.0);
+        let mut now = read;
+        now.solver.gain_range = 4.0;
+        assert_eq!(now, TrackOptions::default());
+    }
+
+    #[test]
     fn a_run_recorded_before_first_meshes_were_moved_onto_the_surface_resumes_as_given() {
         // A resumed run rebuilds its first frame's templates from the scene's mesh: one made
         // before the tracker moved a mesh off the surface onto it must rebuild them from the
