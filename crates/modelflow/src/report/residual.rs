@@ -106,8 +106,9 @@ pub(crate) fn residual_map(
             }
         });
     // Pass 2: the brightness gain of each triangle, as the tracker fits it (shading changes as
-    // the surface turns: `I_t ≈ g·I_r`, least squares, within the tracker's default range), summed in pixel
-    // order so the result does not depend on the thread count; then the residuals.
+    // the surface turns: `I_t ≈ g·I_r`, least squares, within the tracker's default range, not
+    // the run's own: the sheet compares runs of any tracker), summed in pixel order so the
+    // result does not depend on the thread count; then the residuals.
     let mut sums = vec![[0.0f64; 2]; mesh_t.triangles.len()];
     for (t, a, r) in pairs.iter().flatten() {
         let s = &mut sums[*t as usize];
