@@ -33,9 +33,13 @@ pub struct TrackArgs {
     pub consensus: f64,
     /// Weight of the cameras compared with each other in the frame being solved, at the two
     /// finest levels (0 = off; 0 to 100): holds the surface where all cameras agree it is, so
-    /// depth does not drift with few cameras or a narrow baseline; slower (about +28 % time).
+    /// depth does not drift with few cameras or a narrow baseline.
     #[arg(long, default_value_t = TrackOptions::default().stereo)]
     pub stereo: f64,
+    /// Of each camera's pixels compared with the other cameras (--stereo), every N-th is kept,
+    /// at N times the weight (1 to 64; 1 = all, slower).
+    #[arg(long, value_name = "N", default_value_t = TrackOptions::default().stereo_stride)]
+    pub stereo_stride: u32,
     /// Spring constant k of the cubic edge springs (Eq. 5.16) on the edges' strain, each edge
     /// weighted by its share of the surface's area, so independent of units and triangulation
     /// (0 = off; 0 to 1e6).
@@ -201,6 +205,7 @@ impl TrackArgs {
             anchor_weight: self.anchor_weight,
             consensus: self.consensus,
             stereo: self.stereo,
+            stereo_stride: self.stereo_stride,
             approach_decrease: self.approach_decrease,
             lent_anchor: self.lent_anchor,
             hidden_ahead: !self.keep_hidden,

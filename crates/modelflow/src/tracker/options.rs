@@ -59,6 +59,12 @@ pub struct TrackOptions {
     /// baseline does not drift (`sequence::stereo_levels`; docs/tracker.md).
     #[serde(default)]
     pub stereo: f64,
+    /// Of the pixels each camera takes for the comparisons with the other cameras (`stereo`),
+    /// every `stereo_stride`-th is kept, at that many times the weight: the same pull for a
+    /// fraction of the work (docs/tracker.md, "The cameras compared with each other"). Runs
+    /// recorded before it existed kept every pixel (1).
+    #[serde(default = "legacy_stereo_stride")]
+    pub stereo_stride: u32,
     /// An approach stage (the Huber solve of every level but the coarsest, when a finer level
     /// or the Tukey refine still follows) stops once an accepted step lowers its cost by less
     /// than this fraction of it, instead of `solver.min_relative_decrease`: what is left there
@@ -95,6 +101,11 @@ fn default_consensus() -> f64 {
     3.0
 }
 
+/// The stride of runs recorded before `stereo_stride` existed: every pixel.
+fn legacy_stereo_stride() -> u32 {
+    1
+}
+
 fn yes() -> bool {
     true
 }
@@ -114,7 +125,8 @@ impl Default for TrackOptions {
             checkerboard: true,
             rigid_first: true,
             consensus: default_consensus(),
-            stereo: 0.0,
+            stereo: 0.25,
+            stereo_stride: 4,
             approach_decrease: 0.03,
             lent_anchor: 1.0,
             hidden_ahead: true,
@@ -346,6 +358,13 @@ impl TrackOptions {
                 why: "0 = off",
             },
             Range {
+                option: "--stereo-stride",
+                value: self.stereo_stride as f64,
+                low: (1.0, true),
+                high: (64.0, true),
+                why: "every N-th pixel compared between cameras",
+            },
+            Range {
                 option: "--finest-level",
                 value: self.finest_level as f64,
                 low: (0.0, true),
@@ -464,6 +483,35 @@ mod tests {
         let mut now = read;
         now.solver.gain_range = 4.0;
         assert_eq!(now, TrackOptions::default());
+    }
+
+    #[test]
+    fn a_run_recorded_before_the_cameras_were_compared_by_default_resumes_without_it() {
+        // Runs made before `stereo` existed name neither field, and compared no cameras; runs
+        // made while it was off by default name `stereo` (0 or the user's weight) but no
+        // stride, and compared every pixel. Both resume as they ran; a new run takes the
+        // defaults.
+        let d = TrackOptions::default();
+        assert_eq!((d.stereo, d.stereo_stride), (0.25, 4));
+        let mut old = serde_json::to_value(d).expect("options as JSON");
+        let fields = old.as_object_mut().expect("an object");
+        fields
+            .remove("stereo_stride")
+            .expect("the field is written");
+        let read: TrackOptions =
+            serde_json::from_value(old.clone()).expect("a run's options from before the stride");
+        assert_eq!((read.stereo, read.stereo_stride), (0.25, 1));
+        old.as_object_mut().unwrap().remove("stereo").unwrap();
+        let read: TrackOptions = serde_json::from_value(old).expect("an old run's options");
+        assert_eq!((read.stereo, read.stereo_stride), (0.0, 1));
+        assert_eq!(
+            TrackOptions {
+                stereo: 0.25,
+                stereo_stride: 4,
+                ..read
+            },
+            d
+        );
     }
 
     #[test]

@@ -173,12 +173,37 @@ fn zero_motion_stays_put() {
     let mesh = mesh_of(&plane);
     let imgs = rig.images(&plane);
     let mut tr = Tracker::new(&mesh, rig.cameras(), 0, &imgs, TrackOptions::default()).unwrap();
-    for f in 1..3 {
+    let mut settled = Vec::new();
+    for f in 1..12 {
         let rep = tr.step(f, &imgs).unwrap();
         assert!(rep.pixels > 5000, "{}", rep.pixels);
+        if f == 2 {
+            settled = tr.positions().to_vec();
+        }
+    }
+    // The cameras compared with each other (`stereo`) put the surface where the two renders
+    // agree best, a few hundredths of a pixel from the given mesh (0.12 mm on this 0.6 m
+    // plane, 0.02 %), within two frames; after that nothing moves: no drift.
+    let err = rms_distance(tr.positions(), &mesh.positions);
+    assert!(err < 2e-4, "{err} m from the given mesh with no motion");
+    let since = rms_distance(tr.positions(), &settled);
+    assert!(
+        since < 1e-6,
+        "drifted {since} m over frames 3 to 11 with no motion"
+    );
+    let still = TrackOptions {
+        stereo: 0.0,
+        ..TrackOptions::default()
+    };
+    let mut tr = Tracker::new(&mesh, rig.cameras(), 0, &imgs, still).unwrap();
+    for f in 1..3 {
+        tr.step(f, &imgs).unwrap();
     }
     let err = rms_distance(tr.positions(), &mesh.positions);
-    assert!(err < 1e-4, "drifted {err} m with no motion");
+    assert!(
+        err < 1e-4,
+        "drifted {err} m with no motion (cameras not compared)"
+    );
 }
 
 #[test]
@@ -1631,8 +1656,11 @@ fn turning_blob_final_error(lent_anchor: f64) -> f64 {
         syn.cameras.clone(),
         0,
         &images(0),
+        // The cameras compared with each other (`stereo`, on by default) hold the sides too
+        // (without and with the lent view: 0.346 and 0.305 %): off here, the lent view alone.
         TrackOptions {
             lent_anchor,
+            stereo: 0.0,
             ..TrackOptions::default()
         },
     )
