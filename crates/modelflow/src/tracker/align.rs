@@ -638,6 +638,7 @@ pub fn align(
         min_cos: opts.min_cos,
         two_sided: !mesh.is_closed(),
         checkerboard: false,
+        stride: 1,
     };
     let motion = if opts.scale {
         Motion::Similarity

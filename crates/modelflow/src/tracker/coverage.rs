@@ -51,6 +51,7 @@ pub fn coverage(mesh: &Mesh, cameras: &[Camera], frame: u32, opts: &TrackOptions
         min_cos: opts.min_cos,
         two_sided: !mesh.is_closed(),
         checkerboard: false,
+        stride: 1,
     };
     // Per camera (in parallel), which triangles own a comparable pixel; then how many cameras.
     let seen: Vec<Vec<bool>> = cameras

@@ -82,6 +82,7 @@ impl Frame<'_> {
             min_cos: 0.1,
             two_sided: !closed,
             checkerboard: false,
+            stride: 1,
         };
         (center - RANGE..=center + RANGE)
             .map(|k| {

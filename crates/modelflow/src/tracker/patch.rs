@@ -49,6 +49,9 @@ pub struct PatchOptions {
     pub two_sided: bool,
     /// Keep only pixels with even `x + y` (half the pixels, evenly spread).
     pub checkerboard: bool,
+    /// Of each patch's pixels (in the image's row order), keep every `stride`-th (1 = all):
+    /// the tracker's comparisons between cameras (`--stereo-stride`).
+    pub stride: usize,
 }
 
 /// The index buffer of `positions` seen through `proj` in a `w`×`h` image, and which of its
@@ -124,7 +127,7 @@ impl PatchSet {
                 continue;
             };
             let start = self.pixels.len() as u32;
-            for &pi in &order[a..b] {
+            for &pi in order[a..b].iter().step_by(opts.stride.max(1)) {
                 let (px, py) = ib.window.pixel(pi as usize);
                 debug_assert!(owners[pi as usize] != NONE);
                 let l = barycentric(&s_inv, px as f64, py as f64);

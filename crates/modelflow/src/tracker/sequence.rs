@@ -22,7 +22,7 @@ use crate::tracker::health;
 use crate::tracker::occlusion;
 use crate::tracker::offset::{moved_onto_surface, SurfaceMove};
 use crate::tracker::options::{OptionsUsed, TrackOptions};
-use crate::tracker::patch::{Patch, PatchOptions, PatchSet};
+use crate::tracker::patch::{PatchOptions, PatchSet};
 use crate::tracker::pyramid::Pyramid;
 use crate::tracker::regularise::{self, EdgeSet, FrameContext, Regulariser};
 use crate::tracker::solve::{
@@ -495,6 +495,7 @@ impl Tracker {
             min_cos: self.opts.min_cos,
             two_sided: self.two_sided,
             checkerboard: false,
+            stride: 1,
         }
     }
 
@@ -595,16 +596,15 @@ impl Tracker {
             checkerboard: level == 0 && self.opts.checkerboard,
             ..self.patch_options()
         };
-        let cbw = if popts.checkerboard { 2.0 } else { 1.0 };
-        let mut set = align::cross_patches(x, &self.triangles, &projections, &images, &popts);
         // Every `stereo_stride`-th source pixel at that many times the weight: a source
         // pixel's comparisons are a weaker pull than the templates', and a sparser sample of
         // them holds the surface as well (docs/tracker.md, 2026-11-27).
-        let stride = self.opts.stereo_stride.max(1) as usize;
-        if stride > 1 {
-            set = thinned(set, stride);
-        }
-        let cbw = cbw * stride as f64;
+        let popts = PatchOptions {
+            stride: self.opts.stereo_stride.max(1) as usize,
+            ..popts
+        };
+        let cbw = if popts.checkerboard { 2.0 } else { 1.0 } * popts.stride as f64;
+        let mut set = align::cross_patches(x, &self.triangles, &projections, &images, &popts);
         // Patches of one source pixel range are consecutive, one per other camera.
         let mut i = 0;
         while i < set.patches.len() {
@@ -1226,37 +1226,6 @@ pub(crate) fn stereo_levels(levels: usize, finest: usize) -> std::ops::Range<usi
 }
 
 /// `extra`'s patches and pixels appended to `set`'s.
-/// Every `k`-th pixel of each source range (patches that share a range keep sharing it).
-fn thinned(set: PatchSet, k: usize) -> PatchSet {
-    let mut out = PatchSet {
-        patches: Vec::with_capacity(set.patches.len()),
-        pixels: Vec::with_capacity(set.pixels.len() / k + set.patches.len()),
-    };
-    let mut last: Option<((u32, u32), (u32, u32))> = None;
-    for p in &set.patches {
-        let range = match last {
-            Some((from, to)) if from == (p.start, p.end) => to,
-            _ => {
-                let start = out.pixels.len() as u32;
-                out.pixels.extend(
-                    set.pixels[p.start as usize..p.end as usize]
-                        .iter()
-                        .step_by(k),
-                );
-                let to = (start, out.pixels.len() as u32);
-                last = Some(((p.start, p.end), to));
-                to
-            }
-        };
-        out.patches.push(Patch {
-            start: range.0,
-            end: range.1,
-            ..*p
-        });
-    }
-    out
-}
-
 fn merge_into(set: &mut PatchSet, extra: PatchSet) {
     let off = set.pixels.len() as u32;
     set.pixels.extend(extra.pixels);

@@ -513,6 +513,7 @@ fn frame0_patches(mesh: &Mesh, cams: &[Camera], src: &[Pyramid]) -> PatchSet {
         min_cos: 0.1,
         two_sided: true,
         checkerboard: false,
+        stride: 1,
     };
     let mut set = PatchSet::default();
     for (c, cam) in cams.iter().enumerate() {
@@ -871,6 +872,7 @@ fn a_hidden_triangle_contributes_no_pixels() {
         min_cos: 0.1,
         two_sided: true,
         checkerboard: false,
+        stride: 1,
     };
     let mut set = PatchSet::default();
     set.add_camera(&positions, &triangles, &cam, &img, 0, 1.0, &popts, None);
@@ -1061,6 +1063,7 @@ impl CrossPlane {
             min_cos: 0.1,
             two_sided: true,
             checkerboard: false,
+            stride: 1,
         };
         let mut x0 = mesh.positions.clone();
         displace(&mut x0);
