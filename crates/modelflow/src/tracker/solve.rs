@@ -289,18 +289,23 @@ struct SourceWarp {
 }
 
 impl SourceWarp {
+    /// The warp with the source camera seeing the triangle at `xi` and the target camera at
+    /// `xj`, each corner moving `ai` and `aj` times as far as the unknowns (1 and the same
+    /// corners, unless a camera records late or early: [`Lag`]). With `X_i = a_i·x + c_i` and
+    /// `X_j = a_j·x + c_j`, `W = S_j(X_j)·S_i(X_i)⁻¹` and `∂h/∂X_k = λ̂_k·(a_j·M_j − a_i·H·M_i)`.
     fn new(
-        xs: &[Point3<f64>; 3],
+        (xi, ai): (&[Point3<f64>; 3], f64),
+        (xj, aj): (&[Point3<f64>; 3], f64),
         xs0: &[Point3<f64>; 3],
         source: &Projection,
         target: &Projection,
     ) -> Option<SourceWarp> {
-        let si_inv = source_matrix(source, xs).try_inverse()?;
-        let h = source_matrix(target, xs) * si_inv;
+        let si_inv = source_matrix(source, xi).try_inverse()?;
+        let h = source_matrix(target, xj) * si_inv;
         let t = si_inv * source_matrix(source, xs0);
         let a = h * source_matrix(source, xs0);
-        let mi: Matrix3<f64> = source.matrix().fixed_view::<3, 3>(0, 0).into_owned();
-        let mj: Matrix3<f64> = target.matrix().fixed_view::<3, 3>(0, 0).into_owned();
+        let mi: Matrix3<f64> = source.matrix().fixed_view::<3, 3>(0, 0).into_owned() * ai;
+        let mj: Matrix3<f64> = target.matrix().fixed_view::<3, 3>(0, 0).into_owned() * aj;
         let m = mj - h * mi;
         let y = [a.column(0).into(), a.column(1).into(), a.column(2).into()];
         (m.iter().chain(t.iter()).all(|v| v.is_finite())).then_some(SourceWarp { y, m, t })
@@ -681,7 +686,17 @@ impl Problem<'_> {
             if let Some(x0) = self.moving_source.filter(|_| patch.source != patch.camera) {
                 let xs0 = tri.map(|v| x0[v as usize]);
                 let src = &self.projections[patch.source as usize];
-                let Some(sw) = SourceWarp::new(&xs, &xs0, src, proj) else {
+                // Each camera sees the triangle at its own instant (`Lag`): the source camera
+                // where its pixels were taken, the target where it looks for them.
+                let at = |c: usize| match self.lag {
+                    Some(lag) if lag.offsets.get(c).is_some_and(|&d| d != 0.0) => {
+                        let seen = tri.map(|v| lag.seen(x, v as usize, lag.offsets[c]));
+                        (seen.map(|(p, _)| p), seen[0].1)
+                    }
+                    _ => (xs, 1.0),
+                };
+                let ((xi, ai), (xj, aj)) = (at(patch.source as usize), at(cam));
+                let Some(sw) = SourceWarp::new((&xi, ai), (&xj, aj), &xs0, src, proj) else {
                     // The source triangle is edge-on at `x`: its pixels see no surface. They
                     // count at the loss's cap (Huber: its threshold; Tukey: its plateau), so a
                     // trial cannot lower the cost by making triangles vanish.

@@ -1134,6 +1134,49 @@ fn moving_source_gradient_matches_finite_differences_of_the_cost() {
     assert!(diff > 0.1 * size, "{diff} vs {size}");
 }
 
+#[test]
+fn moving_source_with_cameras_out_of_sync_matches_finite_differences_of_the_cost() {
+    // The tracker's comparisons between cameras (`--stereo`) in a rig whose second camera
+    // records 0.3 frame late (or the first 0.2 early): each camera sees the triangle at its own
+    // instant, moved along the velocity from `previous`, so both ends of the warp move with
+    // the unknowns at their own rates. The assembled gradient must be that cost's derivative.
+    let cross = CrossPlane::new(|x| x[5].z += 0.01);
+    let x0 = &cross.x0;
+    let previous: Vec<Point3<f64>> = x0
+        .iter()
+        .map(|p| p - Vector3::new(0.004, -0.002, 0.003))
+        .collect();
+    let opts = SolverOptions {
+        huber: 1e3,
+        gain: GainModel::Off,
+        ..SolverOptions::default()
+    };
+    let mut x = x0.clone();
+    x[5].x += 0.01;
+    x[6].z -= 0.008;
+    x[9].y += 0.005;
+    let in_sync = cross.problem(false).cost(&x, &opts);
+    for offsets in [[0.0, 0.3], [-0.2, 0.3]] {
+        let lagged = Problem {
+            lag: Some(Lag {
+                offsets: &offsets,
+                previous: &previous,
+                gap: 1.0,
+            }),
+            ..cross.problem(false)
+        };
+        assert!(lagged.cost(&x, &opts) != in_sync, "the lag changed nothing");
+        let n = check_gradient(
+            &lagged,
+            &x,
+            &opts,
+            &[5, 6, 9, 10],
+            &format!("moving source, cameras {offsets:?} frames late"),
+        );
+        assert_eq!(n, 12);
+    }
+}
+
 /// `align`'s normal equations are the curvature of its cost: at the true surface, where the
 /// cameras agree, Gauss–Newton is exact up to the residuals left by resampling, so along any
 /// direction the cost's second derivative (finite differences of `Problem::cost`, the source
@@ -1534,6 +1577,26 @@ fn the_gpu_kernels_give_the_cpu_sums() {
             &xc,
             &opts,
             &format!("glued source, {gain:?}"),
+        );
+        // The comparisons between cameras of a rig out of sync: each end at its own instant.
+        let prev_c: Vec<Point3<f64>> = cross
+            .x0
+            .iter()
+            .map(|p| p - Vector3::new(0.004, -0.002, 0.003))
+            .collect();
+        let lagged_cross = Problem {
+            lag: Some(Lag {
+                offsets: &offsets,
+                previous: &prev_c,
+                gap: 1.0,
+            }),
+            ..cross.problem(false)
+        };
+        compare(
+            &lagged_cross,
+            &xc,
+            &opts,
+            &format!("moving source, late cameras, {gain:?}"),
         );
     }
 }

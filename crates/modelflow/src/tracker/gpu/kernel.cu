@@ -326,11 +326,22 @@ DEV void evaluate_patch(
         if (moving) {
             const double* Ps = proj + 12 * src;
             double si[9], sj[9], s0[9], si_inv[9], hm[9], t[9], am[9];
+            // Each camera sees the triangle at its own instant (`Lag`): the source where its
+            // pixels were taken, the target where it looks for them; `ai`, `aj` their scales.
+            double ds = (flags & FLAG_LAG) ? lag[src] : 0.0;
+            double ai = ds != 0.0 ? 1.0 + ds / gap : 1.0;
+            double aj = d != 0.0 ? 1.0 + d / gap : 1.0;
             for (int k = 0; k < 3; k++) {
-                double a[3], b[3], c[3], q0[3];
-                for (int e = 0; e < 3; e++) q0[e] = x0[3 * (unsigned long long)vs[k] + e];
-                project_h(Ps, xs[k], a);
-                project_h(P, xs[k], b);
+                double a[3], b[3], c[3], q0[3], qi[3], qj[3];
+                for (int e = 0; e < 3; e++) {
+                    double pa = xs[k][e];
+                    double qa = (ds != 0.0 || d != 0.0) ? prev[3 * (unsigned long long)vs[k] + e] : 0.0;
+                    q0[e] = x0[3 * (unsigned long long)vs[k] + e];
+                    qi[e] = ds != 0.0 ? pa + (pa - qa) * (ds / gap) : pa;
+                    qj[e] = d != 0.0 ? pa + (pa - qa) * (d / gap) : pa;
+                }
+                project_h(Ps, qi, a);
+                project_h(P, qj, b);
                 project_h(Ps, q0, c);
                 for (int r = 0; r < 3; r++) {
                     si[3 * r + k] = a[r];
@@ -346,8 +357,8 @@ DEV void evaluate_patch(
                 double mi[9], mj[9], hmi[9];
                 for (int r = 0; r < 3; r++)
                     for (int c = 0; c < 3; c++) {
-                        mi[3 * r + c] = Ps[4 * r + c];
-                        mj[3 * r + c] = P[4 * r + c];
+                        mi[3 * r + c] = Ps[4 * r + c] * ai;
+                        mj[3 * r + c] = P[4 * r + c] * aj;
                     }
                 mul3(hm, mi, hmi);
                 for (int i = 0; i < 9; i++) {
