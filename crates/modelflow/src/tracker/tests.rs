@@ -1090,6 +1090,25 @@ impl CrossPlane {
         }
     }
 
+    /// `x0` moved off in three vertices: where the gradient tests evaluate.
+    fn moved(&self) -> Vec<Point3<f64>> {
+        let mut x = self.x0.clone();
+        x[5].x += 0.01;
+        x[6].z -= 0.008;
+        x[9].y += 0.005;
+        x
+    }
+
+    /// Options under which the cost is a smooth least-squares sum (no robust cap, no gains):
+    /// what finite differences can check.
+    fn smooth_options() -> SolverOptions {
+        SolverOptions {
+            huber: 1e3,
+            gain: GainModel::Off,
+            ..SolverOptions::default()
+        }
+    }
+
     /// `align`'s problem (the source rays sliding as the mesh moves), or with `glued` the
     /// tracker's derivative over the same pixels (as if they were glued to the surface).
     fn problem(&self, glued: bool) -> Problem<'_> {
@@ -1113,16 +1132,8 @@ fn moving_source_gradient_matches_finite_differences_of_the_cost() {
     // with the mesh at `x0`, and as the mesh moves, the surface point each pixel sees slides
     // along its own camera's ray. The assembled gradient must be that cost's exact derivative.
     let cross = CrossPlane::new(|x| x[5].z += 0.01);
-    let (problem, x0) = (cross.problem(false), &cross.x0);
-    let opts = SolverOptions {
-        huber: 1e3,
-        gain: GainModel::Off,
-        ..SolverOptions::default()
-    };
-    let mut x = x0.clone();
-    x[5].x += 0.01;
-    x[6].z -= 0.008;
-    x[9].y += 0.005;
+    let problem = cross.problem(false);
+    let (opts, x) = (CrossPlane::smooth_options(), cross.moved());
     let checked = check_gradient(&problem, &x, &opts, &[5, 6, 9, 10], "moving source");
     assert_eq!(checked, 12);
     let (_, _, b) = problem.linearize(&x, &opts);
@@ -1141,20 +1152,12 @@ fn moving_source_with_cameras_out_of_sync_matches_finite_differences_of_the_cost
     // instant, moved along the velocity from `previous`, so both ends of the warp move with
     // the unknowns at their own rates. The assembled gradient must be that cost's derivative.
     let cross = CrossPlane::new(|x| x[5].z += 0.01);
-    let x0 = &cross.x0;
-    let previous: Vec<Point3<f64>> = x0
+    let previous: Vec<Point3<f64>> = cross
+        .x0
         .iter()
         .map(|p| p - Vector3::new(0.004, -0.002, 0.003))
         .collect();
-    let opts = SolverOptions {
-        huber: 1e3,
-        gain: GainModel::Off,
-        ..SolverOptions::default()
-    };
-    let mut x = x0.clone();
-    x[5].x += 0.01;
-    x[6].z -= 0.008;
-    x[9].y += 0.005;
+    let (opts, x) = (CrossPlane::smooth_options(), cross.moved());
     let in_sync = cross.problem(false).cost(&x, &opts);
     for offsets in [[0.0, 0.3], [-0.2, 0.3]] {
         let lagged = Problem {
