@@ -667,35 +667,34 @@ impl Problem<'_> {
                 [pm[(1, 0)], pm[(1, 1)], pm[(1, 2)]],
                 [pm[(2, 0)], pm[(2, 1)], pm[(2, 2)]],
             ];
-            let mut y = match self.lag {
-                Some(lag) if lag.offsets.get(cam).is_some_and(|&d| d != 0.0) => {
-                    let d = lag.offsets[cam];
-                    let seen = tri.map(|v| lag.seen(x, v as usize, d));
-                    for row in m.iter_mut() {
-                        for e in row.iter_mut() {
-                            *e *= seen[0].1;
-                        }
-                    }
-                    seen.map(|(p, _)| proj.project_h(&p))
+            // Where camera `c` sees the triangle, and how far that moves per unit of the
+            // unknowns: at its own instant when it records late or early (`Lag`).
+            let at = |c: usize| match self.lag {
+                Some(lag) if lag.offsets.get(c).is_some_and(|&d| d != 0.0) => {
+                    let seen = tri.map(|v| lag.seen(x, v as usize, lag.offsets[c]));
+                    (seen.map(|(p, _)| p), Some(seen[0].1))
                 }
-                _ => xs.map(|p| proj.project_h(&p)),
+                _ => (xs, None),
             };
+            let (xj, aj) = at(cam);
+            if let Some(a) = aj {
+                for row in m.iter_mut() {
+                    for e in row.iter_mut() {
+                        *e *= a;
+                    }
+                }
+            }
+            let mut y = xj.map(|p| proj.project_h(&p));
             // A moving source (`align`) changes the warp's columns and derivative, and the
             // barycentrics the derivative is weighted by.
             let mut to_current = None;
             if let Some(x0) = self.moving_source.filter(|_| patch.source != patch.camera) {
                 let xs0 = tri.map(|v| x0[v as usize]);
                 let src = &self.projections[patch.source as usize];
-                // Each camera sees the triangle at its own instant (`Lag`): the source camera
-                // where its pixels were taken, the target where it looks for them.
-                let at = |c: usize| match self.lag {
-                    Some(lag) if lag.offsets.get(c).is_some_and(|&d| d != 0.0) => {
-                        let seen = tri.map(|v| lag.seen(x, v as usize, lag.offsets[c]));
-                        (seen.map(|(p, _)| p), seen[0].1)
-                    }
-                    _ => (xs, 1.0),
-                };
-                let ((xi, ai), (xj, aj)) = (at(patch.source as usize), at(cam));
+                // Each camera sees the triangle at its own instant: the source camera where its
+                // pixels were taken, the target where it looks for them.
+                let (xi, ai) = at(patch.source as usize);
+                let (ai, aj) = (ai.unwrap_or(1.0), aj.unwrap_or(1.0));
                 let Some(sw) = SourceWarp::new((&xi, ai), (&xj, aj), &xs0, src, proj) else {
                     // The source triangle is edge-on at `x`: its pixels see no surface. They
                     // count at the loss's cap (Huber: its threshold; Tukey: its plateau), so a
