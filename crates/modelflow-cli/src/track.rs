@@ -446,7 +446,7 @@ pub fn run(args: Args, invocation: &Invocation) -> anyhow::Result<()> {
     let suspect = match summary.suspect_frames.len() {
         0 => String::new(),
         n => format!(
-            ", {n} SUSPECT (the cameras disagreed about the surface, or it showed next to no texture): frames {}",
+            ", {n} SUSPECT (the cameras disagreed about the surface, it showed next to no texture, or the mesh folded over itself): frames {}",
             list_frames(&summary.suspect_frames)
         ),
     };

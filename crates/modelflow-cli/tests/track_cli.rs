@@ -336,7 +336,7 @@ fn a_frame_the_cameras_disagree_about_is_named_and_counted() {
     // next frame judges, by its own information share.
     assert!(
         err.contains(
-            "3 SUSPECT (the cameras disagreed about the surface, or it showed next to no texture): frames 1, 2, 3"
+            "3 SUSPECT (the cameras disagreed about the surface, it showed next to no texture, or the mesh folded over itself): frames 1, 2, 3"
         ),
         "{err}"
     );
@@ -361,7 +361,7 @@ fn a_slip_in_the_last_frame_is_named_too() {
     let err = track_ok(&scene, &run);
     assert!(contradicted_in_frame_1(&err) >= 30, "{err}");
     assert!(
-        err.contains("1 SUSPECT (the cameras disagreed about the surface, or it showed next to no texture): frames 1)"),
+        err.contains("1 SUSPECT (the cameras disagreed about the surface, it showed next to no texture, or the mesh folded over itself): frames 1)"),
         "{err}"
     );
     let manifest: serde_json::Value =

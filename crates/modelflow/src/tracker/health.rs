@@ -51,6 +51,10 @@ pub enum Concern {
     /// images constrain its mesh (below [`INFORMATION_FLOOR`]): it sees next to none of the
     /// surface's texture (slipped onto the background, out of view, turned away, blurred out).
     LittleTexture { share: f64 },
+    /// `edges` pairs of neighbouring triangles that faced nearly the same way in the first
+    /// frame's mesh face opposite ways at this frame's solution (`tracker::fold`): the mesh has
+    /// folded over itself there.
+    Folded { edges: usize },
 }
 
 impl Concern {
@@ -79,6 +83,12 @@ impl Concern {
                 "the images constrain the mesh {:.0} % as much as the first frame's own images do (below {:.0} %): it sees next to none of the surface's texture, so it may have slipped off onto the background (motion beyond the capture range), or the surface left the views, turned away or blurred out",
                 100.0 * share,
                 100.0 * INFORMATION_FLOOR
+            ),
+            Concern::Folded { edges } => format!(
+                "the mesh has folded over itself: {edges} pair{} of neighbouring triangles that faced within {:.0}° of each other at the first frame face more than {:.0}° apart here (usually where part of the surface turned out of every view and came back, or a tight crease collapsed); the vertices there are likely off the surface",
+                if edges == 1 { "" } else { "s" },
+                crate::tracker::fold::WATCH_BELOW_DEGREES,
+                crate::tracker::fold::FOLDED_DEGREES
             ),
         }
     }
@@ -134,6 +144,9 @@ pub fn own_concerns(r: &FrameReport) -> Vec<Concern> {
         c.push(Concern::LittleTexture {
             share: r.information_share,
         });
+    }
+    if r.folded > 0 {
+        c.push(Concern::Folded { edges: r.folded });
     }
     c
 }
@@ -292,6 +305,22 @@ mod tests {
         assert!(checks[0].concerns[0].describe().starts_with(
             "the other cameras contradict 30 % of where this frame left the surface, against 5 %"
         ));
+    }
+
+    #[test]
+    fn a_folded_mesh_is_a_frame_to_check_and_says_where_it_folded() {
+        let mut folded = report(0.06, 0.8, false);
+        folded.folded = 3;
+        let checks = check_reports(0, [(1, &report(0.06, 0.8, false)), (2, &folded)]);
+        assert_eq!(checks.len(), 1);
+        assert_eq!(checks[0].frame, 2);
+        assert_eq!(checks[0].concerns, [Concern::Folded { edges: 3 }]);
+        assert!(checks[0].suspect() && !checks[0].stalled());
+        assert!(checks[0].concerns[0]
+            .describe()
+            .starts_with("the mesh has folded over itself: 3 pairs of neighbouring triangles"));
+        // A log written before the field existed reads as not folded.
+        assert_eq!(report(0.06, 0.8, false).folded, 0);
     }
 
     #[test]

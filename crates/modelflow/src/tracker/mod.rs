@@ -10,6 +10,7 @@
 pub(crate) mod align;
 pub(crate) mod consensus;
 mod coverage;
+pub(crate) mod fold;
 mod gpu;
 pub(crate) mod health;
 mod occlusion;

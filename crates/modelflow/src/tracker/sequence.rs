@@ -17,6 +17,7 @@ use crate::base::mesh::Mesh;
 use crate::error::{Error, Result};
 use crate::tracker::align;
 use crate::tracker::consensus::{drop_contradicted, ConsensusOptions};
+use crate::tracker::fold::FoldWatch;
 use crate::tracker::gpu::Gpu;
 use crate::tracker::health;
 use crate::tracker::occlusion;
@@ -67,6 +68,11 @@ pub struct FrameReport {
     /// existed.
     #[serde(default)]
     pub hidden: usize,
+    /// Pairs of neighbouring triangles that faced within 60° of each other in the first frame's
+    /// mesh and face more than 120° apart at the solution: where the mesh has folded over
+    /// itself (`tracker::fold`). 0 in logs written before it existed.
+    #[serde(default)]
+    pub folded: usize,
     /// How much the images constrain the solution, as a share of what the first frame's own
     /// images give its mesh: the sum over the vertices of the smallest eigenvalue of each
     /// vertex's photometric normal-equation block (the confidence file's `information`), at the
@@ -165,6 +171,8 @@ pub struct Tracker {
     weld: Option<Weld>,
     /// When the given mesh lay off the surface and was moved onto it (`TrackOptions::onto_surface`).
     first_mesh_moved: Option<SurfaceMove>,
+    /// The first frame's neighbouring triangles that face the same way (`FrameReport::folded`).
+    folds: FoldWatch,
 }
 
 /// The mesh as the tracker works on it: vertices at the same place merged
@@ -287,6 +295,7 @@ impl Tracker {
             before_frame: frame,
             weld,
             first_mesh_moved,
+            folds: FoldWatch::new(&mesh.positions, &mesh.triangles),
         };
         (t.anchor, t.contradicted_at_first) = t.anchor_patches(&t.prev, None);
         t.information_at_first = t.information_at_first();
@@ -798,6 +807,7 @@ impl Tracker {
                 && summaries
                     .iter()
                     .any(|s| matches!(s.stop, StopReason::CostRose | StopReason::NonFinite)));
+        let folded = self.folds.folded(&x, &self.triangles);
         if !stalled {
             let first_motion = self.before_prev.is_none() && self.prev.frame == self.anchor_frame;
             let old = std::mem::replace(
@@ -839,6 +849,7 @@ impl Tracker {
             contradicted_share: out.contradicted_share,
             contradicted_at_first: self.contradicted_at_first,
             hidden: out.hidden,
+            folded,
             information_share,
             suspect: false,
             rejected_share: out.rejected_share,
