@@ -460,6 +460,22 @@ pub fn run(args: Args, invocation: &Invocation) -> anyhow::Result<()> {
         summary.median_iterations,
         args.out.out.display()
     );
+    // A fold is the defaults' known weakness on solid objects that turn (docs/tracker.md, "A
+    // stiffer bending term for solid objects"): say what to try.
+    let folded = summary
+        .checks
+        .iter()
+        .filter(|c| {
+            c.concerns
+                .iter()
+                .any(|k| matches!(k, modelflow::tracker::Concern::Folded { .. }))
+        })
+        .count();
+    if folded > 0 {
+        eprintln!(
+            "note: the mesh folded over itself in {folded} frame(s); if the object does not fold (a head, a limb, a hand-held object), track it again with --bending 0.03 (docs/your-footage.md, \"What the surface is made of\")"
+        );
+    }
     if args.strict && !summary.stalled_frames.is_empty() {
         return Err(crate::Failure::new(
             3,
