@@ -71,17 +71,20 @@ impl FoldWatch {
     /// How many watched edges are folded with the mesh at `positions`. A triangle that has
     /// collapsed to no area has no facing and does not count.
     pub(crate) fn folded(&self, positions: &[Point3<f64>], triangles: &[[u32; 3]]) -> usize {
+        if self.pairs.is_empty() {
+            return 0;
+        }
+        // Each triangle's normal once (a triangle is in up to three pairs).
+        let normals: Vec<Option<Vector3<f64>>> =
+            triangles.iter().map(|t| normal(positions, t)).collect();
         self.pairs
             .iter()
-            .filter(|[a, b]| {
-                match (
-                    normal(positions, &triangles[*a as usize]),
-                    normal(positions, &triangles[*b as usize]),
-                ) {
+            .filter(
+                |[a, b]| match (normals[*a as usize], normals[*b as usize]) {
                     (Some(na), Some(nb)) => na.dot(&nb) < self.cos_folded,
                     _ => false,
-                }
-            })
+                },
+            )
             .count()
     }
 
