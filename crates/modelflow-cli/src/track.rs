@@ -80,6 +80,15 @@ pub struct TrackArgs {
     /// always the rest shape; 0 to 10).
     #[arg(long, default_value_t = TrackOptions::default().regularisation.bending_yield)]
     pub bending_yield: f64,
+    /// The bending term's yield where the previous frame's images pinned the vertex well (see
+    /// --bending-seen-share): small, so only what the images hold is followed (0 to 10).
+    #[arg(long, default_value_t = TrackOptions::default().regularisation.bending_yield_seen)]
+    pub bending_yield_seen: f64,
+    /// Where --bending-yield-seen applies instead of --bending-yield: vertices whose information
+    /// in the previous frame (the confidence file's `information`) was at least this share of
+    /// the median over the vertices seen (0 = off: --bending-yield everywhere; 0 to 10).
+    #[arg(long, default_value_t = TrackOptions::default().regularisation.bending_seen_share)]
+    pub bending_seen_share: f64,
     /// Gauss-Newton iterations at most per frame and level (1 to 10000).
     #[arg(long, default_value_t = TrackOptions::default().solver.max_iterations)]
     pub max_iterations: usize,
@@ -222,6 +231,8 @@ impl TrackArgs {
                 membrane: self.membrane,
                 bending: self.bending,
                 bending_yield: self.bending_yield,
+                bending_yield_seen: self.bending_yield_seen,
+                bending_seen_share: self.bending_seen_share,
             },
             solver: SolverOptions {
                 max_iterations: self.max_iterations,
@@ -460,8 +471,8 @@ pub fn run(args: Args, invocation: &Invocation) -> anyhow::Result<()> {
         summary.median_iterations,
         args.out.out.display()
     );
-    // A fold is the defaults' known weakness on solid objects that turn (docs/tracker.md, "A
-    // stiffer bending term for solid objects"): say what to try.
+    // A fold on an object that does not fold is drift the bending term let through
+    // (docs/tracker.md, "The default since 2026-11-28"): say what to try.
     let folded = summary
         .checks
         .iter()
@@ -473,7 +484,7 @@ pub fn run(args: Args, invocation: &Invocation) -> anyhow::Result<()> {
         .count();
     if folded > 0 {
         eprintln!(
-            "note: the mesh folded over itself in {folded} frame(s); if the object does not fold (a head, a limb, a hand-held object), track it again with --bending 0.03 (docs/your-footage.md, \"What the surface is made of\")"
+            "note: the mesh folded over itself in {folded} frame(s); if the object does not fold (a head, a hand-held object, a board), track it again with a stiffer bending term, --bending 0.06 (docs/your-footage.md, \"What the surface is made of\")"
         );
     }
     if args.strict && !summary.stalled_frames.is_empty() {

@@ -48,6 +48,8 @@ fn track_options_out_of_range_are_refused_by_name() {
         ("--spring-pull-back", "1.5", "[0, 1]"),
         ("--spring-stretch-share", "-0.1", "[0, 1]"),
         ("--bending-yield", "NaN", "[0, 10]"),
+        ("--bending-yield-seen", "-1", "[0, 10]"),
+        ("--bending-seen-share", "inf", "[0, 10]"),
         ("--membrane", "-0.5", "[0, 1000000]"),
         ("--min-decrease", "NaN", "[0, 1)"),
         ("--approach-decrease", "1", "[0, 1)"),

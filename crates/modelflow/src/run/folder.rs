@@ -245,6 +245,17 @@ impl RunFolder {
         Ok(())
     }
 
+    /// A complete frame's per-vertex confidence as written (exactly: its numbers are written in
+    /// their shortest round-trip form); `None` when the frame has no confidence file (a frame in
+    /// which no pixel was compared).
+    pub fn read_confidence(&self, frame: u32) -> Result<Option<Vec<VertexConfidence>>> {
+        let path = self.dir.join(confidence_file(frame));
+        if !path.exists() {
+            return Ok(None);
+        }
+        layout::read_confidence(&path).map(Some)
+    }
+
     /// The positions of a complete frame's mesh, as written (exactly: OBJ numbers are written
     /// in their shortest round-trip form).
     pub fn read_positions(&self, frame: u32) -> Result<Vec<Point3<f64>>> {

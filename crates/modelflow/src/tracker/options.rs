@@ -260,6 +260,20 @@ impl TrackOptions {
                 why: "a fraction of the mean edge length; 0 = off",
             },
             Range {
+                option: "--bending-yield-seen",
+                value: r.bending_yield_seen,
+                low: (0.0, true),
+                high: (10.0, true),
+                why: "a fraction of the mean edge length; 0 = never",
+            },
+            Range {
+                option: "--bending-seen-share",
+                value: r.bending_seen_share,
+                low: (0.0, true),
+                high: (10.0, true),
+                why: "a share of the median information; 0 = off",
+            },
+            Range {
                 option: "--membrane",
                 value: r.membrane,
                 low: (0.0, true),

@@ -173,6 +173,9 @@ pub struct Tracker {
     first_mesh_moved: Option<SurfaceMove>,
     /// The first frame's neighbouring triangles that face the same way (`FrameReport::folded`).
     folds: FoldWatch,
+    /// Each vertex's photometric information in the last frame solved (the bending term's yield
+    /// depends on it); `None` before the first.
+    information: Option<Vec<f64>>,
 }
 
 /// The mesh as the tracker works on it: vertices at the same place merged
@@ -296,6 +299,7 @@ impl Tracker {
             weld,
             first_mesh_moved,
             folds: FoldWatch::new(&mesh.positions, &mesh.triangles),
+            information: None,
         };
         (t.anchor, t.contradicted_at_first) = t.anchor_patches(&t.prev, None);
         t.information_at_first = t.information_at_first();
@@ -383,7 +387,8 @@ impl Tracker {
     /// exactly what an uninterrupted run gives (how `--resume` continues a run) when, for
     /// cameras with a `time_offset`, `first_next` gives the solved positions of the frame after
     /// the first (the anchor is taken where those cameras saw the surface move); it is read
-    /// only on a tracker fresh from [`Tracker::new`].
+    /// only on a tracker fresh from [`Tracker::new`]. `confidence` is the frame's
+    /// [`FrameReport::confidence`] (on the given mesh's vertices), when it had one.
     pub fn restore(
         &mut self,
         frame: u32,
@@ -391,9 +396,19 @@ impl Tracker {
         positions: Vec<Point3<f64>>,
         before: Option<Vec<Point3<f64>>>,
         first_next: Option<Vec<Point3<f64>>>,
+        confidence: Option<&[VertexConfidence]>,
     ) -> Result<()> {
         self.check_prepared(&prepared)?;
         self.check_positions(&positions)?;
+        if let Some(c) = confidence {
+            if c.len() != positions.len() {
+                return Err(Error::mismatch(
+                    "confidence",
+                    format!("{} (one per mesh vertex)", positions.len()),
+                    c.len(),
+                ));
+            }
+        }
         if let Some(b) = &before {
             self.check_positions(b)?;
         }
@@ -416,6 +431,17 @@ impl Tracker {
         };
         self.before_prev = before;
         self.before_frame = frame.saturating_sub(1);
+        self.information = confidence.map(|c| match &self.weld {
+            None => c.iter().map(|v| v.information).collect(),
+            // Every given vertex of a merged one carries its value.
+            Some(w) => {
+                let mut out = vec![0.0; self.prev.positions.len()];
+                for (&m, v) in w.of_vertex.iter().zip(c) {
+                    out[m as usize] = v.information;
+                }
+                out
+            }
+        });
         self.sync_given();
         Ok(())
     }
@@ -726,6 +752,7 @@ impl Tracker {
         let context = FrameContext {
             previous: &self.prev.positions,
             predicted: &predicted_shape,
+            information: self.information.as_deref(),
         };
         for r in &mut self.regularisers {
             r.begin_frame(&context);
@@ -808,6 +835,11 @@ impl Tracker {
                     .iter()
                     .any(|s| matches!(s.stop, StopReason::CostRose | StopReason::NonFinite)));
         let folded = self.folds.folded(&x, &self.triangles);
+        // Read back from the confidence file on `--resume` (`Tracker::restore`), so kept
+        // whenever the frame has one, stalled or not.
+        if !out.confidence.is_empty() {
+            self.information = Some(out.confidence.iter().map(|c| c.information).collect());
+        }
         if !stalled {
             let first_motion = self.before_prev.is_none() && self.prev.frame == self.anchor_frame;
             let old = std::mem::replace(

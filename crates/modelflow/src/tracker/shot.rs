@@ -111,7 +111,16 @@ fn track_into(
             } else {
                 None
             };
-            tracker.restore(last, prepared, positions, Some(before), first_next)?;
+            // The bending term's yield depends on the last frame's information.
+            let confidence = folder.read_confidence(last)?;
+            tracker.restore(
+                last,
+                prepared,
+                positions,
+                Some(before),
+                first_next,
+                confidence.as_deref(),
+            )?;
             last
         }
     };

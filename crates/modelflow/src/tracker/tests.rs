@@ -618,6 +618,7 @@ fn assembled_gradient_matches_finite_differences_of_the_cost() {
         r.begin_frame(&FrameContext {
             previous: &mesh.positions,
             predicted: &mesh.positions,
+            information: None,
         });
     }
     let problem = frame1_problem(

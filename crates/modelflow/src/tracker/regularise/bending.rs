@@ -249,29 +249,84 @@ pub(crate) fn yielded_target(
     }
 }
 
+/// Where the bending term yields, as fractions of the mean rest edge length (0 = never).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(crate) struct Yield {
+    /// The yield of every stencil, or of those the images saw little of when `seen` is set.
+    pub fraction: f64,
+    /// A yield of its own for the stencils whose centre the previous frame's images pinned well.
+    pub seen: Option<SeenYield>,
+}
+
+/// The yield of the stencils the images saw well (`Regularisation::bending_yield_seen`).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(crate) struct SeenYield {
+    pub fraction: f64,
+    /// A centre is seen well when its information in the previous frame was at least this share
+    /// of the median over the vertices with any.
+    pub share: f64,
+}
+
+/// The median of the positive values of `v` (the upper one of an even count); `None` when there
+/// is none. Whatever the order of `v`, the same value (a total order on f64).
+fn positive_median(v: &[f64]) -> Option<f64> {
+    let mut p: Vec<f64> = v
+        .iter()
+        .copied()
+        .filter(|x| *x > 0.0 && x.is_finite())
+        .collect();
+    if p.is_empty() {
+        return None;
+    }
+    let mid = p.len() / 2;
+    Some(*p.select_nth_unstable_by(mid, f64::total_cmp).1)
+}
+
 /// The bending term as the solver sees it: [`Bending`]'s stencils with the weight `β` (divided
 /// by the number of stencils) and the frame's target Laplacian coordinates, turned by rotations
 /// taken from the previous frame's shape (they change little in a frame), and past the yield
-/// moved toward the previous frame's own ([`yielded_target`]).
+/// moved toward the previous frame's own ([`yielded_target`]), with a yield per stencil that
+/// depends on how well the previous frame's images saw its centre ([`Yield`]).
 pub(crate) struct BendingTerm {
     bending: Bending,
     weight: f64,
-    /// The yield as a length (`--bending-yield` times the mean rest edge length); `None`: off.
-    band: Option<f64>,
+    /// The yield as fractions of the mean rest edge length.
+    yielding: Yield,
     targets: Vec<Vector3<f64>>,
 }
 
 impl BendingTerm {
-    pub fn new(bending: Bending, beta: f64, yield_fraction: f64) -> Self {
+    pub fn new(bending: Bending, beta: f64, yielding: Yield) -> Self {
         let weight = beta / bending.len().max(1) as f64;
         let targets = bending.rest_delta.clone();
-        let band = (yield_fraction > 0.0).then_some(yield_fraction * bending.mean_length);
         BendingTerm {
             bending,
             weight,
-            band,
+            yielding,
             targets,
         }
+    }
+
+    /// Each stencil's yield as a length this frame (0: none), given the previous frame's
+    /// per-vertex `information` when known.
+    fn bands(&self, information: Option<&[f64]>) -> Vec<f64> {
+        let l = self.bending.mean_length;
+        let plain = self.yielding.fraction * l;
+        let gate = self.yielding.seen.and_then(|seen| {
+            let info = information.filter(|i| i.len() == self.bending.rest.len())?;
+            let median = positive_median(info)?;
+            Some((info, seen.share * median, seen.fraction * l))
+        });
+        (0..self.bending.len())
+            .map(|k| match gate {
+                Some((info, threshold, band))
+                    if info[self.bending.centre[k] as usize] >= threshold =>
+                {
+                    band
+                }
+                _ => plain,
+            })
+            .collect()
     }
 }
 
@@ -282,8 +337,12 @@ impl Regulariser for BendingTerm {
 
     fn begin_frame(&mut self, frame: &FrameContext<'_>) {
         self.targets = self.bending.targets_at(frame.previous);
-        if let Some(band) = self.band {
-            for (k, t) in self.targets.iter_mut().enumerate() {
+        if self.yielding.fraction <= 0.0 && self.yielding.seen.is_none_or(|s| s.fraction <= 0.0) {
+            return;
+        }
+        let bands = self.bands(frame.information);
+        for (k, (t, band)) in self.targets.iter_mut().zip(bands).enumerate() {
+            if band > 0.0 {
                 *t = yielded_target(*t, self.bending.delta(k, frame.previous), band);
             }
         }
@@ -318,6 +377,14 @@ mod tests {
     use super::*;
     use crate::base::mesh::grid;
     use nalgebra::{Rotation3, Vector3};
+
+    /// One yield for every stencil.
+    fn plain(fraction: f64) -> Yield {
+        Yield {
+            fraction,
+            seen: None,
+        }
+    }
 
     /// A 5×5 grid bent into a bump (a curved rest shape).
     fn bumpy() -> crate::base::mesh::Mesh {
@@ -487,9 +554,10 @@ mod tests {
         let frame = FrameContext {
             previous: &dented,
             predicted: &dented,
+            information: None,
         };
-        let mut stiff = BendingTerm::new(b.clone(), 1.0, 0.0);
-        let mut yielding = BendingTerm::new(b.clone(), 1.0, 0.05);
+        let mut stiff = BendingTerm::new(b.clone(), 1.0, plain(0.0));
+        let mut yielding = BendingTerm::new(b.clone(), 1.0, plain(0.05));
         stiff.begin_frame(&frame);
         yielding.begin_frame(&frame);
         let (held_stiff, held_yield) = (
@@ -509,5 +577,57 @@ mod tests {
         deeper[12].z += 0.2;
         let further = yielding.accumulate(&deeper, None);
         assert!(further > 0.7 * held_stiff, "{further} vs {held_stiff}");
+    }
+
+    #[test]
+    fn the_images_decide_where_the_yield_is_small() {
+        // The same held dent under a gated yield: where the previous frame's images pinned the
+        // dented vertex (information at or above half the median) it keeps its dent less the
+        // small band, so costs little; where they saw it little the large band applies, and the
+        // dent costs what it does with that band alone.
+        let m = bumpy();
+        let b = Bending::new(&m.triangles, &m.positions);
+        let mut dented = m.positions.clone();
+        dented[12].z += 0.2;
+        let gated = Yield {
+            fraction: 0.5,
+            seen: Some(SeenYield {
+                fraction: 0.01,
+                share: 0.5,
+            }),
+        };
+        let cost = |yielding: Yield, information: Option<&[f64]>| {
+            let mut t = BendingTerm::new(b.clone(), 1.0, yielding);
+            t.begin_frame(&FrameContext {
+                previous: &dented,
+                predicted: &dented,
+                information,
+            });
+            t.accumulate(&dented, None)
+        };
+        let mut info = vec![1.0; m.positions.len()];
+        let well_seen = cost(gated, Some(&info));
+        assert_eq!(well_seen, cost(plain(0.01), None));
+        // Half the median exactly is still seen; below it is not. Vertices the images did not
+        // see at all (information 0) do not lower the median.
+        info[0] = 0.0;
+        info[12] = 0.5;
+        assert_eq!(cost(gated, Some(&info)), well_seen);
+        info[12] = 0.49;
+        let little_seen = cost(gated, Some(&info));
+        assert!(
+            little_seen > 10.0 * well_seen,
+            "{little_seen} vs {well_seen}"
+        );
+        // Before any frame was solved, and when the term is not gated, the large band holds.
+        assert_eq!(cost(gated, None), cost(plain(0.5), None));
+        assert!(cost(plain(0.5), None) > 10.0 * well_seen);
+    }
+
+    #[test]
+    fn the_median_of_the_information_ignores_vertices_the_images_did_not_see() {
+        assert_eq!(positive_median(&[0.0, 3.0, 1.0, 0.0, 2.0]), Some(2.0));
+        assert_eq!(positive_median(&[4.0, 1.0, 3.0, 2.0]), Some(3.0));
+        assert_eq!(positive_median(&[0.0, f64::NAN]), None);
     }
 }

@@ -72,6 +72,7 @@ mod tests {
         t.begin_frame(&FrameContext {
             previous: &m.positions,
             predicted: &m.positions,
+            information: None,
         });
         let moved: Vec<_> = m
             .positions
@@ -96,6 +97,7 @@ mod tests {
         t.begin_frame(&FrameContext {
             previous: &m.positions,
             predicted: &m.positions,
+            information: None,
         });
         let x: Vec<_> = m
             .positions

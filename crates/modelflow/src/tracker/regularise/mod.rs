@@ -5,7 +5,8 @@
 //! term's cost and normal equations to the photometric ones. A new regulariser is one new file
 //! implementing the trait, a weight in [`Regularisation`] and a line in [`build`].
 //!
-//! Knows the mesh, its rest shape and the previous frames' positions; nothing of images or
+//! Knows the mesh, its rest shape, the previous frames' positions and how much the previous
+//! frame's solve was constrained at each vertex (one number per vertex); nothing of images or
 //! cameras.
 
 pub(crate) mod bending;
@@ -58,6 +59,20 @@ pub struct Regularisation {
     /// always the rest shape (as in runs made before the option existed).
     #[serde(default)]
     pub bending_yield: f64,
+    /// The bending term's yield (as `bending_yield`) where the previous frame's images pinned
+    /// the vertex well: its photometric information (the confidence file's `information`) at
+    /// least `bending_seen_share` of the frame's median. There a deviation from the rest shape
+    /// is the surface's own (a fold, a dent) and little of it is pulled back; elsewhere
+    /// `bending_yield` lets the rest shape pull harder, so a drift the images do not see (a side
+    /// turning away, a fold of the mesh over itself) is undone. Used only when
+    /// `bending_seen_share` is above 0.
+    #[serde(default)]
+    pub bending_yield_seen: f64,
+    /// Where `bending_yield_seen` applies: vertices whose information in the previous frame was
+    /// at least this share of the median over the vertices the images saw. 0 = off: every
+    /// vertex has `bending_yield` (runs made before the option existed).
+    #[serde(default)]
+    pub bending_seen_share: f64,
 }
 
 fn one() -> f64 {
@@ -73,8 +88,10 @@ impl Default for Regularisation {
             spring_pull_back: 1.0,
             spring_stretch_share: 0.005,
             membrane: 0.002,
-            bending: 0.01,
+            bending: 0.03,
             bending_yield: 0.05,
+            bending_yield_seen: 0.01,
+            bending_seen_share: 0.5,
         }
     }
 }
@@ -86,6 +103,10 @@ pub(crate) struct FrameContext<'a> {
     /// The constant-velocity prediction from the two previous frames (the previous positions
     /// when there is no velocity yet).
     pub predicted: &'a [Point3<f64>],
+    /// Each vertex's photometric information in the previous frame's solution
+    /// (`VertexConfidence::information`, on the tracker's vertices); `None` before the first
+    /// solved frame.
+    pub information: Option<&'a [f64]>,
 }
 
 /// The normal equations a term adds to: `JᵀJ` and `−Jᵀr`.
@@ -210,7 +231,13 @@ pub(crate) fn build(
         out.push(Box::new(bending::BendingTerm::new(
             b,
             reg.bending,
-            reg.bending_yield,
+            bending::Yield {
+                fraction: reg.bending_yield,
+                seen: (reg.bending_seen_share > 0.0).then_some(bending::SeenYield {
+                    fraction: reg.bending_yield_seen,
+                    share: reg.bending_seen_share,
+                }),
+            },
         )));
     }
     debug_assert_eq!(
@@ -238,13 +265,15 @@ mod tests {
     use super::*;
 
     #[test]
-    fn a_run_recorded_before_the_pull_back_option_resumes_with_the_springs_it_had() {
+    fn a_run_recorded_before_the_pull_back_option_resumes_with_the_regularisers_it_had() {
         // run.json of a run made before 2026-11-26 names no `spring_pull_back`: its springs
         // pulled a stretch back by the whole yield, so `--resume` must go on that way.
         let old = r#"{"spring_k": 1.0, "spring_t": 0.2, "spring_yield": 0.065,
                       "membrane": 0.002, "bending": 0.01, "bending_yield": 0.05}"#;
         let r: Regularisation = serde_json::from_str(old).unwrap();
         assert_eq!((r.spring_pull_back, r.spring_stretch_share), (1.0, 0.0));
+        // Nor a gated bending yield (before 2026-11-28): its one yield everywhere.
+        assert_eq!(r.bending_seen_share, 0.0);
         // Runs made on 2026-11-26 before the stretch share: pull-back 0 in every frame.
         let day = r#"{"spring_k": 1.0, "spring_t": 0.2, "spring_yield": 0.065,
                       "spring_pull_back": 0.0, "membrane": 0.002, "bending": 0.01,
@@ -253,6 +282,10 @@ mod tests {
         assert_eq!((r.spring_pull_back, r.spring_stretch_share), (0.0, 0.0));
         let d = Regularisation::default();
         assert_eq!((d.spring_pull_back, d.spring_stretch_share), (1.0, 0.005));
+        assert_eq!(
+            (d.bending, d.bending_yield_seen, d.bending_seen_share),
+            (0.03, 0.01, 0.5)
+        );
         let new = serde_json::to_string(&Regularisation::default()).unwrap();
         assert_eq!(
             serde_json::from_str::<Regularisation>(&new).unwrap(),

@@ -347,6 +347,7 @@ mod tests {
         let frame = FrameContext {
             previous: &previous,
             predicted: &previous,
+            information: None,
         };
         for (share, expect_free) in [(0.01, true), (0.02, false)] {
             let mut s = CubicSprings::new(
@@ -377,6 +378,7 @@ mod tests {
         let frame = FrameContext {
             previous: &previous,
             predicted: &previous,
+            information: None,
         };
         let cost = |yielding: Option<Yield>, length: f64| {
             let mut s = CubicSprings::new(edges.clone(), 1.0, 0.2, yielding);
