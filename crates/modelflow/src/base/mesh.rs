@@ -276,14 +276,7 @@ impl Mesh {
     pub fn facing_outward(&self) -> (Vec<[u32; 3]>, usize) {
         let n = self.triangles.len();
         // Every undirected edge with the triangles that run it, and which way.
-        let mut by_edge: HashMap<[u32; 2], Vec<(usize, bool)>> = HashMap::new();
-        for (i, t) in self.triangles.iter().enumerate() {
-            for k in 0..3 {
-                let (a, b) = (t[k], t[(k + 1) % 3]);
-                let key = if a < b { [a, b] } else { [b, a] };
-                by_edge.entry(key).or_default().push((i, a < b));
-            }
-        }
+        let by_edge = EdgeSides::new(&self.triangles);
         let mut flip = vec![false; n];
         let mut seen = vec![false; n];
         let mut out = self.triangles.clone();
@@ -302,13 +295,14 @@ impl Mesh {
                 for e in 0..3 {
                     let (a, b) = (tri[e], tri[(e + 1) % 3]);
                     let key = if a < b { [a, b] } else { [b, a] };
-                    let runs = &by_edge[&key];
+                    let runs = by_edge.of(key);
                     if runs.len() != 2 {
                         closed = false;
                         continue;
                     }
                     let here = (a < b) != flip[t];
-                    for &(o, forward) in runs {
+                    for side in runs {
+                        let (o, forward) = (side.triangle as usize, side.forward);
                         if o == t || seen[o] {
                             continue;
                         }
@@ -351,37 +345,20 @@ impl Mesh {
 
     /// Whether every edge is shared by exactly two triangles (a closed, manifold surface).
     pub fn is_closed(&self) -> bool {
-        let mut count: HashMap<[u32; 2], u32> = HashMap::new();
-        for t in &self.triangles {
-            for [a, b] in [[t[0], t[1]], [t[1], t[2]], [t[2], t[0]]] {
-                *count
-                    .entry(if a < b { [a, b] } else { [b, a] })
-                    .or_default() += 1;
-            }
-        }
-        !count.is_empty() && count.values().all(|&c| c == 2)
+        let sides = EdgeSides::new(&self.triangles);
+        !self.triangles.is_empty() && sides.edges().all(|e| e.len() == 2)
     }
 
     /// The border: edges with exactly one triangle, as `([a, b], c)` with `a < b` and `c` that
     /// triangle's third vertex, sorted. Empty for a closed mesh.
     pub fn border_edges(&self) -> Vec<([u32; 2], u32)> {
-        let mut count: HashMap<[u32; 2], (u32, u32)> = HashMap::new();
-        for t in &self.triangles {
-            for k in 0..3 {
-                let (a, b, c) = (t[k], t[(k + 1) % 3], t[(k + 2) % 3]);
-                count
-                    .entry(if a < b { [a, b] } else { [b, a] })
-                    .and_modify(|e| e.0 += 1)
-                    .or_insert((1, c));
-            }
-        }
-        let mut out: Vec<([u32; 2], u32)> = count
-            .into_iter()
-            .filter(|(_, (n, _))| *n == 1)
-            .map(|(e, (_, c))| (e, c))
-            .collect();
-        out.sort_unstable();
-        out
+        EdgeSides::new(&self.triangles)
+            .edges()
+            .filter_map(|e| match e {
+                [only] => Some((only.edge, only.third)),
+                _ => None,
+            })
+            .collect()
     }
 
     /// Triangles thinner than `ratio` of their longest edge (height over the longest edge over
@@ -453,6 +430,56 @@ pub fn bbox_diagonal(points: &[Point3<f64>]) -> f64 {
     (hi - lo).norm()
 }
 
+/// One side of a triangle: the undirected edge it runs (`[a, b]`, `a < b` unless the side is
+/// degenerate), the triangle, whether it runs the edge from `a` to `b`, and its third vertex.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) struct Side {
+    pub edge: [u32; 2],
+    pub triangle: u32,
+    pub forward: bool,
+    pub third: u32,
+}
+
+/// Every side of a triangle list grouped by undirected edge, in edge order and, within an edge,
+/// in triangle order: the adjacency every topology query needs (closedness, the border, which
+/// triangles meet at an edge). A sorted list rather than a hash map, so that whatever iterates
+/// it does so in one fixed order. Hand-written: a few lines, and no crate does exactly this.
+pub(crate) struct EdgeSides {
+    sides: Vec<Side>,
+}
+
+impl EdgeSides {
+    pub fn new(triangles: &[[u32; 3]]) -> Self {
+        let mut sides = Vec::with_capacity(3 * triangles.len());
+        for (i, t) in triangles.iter().enumerate() {
+            for k in 0..3 {
+                let (a, b) = (t[k], t[(k + 1) % 3]);
+                sides.push(Side {
+                    edge: if a < b { [a, b] } else { [b, a] },
+                    triangle: i as u32,
+                    forward: a < b,
+                    third: t[(k + 2) % 3],
+                });
+            }
+        }
+        // Stable: within an edge the sides stay in triangle order.
+        sides.sort_by_key(|s| s.edge);
+        EdgeSides { sides }
+    }
+
+    /// Each edge with the sides that run it, in edge order.
+    pub fn edges(&self) -> impl Iterator<Item = &[Side]> {
+        self.sides.chunk_by(|a, b| a.edge == b.edge)
+    }
+
+    /// The sides that run `edge` (`[a, b]` with `a < b`); empty when none does.
+    pub fn of(&self, edge: [u32; 2]) -> &[Side] {
+        let lo = self.sides.partition_point(|s| s.edge < edge);
+        let hi = lo + self.sides[lo..].partition_point(|s| s.edge == edge);
+        &self.sides[lo..hi]
+    }
+}
+
 /// A regular grid of `nx × ny` vertices spanning `[0,1]²` in uv, triangulated with alternating
 /// diagonals; `place(u, v)` gives each vertex's position. Used by synthetic footage and tests.
 pub fn grid(nx: usize, ny: usize, place: impl Fn(f64, f64) -> Point3<f64>) -> Mesh {
@@ -485,6 +512,25 @@ pub fn grid(nx: usize, ny: usize, place: impl Fn(f64, f64) -> Point3<f64>) -> Me
 
 #[cfg(test)]
 mod tests {
+    #[test]
+    fn edge_sides_group_each_edge_s_triangles_in_order_and_say_which_way_they_run() {
+        // Two triangles sharing the edge 1-2 (run 1→2 by the first, 2→1 by the second).
+        let s = super::EdgeSides::new(&[[0, 1, 2], [2, 1, 3]]);
+        let shared = s.of([1, 2]);
+        assert_eq!(
+            shared
+                .iter()
+                .map(|x| (x.triangle, x.forward, x.third))
+                .collect::<Vec<_>>(),
+            vec![(0, true, 0), (1, false, 3)]
+        );
+        assert_eq!(s.of([0, 3]), &[]);
+        assert_eq!(s.of([9, 10]), &[]);
+        let edges: Vec<[u32; 2]> = s.edges().map(|e| e[0].edge).collect();
+        assert_eq!(edges, vec![[0, 1], [0, 2], [1, 2], [1, 3], [2, 3]]);
+        assert_eq!(s.edges().filter(|e| e.len() == 1).count(), 4);
+    }
+
     #[test]
     fn slivers_are_found_by_their_height() {
         let m = Mesh::new(

@@ -12,8 +12,8 @@
 //! watched); it counts as folded when they are more than [`FOLDED_DEGREES`] apart. Knows
 //! triangles and positions only.
 
+use crate::base::mesh::EdgeSides;
 use nalgebra::{Point3, Vector3};
-use std::collections::HashMap;
 
 /// Neighbouring triangles whose normals differ by more than this (degrees) in the first
 /// frame's mesh are not watched.
@@ -38,30 +38,20 @@ impl FoldWatch {
     pub(crate) fn new(positions: &[Point3<f64>], triangles: &[[u32; 3]]) -> Self {
         let normals: Vec<Option<Vector3<f64>>> =
             triangles.iter().map(|t| normal(positions, t)).collect();
-        let mut by_edge: HashMap<(u32, u32), Vec<u32>> = HashMap::new();
-        for (i, t) in triangles.iter().enumerate() {
-            for k in 0..3 {
-                let (a, b) = (t[k], t[(k + 1) % 3]);
-                by_edge
-                    .entry((a.min(b), a.max(b)))
-                    .or_default()
-                    .push(i as u32);
-            }
-        }
         let cos_watch = WATCH_BELOW_DEGREES.to_radians().cos();
-        let mut pairs: Vec<[u32; 2]> = by_edge
-            .into_values()
-            .filter(|ts| ts.len() == 2)
+        let pairs: Vec<[u32; 2]> = EdgeSides::new(triangles)
+            .edges()
+            .filter_map(|e| match e {
+                [s, t] => Some([s.triangle, t.triangle]),
+                _ => None,
+            })
             .filter(
                 |ts| match (normals[ts[0] as usize], normals[ts[1] as usize]) {
                     (Some(a), Some(b)) => a.dot(&b) > cos_watch,
                     _ => false,
                 },
             )
-            .map(|ts| [ts[0], ts[1]])
             .collect();
-        // A fixed order, whatever the hash map's.
-        pairs.sort_unstable();
         FoldWatch {
             pairs,
             cos_folded: FOLDED_DEGREES.to_radians().cos(),

@@ -23,6 +23,7 @@
 //! next at the last frame), while a border that curls as a whole is not penalised by them.
 
 use super::{FrameContext, Regulariser, System};
+use crate::base::mesh::EdgeSides;
 use crate::tracker::sparse::{BlockSparse, ScalarSparse};
 use nalgebra::{Matrix3, Point3, Vector3};
 use std::sync::Arc;
@@ -55,20 +56,19 @@ impl Bending {
     pub fn new(triangles: &[[u32; 3]], rest: &[Point3<f64>]) -> Self {
         let n = rest.len();
         let mut nb: Vec<Vec<u32>> = vec![Vec::new(); n];
-        // An edge used by one triangle only lies on an open boundary.
-        let mut edge_use: std::collections::HashMap<(u32, u32), u32> =
-            std::collections::HashMap::new();
         for t in triangles {
             for k in 0..3 {
                 let (a, b) = (t[k], t[(k + 1) % 3]);
                 nb[a as usize].push(b);
                 nb[b as usize].push(a);
-                *edge_use.entry((a.min(b), a.max(b))).or_default() += 1;
             }
         }
+        // An edge used by one triangle only lies on an open boundary.
+        let sides = EdgeSides::new(triangles);
         let mut on_boundary = vec![false; n];
-        for (&(a, b), &uses) in &edge_use {
-            if uses == 1 {
+        for e in sides.edges() {
+            if let [only] = e {
+                let [a, b] = only.edge;
                 on_boundary[a as usize] = true;
                 on_boundary[b as usize] = true;
             }
@@ -89,10 +89,10 @@ impl Bending {
                 length_count += 1;
             }
             let stencil: Vec<u32> = if on_boundary[i] {
-                let key = |j: u32| (j.min(i as u32), j.max(i as u32));
+                let key = |j: u32| [j.min(i as u32), j.max(i as u32)];
                 r.iter()
                     .copied()
-                    .filter(|&j| edge_use.get(&key(j)) == Some(&1))
+                    .filter(|&j| sides.of(key(j)).len() == 1)
                     .collect()
             } else {
                 r.clone()
