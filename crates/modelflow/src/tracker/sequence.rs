@@ -174,7 +174,7 @@ pub struct Tracker {
     /// The first frame's neighbouring triangles that face the same way (`FrameReport::folded`).
     folds: FoldWatch,
     /// Each vertex's photometric information in the last frame solved (the bending term's yield
-    /// depends on it); `None` before the first.
+    /// depends on it); `None` before the first, and after a frame in which no pixel was compared.
     information: Option<Vec<f64>>,
 }
 
@@ -835,11 +835,10 @@ impl Tracker {
                     .iter()
                     .any(|s| matches!(s.stop, StopReason::CostRose | StopReason::NonFinite)));
         let folded = self.folds.folded(&x, &self.triangles);
-        // Read back from the confidence file on `--resume` (`Tracker::restore`), so kept
-        // whenever the frame has one, stalled or not.
-        if !out.confidence.is_empty() {
-            self.information = Some(out.confidence.iter().map(|c| c.information).collect());
-        }
+        // What `--resume` reads back from the frame's confidence file (`Tracker::restore`): the
+        // frame's, stalled or not, and none when it has no file (no pixel was compared).
+        self.information = (!out.confidence.is_empty())
+            .then(|| out.confidence.iter().map(|c| c.information).collect());
         if !stalled {
             let first_motion = self.before_prev.is_none() && self.prev.frame == self.anchor_frame;
             let old = std::mem::replace(
