@@ -24,7 +24,7 @@ use crate::base::mesh::{centroid, rms_radius};
 use crate::tracker::gpu::Uploaded;
 use crate::tracker::patch::{Patch, PatchSet, PixelSample};
 use crate::tracker::regularise::Regulariser;
-use crate::tracker::sparse::{solve_pcg, BlockSparse};
+use crate::tracker::sparse::{solve_pcg_until, BlockSparse, CgStop};
 use crate::tracker::warp::{source_matrix, warp_h};
 use nalgebra::{Matrix3, Point3, Vector3};
 use rayon::prelude::*;
@@ -1380,22 +1380,30 @@ impl Problem<'_> {
             let t0 = Instant::now();
             let tl = Instant::now();
             // The step (linearised, per vertex) and the trial positions.
-            let (delta, cg_iterations) = match motion {
+            let (delta, cg_iterations, settled) = match motion {
                 Motion::Free => {
                     let mut damped = cur.a.clone();
                     damped.damp(lm * mean_diag, lm);
-                    let (tol, max) = (opts.cg_tolerance, opts.cg_max_iterations);
+                    // A full step is taken only if it promises a decrease of at least
+                    // `min_relative_decrease` (below): the conjugate gradients stop as soon as
+                    // their decrease has settled below half of that, which is how most stages
+                    // end (the step after the last accepted one only says "converged").
+                    let stop = CgStop {
+                        unpromising_below: (shrink == 1.0)
+                            .then_some(opts.min_relative_decrease * cur.cost),
+                        ..CgStop::residual(opts.cg_tolerance, opts.cg_max_iterations)
+                    };
                     // On the GPU when the problem's evaluations are there and the system is
                     // large enough: the same step to the bit (`gpu::cg`).
                     let (mut delta, cg) = self
                         .gpu
-                        .and_then(|g| g.solve_pcg(&damped, &cur.b, tol, max))
-                        .unwrap_or_else(|| solve_pcg(&damped, &cur.b, tol, max));
+                        .and_then(|g| g.solve_pcg(&damped, &cur.b, stop))
+                        .unwrap_or_else(|| solve_pcg_until(&damped, &cur.b, stop));
                     delta.iter_mut().for_each(|d| *d *= shrink);
                     for ((t, p), d) in trial.iter_mut().zip(&x).zip(&delta) {
                         *t = p + d;
                     }
-                    (delta, cg.iterations)
+                    (delta, cg.iterations, cg.unpromising.then_some(cg.decrease))
                 }
                 Motion::Rigid | Motion::Similarity => {
                     let scale = motion == Motion::Similarity;
@@ -1403,19 +1411,25 @@ impl Problem<'_> {
                     let xi = rigid.xi * shrink;
                     let delta = rigid.linear(&x, &xi);
                     rigid.apply(&x, &xi, &mut trial);
-                    (delta, 0)
+                    (delta, 0, None)
                 }
             };
             linear_solver_seconds += tl.elapsed().as_secs_f64();
             let step = delta.iter().map(|d| d.norm()).fold(0.0, f64::max);
-            // Decrease predicted by the Gauss–Newton model: 2·δᵀ(−Jᵀr) − δᵀ·JᵀJ·δ.
-            cur.a.mul(&delta, &mut ad);
-            let predicted: f64 = delta
-                .iter()
-                .zip(&cur.b)
-                .zip(&ad)
-                .map(|((d, b), ad)| 2.0 * d.dot(b) - d.dot(ad))
-                .sum();
+            // Decrease predicted by the Gauss–Newton model: 2·δᵀ(−Jᵀr) − δᵀ·JᵀJ·δ; when the
+            // conjugate gradients stopped on their own verdict, their settled decrease.
+            let predicted: f64 = match settled {
+                Some(d) => d,
+                None => {
+                    cur.a.mul(&delta, &mut ad);
+                    delta
+                        .iter()
+                        .zip(&cur.b)
+                        .zip(&ad)
+                        .map(|((d, b), ad)| 2.0 * d.dot(b) - d.dot(ad))
+                        .sum()
+                }
+            };
             // A full step that promises almost nothing means convergence; a shortened one only
             // means it is time to stop shortening.
             // (NaN counts as "promises nothing".)

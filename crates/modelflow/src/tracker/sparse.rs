@@ -704,7 +704,41 @@ pub struct CgSummary {
     pub iterations: usize,
     /// `|b − A·x| / |b|` at the end.
     pub relative_residual: f64,
+    /// The model decrease of the iterate returned, `2·bᵀx − xᵀA·x` (`Σ α_k·r_kᵀz_k` over the
+    /// iterations).
+    pub decrease: f64,
+    /// Stopped by [`CgStop::unpromising_below`]: the decrease settled below it, so the step
+    /// is not worth taking (its iterate is not the solution to `tolerance`).
+    pub unpromising: bool,
 }
+
+/// When the conjugate gradients stop.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(crate) struct CgStop {
+    /// The relative residual `|b − A·x| / |b|` to reach.
+    pub tolerance: f64,
+    pub max_iterations: usize,
+    /// Stop early, with [`CgSummary::unpromising`], once the iterate's model decrease has
+    /// settled below half of this (see [`cg_loop`]): the Gauss–Newton step that only asks
+    /// whether the solve has converged (a step promising less than this is not taken) learns
+    /// it after a few iterations instead of a full solve. `None`: solve to `tolerance`.
+    pub unpromising_below: Option<f64>,
+}
+
+impl CgStop {
+    /// To the relative residual `tolerance`, at most `max_iterations`.
+    pub(crate) fn residual(tolerance: f64, max_iterations: usize) -> Self {
+        CgStop {
+            tolerance,
+            max_iterations,
+            unpromising_below: None,
+        }
+    }
+}
+
+/// Nash and Sofer's test of a settled model decrease (as Ceres Solver's conjugate gradients use
+/// it): iteration `k`'s own decrease, times `k`, at most this share of the decrease so far.
+const SETTLED: f64 = 0.1;
 
 /// Whether vectors of `n` rows are worth splitting over the threads (see `PARALLEL_ROWS`).
 fn parallel(n: usize) -> bool {
@@ -756,21 +790,30 @@ fn rows_mut<T: Send>(par: bool, v: &mut [T], f: impl Fn(usize, &mut [T]) + Sync)
 /// Solves `A·x = b` by conjugate gradients with the multilevel preconditioner
 /// ([`Preconditioner`]), starting from zero, until the relative residual is below `tol` or after
 /// `max_iter` iterations.
+#[cfg(test)]
 pub fn solve_pcg(
     a: &BlockSparse,
     b: &[Vector3<f64>],
     tol: f64,
     max_iter: usize,
 ) -> (Vec<Vector3<f64>>, CgSummary) {
-    pcg(a, b, tol, max_iter, true)
+    pcg(a, b, CgStop::residual(tol, max_iter), true)
+}
+
+/// [`solve_pcg`] until `stop` says.
+pub(crate) fn solve_pcg_until(
+    a: &BlockSparse,
+    b: &[Vector3<f64>],
+    stop: CgStop,
+) -> (Vec<Vector3<f64>>, CgSummary) {
+    pcg(a, b, stop, true)
 }
 
 /// [`solve_pcg`], with the coarser levels or with block-Jacobi alone.
 fn pcg(
     a: &BlockSparse,
     b: &[Vector3<f64>],
-    tol: f64,
-    max_iter: usize,
+    stop: CgStop,
     multilevel: bool,
 ) -> (Vec<Vector3<f64>>, CgSummary) {
     let n = a.dim();
@@ -786,7 +829,7 @@ fn pcg(
         p: Vec::new(),
         ap: vec![Vector3::zeros(); n],
     };
-    let summary = match cg_loop(&mut ops, tol, max_iter) {
+    let summary = match cg_loop(&mut ops, stop) {
         Ok(s) => s,
         Err(never) => match never {},
     };
@@ -823,24 +866,30 @@ pub(crate) trait CgOps {
     fn update_p(&mut self, beta: f64) -> Result<(), Self::Error>;
 }
 
-/// Conjugate gradients from zero until the relative residual is below `tol` or after
-/// `max_iter` iterations (the solution is left in the operations' `x`).
-pub(crate) fn cg_loop<O: CgOps>(
-    ops: &mut O,
-    tol: f64,
-    max_iter: usize,
-) -> Result<CgSummary, O::Error> {
+/// Conjugate gradients from zero until the relative residual is below `stop.tolerance` or after
+/// `stop.max_iterations` iterations (the solution is left in the operations' `x`); with
+/// `stop.unpromising_below = Some(u)`, also as soon as the model decrease `D_k = Σ α_j·r_jᵀz_j`
+/// (which only grows) is at most `u/2` and has settled: `k·α_k·r_kᵀz_k ≤ SETTLED·D_k`. The
+/// decrease then ends near `D_k`, below `u`, and the step is not worth solving for; every
+/// operation up to that point is the same as without it, so a solve that does not stop early
+/// gives the same bits.
+pub(crate) fn cg_loop<O: CgOps>(ops: &mut O, stop: CgStop) -> Result<CgSummary, O::Error> {
+    let (tol, max_iter) = (stop.tolerance, stop.max_iterations);
     let bnorm = ops.dot(CgVec::B, CgVec::B)?.sqrt();
     if bnorm == 0.0 {
         return Ok(CgSummary {
             iterations: 0,
             relative_residual: 0.0,
+            decrease: 0.0,
+            unpromising: stop.unpromising_below.is_some(),
         });
     }
     ops.start()?;
     let mut rz = ops.dot(CgVec::R, CgVec::Z)?;
     let mut it = 0;
     let mut rnorm = bnorm;
+    let mut decrease = 0.0;
+    let mut unpromising = false;
     while it < max_iter {
         ops.mul_p()?;
         let pap = ops.dot(CgVec::P, CgVec::Ap)?;
@@ -850,9 +899,17 @@ pub(crate) fn cg_loop<O: CgOps>(
         let alpha = rz / pap;
         ops.step(alpha)?;
         it += 1;
+        let own = alpha * rz;
+        decrease += own;
         rnorm = ops.dot(CgVec::R, CgVec::R)?.sqrt();
         if rnorm <= tol * bnorm {
             break;
+        }
+        if let Some(u) = stop.unpromising_below {
+            if decrease <= 0.5 * u && it as f64 * own <= SETTLED * decrease {
+                unpromising = true;
+                break;
+            }
         }
         ops.precondition()?;
         let rz_new = ops.dot(CgVec::R, CgVec::Z)?;
@@ -863,6 +920,8 @@ pub(crate) fn cg_loop<O: CgOps>(
     Ok(CgSummary {
         iterations: it,
         relative_residual: rnorm / bnorm,
+        decrease,
+        unpromising,
     })
 }
 
@@ -1107,6 +1166,87 @@ pub(crate) mod tests {
         for i in 0..n {
             assert!((x[i] - truth[i]).norm() < 1e-8);
         }
+    }
+
+    /// The early verdict (`CgStop::unpromising_below`): a step whose model decrease settles
+    /// below the bound is known after a few iterations, and its decrease is then within the
+    /// bound's half of the full solve's; a bound the step clears changes nothing, to the bit.
+    #[test]
+    fn an_unpromising_step_is_known_before_the_solve_ends() {
+        let (w, h) = (60u32, 50u32);
+        let n = (w * h) as usize;
+        let edges = grid_edges(w, h);
+        let mut a = BlockSparse::new(n, &edges);
+        for (e, &[i, j]) in edges.iter().enumerate() {
+            let k = 1.0 + 0.5 * (e as f64 * 0.37).sin();
+            a.add_edge(e, [i as usize, j as usize], &(Matrix3::identity() * k));
+        }
+        a.damp(1e-3, 1e-4);
+        let b: Vec<Vector3<f64>> = (0..n)
+            .map(|i| Vector3::new((i as f64 * 0.01).sin(), (i % 13) as f64 * 0.1, 1.0))
+            .collect();
+        let (x, full) = solve_pcg(&a, &b, 1e-3, 200);
+        assert!(
+            !full.unpromising && full.relative_residual <= 1e-3,
+            "{full:?}"
+        );
+        // The decrease the loop sums is the model's: 2·bᵀx − xᵀAx.
+        let mut ax = vec![Vector3::zeros(); n];
+        a.mul(&x, &mut ax);
+        let model: f64 = x
+            .iter()
+            .zip(&b)
+            .zip(&ax)
+            .map(|((x, b), ax)| 2.0 * x.dot(b) - x.dot(ax))
+            .sum();
+        assert!(
+            (model - full.decrease).abs() <= 1e-9 * model,
+            "{model} against {}",
+            full.decrease
+        );
+        // A bound of three times the decrease: stopped early, below half the bound.
+        let bound = 3.0 * full.decrease;
+        let (_, early) = solve_pcg_until(
+            &a,
+            &b,
+            CgStop {
+                unpromising_below: Some(bound),
+                ..CgStop::residual(1e-3, 200)
+            },
+        );
+        assert!(early.unpromising, "{early:?}");
+        assert!(
+            early.iterations < full.iterations / 2,
+            "{} iterations against {}",
+            early.iterations,
+            full.iterations
+        );
+        assert!(
+            early.decrease <= 0.5 * bound && early.decrease >= 0.9 * full.decrease,
+            "{early:?} against {full:?}"
+        );
+        // A bound the full step clears: the same solve, to the bit.
+        let (x2, cleared) = solve_pcg_until(
+            &a,
+            &b,
+            CgStop {
+                unpromising_below: Some(0.5 * full.decrease),
+                ..CgStop::residual(1e-3, 200)
+            },
+        );
+        assert_eq!(cleared, full);
+        assert!(x2.iter().zip(&x).all(|(p, q)| p == q));
+        // No right-hand side: nothing to gain, known at once.
+        let zero = vec![Vector3::zeros(); n];
+        let (_, none) = solve_pcg_until(
+            &a,
+            &zero,
+            CgStop {
+                unpromising_below: Some(1e-12),
+                ..CgStop::residual(1e-3, 200)
+            },
+        );
+        assert!(none.unpromising && none.iterations == 0);
     }
 
     #[test]
@@ -1418,8 +1558,8 @@ pub(crate) mod tests {
             .collect();
         let mut b = vec![Vector3::zeros(); n];
         a.mul(&truth, &mut b);
-        let (x1, s1) = pcg(&a, &b, 1e-10, 5000, true);
-        let (x0, s0) = pcg(&a, &b, 1e-10, 5000, false);
+        let (x1, s1) = pcg(&a, &b, CgStop::residual(1e-10, 5000), true);
+        let (x0, s0) = pcg(&a, &b, CgStop::residual(1e-10, 5000), false);
         assert!(s1.relative_residual <= 1e-10 && s0.relative_residual <= 1e-10);
         let scale = truth.iter().map(|v| v.norm()).fold(0.0, f64::max);
         for i in 0..n {

@@ -13,7 +13,7 @@
 use super::{Backend, Gpu};
 use crate::error::{Error, Result};
 use crate::tracker::sparse::{
-    cg_loop, flat_vectors, BlockSparse, CgOps, CgSummary, CgVec, FlatSystem, DOT_RUN,
+    cg_loop, flat_vectors, BlockSparse, CgOps, CgStop, CgSummary, CgVec, FlatSystem, DOT_RUN,
 };
 use nalgebra::Vector3;
 
@@ -35,13 +35,12 @@ impl Gpu {
         rows >= self.solve_from
     }
 
-    /// `sparse::solve_pcg(a, b, tol, max_iter)` on the GPU: the same solution to the bit.
+    /// `sparse::solve_pcg_until(a, b, stop)` on the GPU: the same solution to the bit.
     pub(crate) fn solve_pcg(
         &self,
         a: &BlockSparse,
         b: &[Vector3<f64>],
-        tol: f64,
-        max_iter: usize,
+        stop: CgStop,
     ) -> Result<(Vec<Vector3<f64>>, CgSummary)> {
         if b.len() != a.dim() {
             return Err(Error::Gpu(format!(
@@ -64,14 +63,14 @@ impl Gpu {
             Backend::Cuda(c) => {
                 let mut ops = c.cg_upload(&sys, flat_vectors(b))?;
                 setup = t0.elapsed().as_secs_f64();
-                let summary = cg_loop(&mut ops, tol, max_iter)?;
+                let summary = cg_loop(&mut ops, stop)?;
                 (ops.x()?, summary)
             }
             #[cfg(test)]
             Backend::Emulated => {
                 let mut ops = emulated::EmuCg::new(&sys, flat_vectors(b));
                 setup = t0.elapsed().as_secs_f64();
-                let summary = match cg_loop(&mut ops, tol, max_iter) {
+                let summary = match cg_loop(&mut ops, stop) {
                     Ok(s) => s,
                     Err(never) => match never {},
                 };
@@ -715,7 +714,7 @@ mod emulated {
 #[cfg(test)]
 mod tests {
     use super::Gpu;
-    use crate::tracker::sparse::{solve_pcg, BlockSparse, ScalarSparse};
+    use crate::tracker::sparse::{solve_pcg, solve_pcg_until, BlockSparse, CgStop, ScalarSparse};
     use nalgebra::{Matrix3, Vector3};
     use std::sync::Arc;
 
@@ -764,7 +763,8 @@ mod tests {
     /// The emulated kernels (`pcg.cu` compiled as C) through the GPU path's host side give
     /// the CPU's solution to the bit, with the same iterations: on a system past
     /// `PARALLEL_ROWS` (many dot-product runs, several coarse levels) and on a small one (two
-    /// runs, one level), converged and stopped at the iteration cap.
+    /// runs, one level), converged, stopped at the iteration cap, and stopped by the early
+    /// verdict on an unpromising step.
     #[test]
     fn the_gpu_conjugate_gradients_give_the_cpus_solution_to_the_bit() {
         let gpu = Gpu::emulated();
@@ -778,7 +778,7 @@ mod tests {
             assert!(flat.coarsest.is_some(), "{w}×{h}: no coarsest level");
             for (tol, max) in [(1e-10, 1000), (1e-3, 200), (1e-12, 5)] {
                 let (x_cpu, s_cpu) = solve_pcg(&a, &b, tol, max);
-                let (x_gpu, s_gpu) = gpu.solve_pcg(&a, &b, tol, max).unwrap();
+                let (x_gpu, s_gpu) = gpu.solve_pcg(&a, &b, CgStop::residual(tol, max)).unwrap();
                 assert!(s_cpu.iterations > 2, "{w}×{h}: {s_cpu:?}");
                 assert_eq!(s_cpu, s_gpu, "{w}×{h}, tol {tol}, max {max}");
                 assert!(
@@ -786,9 +786,20 @@ mod tests {
                     "{w}×{h}, tol {tol}: the solutions differ"
                 );
             }
+            // The early verdict on an unpromising step: the same iteration, the same bits.
+            let (_, full) = solve_pcg(&a, &b, 1e-3, 200);
+            let stop = CgStop {
+                unpromising_below: Some(3.0 * full.decrease),
+                ..CgStop::residual(1e-3, 200)
+            };
+            let (x_cpu, s_cpu) = solve_pcg_until(&a, &b, stop);
+            let (x_gpu, s_gpu) = gpu.solve_pcg(&a, &b, stop).unwrap();
+            assert!(s_cpu.unpromising, "{w}×{h}: {s_cpu:?}");
+            assert_eq!(s_cpu, s_gpu, "{w}×{h}, stopped early");
+            assert!(x_cpu.iter().zip(&x_gpu).all(|(p, q)| p == q));
         }
         let st = gpu.stats();
-        assert_eq!(st.linear_solves, 6);
+        assert_eq!(st.linear_solves, 8);
         assert!(st.cg_iterations > 20, "{st:?}");
     }
 
@@ -801,7 +812,7 @@ mod tests {
         let gpu = Gpu::emulated();
         let same = |a: &BlockSparse, b: &[Vector3<f64>], what: &str| {
             let (x_cpu, s_cpu) = solve_pcg(a, b, 1e-8, 300);
-            let (x_gpu, s_gpu) = gpu.solve_pcg(a, b, 1e-8, 300).unwrap();
+            let (x_gpu, s_gpu) = gpu.solve_pcg(a, b, CgStop::residual(1e-8, 300)).unwrap();
             assert_eq!(s_cpu, s_gpu, "{what}");
             assert!(x_cpu.iter().zip(&x_gpu).all(|(p, q)| p == q), "{what}");
             s_cpu
@@ -840,7 +851,9 @@ mod tests {
             .collect();
         let s = same(&pieces, &rhs, "separate pieces");
         assert!(s.relative_residual <= 1e-8, "{s:?}");
-        assert!(gpu.solve_pcg(&a, &b[1..], 1e-8, 10).is_err());
+        assert!(gpu
+            .solve_pcg(&a, &b[1..], CgStop::residual(1e-8, 10))
+            .is_err());
     }
 
     /// On a machine with an NVIDIA GPU, the same on the device (`pcg.cu` compiled by NVRTC, run
@@ -866,7 +879,7 @@ mod tests {
                 let pre_s = t.elapsed().as_secs_f64();
                 let before = gpu.stats();
                 let t = std::time::Instant::now();
-                let (x_gpu, s_gpu) = gpu.solve_pcg(&a, &b, tol, max).unwrap();
+                let (x_gpu, s_gpu) = gpu.solve_pcg(&a, &b, CgStop::residual(tol, max)).unwrap();
                 let gpu_s = t.elapsed().as_secs_f64();
                 let st = gpu.stats().since(&before);
                 eprintln!(

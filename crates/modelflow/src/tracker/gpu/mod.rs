@@ -344,20 +344,19 @@ impl Uploaded {
         Some((acc, s.hist.unwrap_or_default()))
     }
 
-    /// `sparse::solve_pcg` on the GPU for a system large enough to be worth it there
+    /// `sparse::solve_pcg_until` on the GPU for a system large enough to be worth it there
     /// ([`Gpu::solves`]); `None` below that or after a failure on the device (kept for
     /// [`Uploaded::failure`]), when the caller solves on the CPU.
     pub(crate) fn solve_pcg(
         &self,
         a: &crate::tracker::sparse::BlockSparse,
         b: &[Vector3<f64>],
-        tol: f64,
-        max_iter: usize,
+        stop: crate::tracker::sparse::CgStop,
     ) -> Option<(Vec<Vector3<f64>>, crate::tracker::sparse::CgSummary)> {
         if !self.gpu.solves(a.dim()) || self.failure.lock().map(|f| f.is_some()).unwrap_or(true) {
             return None;
         }
-        match self.gpu.solve_pcg(a, b, tol, max_iter) {
+        match self.gpu.solve_pcg(a, b, stop) {
             Ok(r) => Some(r),
             Err(e) => {
                 if let Ok(mut f) = self.failure.lock() {
