@@ -533,9 +533,48 @@ impl ResidualHistogram {
         &EDGES
     }
 
-    /// The bin of squared norm `e2` (NaN and anything below the first edge: bin 0).
+    /// The bin of squared norm `e2` (NaN and anything below the first edge: bin 0): how many
+    /// edges are `<= e2`. The count is started from a table indexed by `e2`'s exponent and its
+    /// top `START_BITS` mantissa bits (a 2^-5 of an octave, narrower than a bin, so at most
+    /// one edge lies in each) and finished by comparing with the edges: the binary search's
+    /// count (the GPU's `hist_bin`), in one or two comparisons instead of eight.
     fn bin(e2: f64) -> usize {
-        Self::edges().partition_point(|&edge| edge <= e2)
+        let edges = Self::edges();
+        if e2.is_nan() || e2 < edges[0] {
+            return 0;
+        }
+        if e2 >= edges[edges.len() - 1] {
+            return edges.len();
+        }
+        let (base, starts) = Self::starts();
+        let mut b = starts[(e2.to_bits() >> (52 - Self::START_BITS)) as usize - base] as usize;
+        while edges[b] <= e2 {
+            b += 1;
+        }
+        b
+    }
+
+    /// Mantissa bits of the table [`ResidualHistogram::bin`] starts from.
+    const START_BITS: u32 = 5;
+
+    /// The key of the table's first entry, and per key (a positive `f64`'s bits shifted right
+    /// by `52 − START_BITS`, from the first edge's key to the last's) how many edges are
+    /// below the least number with that key.
+    fn starts() -> (usize, &'static [u8]) {
+        static STARTS: std::sync::LazyLock<(usize, Vec<u8>)> = std::sync::LazyLock::new(|| {
+            let edges = ResidualHistogram::edges();
+            let shift = 52 - ResidualHistogram::START_BITS;
+            let key = |v: f64| (v.to_bits() >> shift) as usize;
+            let (first, last) = (key(edges[0]), key(edges[edges.len() - 1]));
+            let starts = (first..=last)
+                .map(|k| {
+                    let least = f64::from_bits((k as u64) << shift);
+                    edges.partition_point(|&e| e < least) as u8
+                })
+                .collect();
+            (first, starts)
+        });
+        (STARTS.0, &STARTS.1)
     }
 
     fn add(&mut self, e2: f64, weight: f64) {
@@ -1773,6 +1812,31 @@ mod histogram_tests {
             }
         }
         assert!(checked > 19_900);
+        // The table's start and its comparisons count what a binary search counts, at every
+        // edge, one unit in the last place either side of it, and between.
+        let search = |e2: f64| H::edges().partition_point(|&edge| edge <= e2);
+        for (i, &e) in H::edges().iter().enumerate() {
+            for v in [
+                e,
+                f64::from_bits(e.to_bits() - 1),
+                f64::from_bits(e.to_bits() + 1),
+                e * 1.01,
+                e * 0.99,
+            ] {
+                assert_eq!(H::bin(v), search(v), "edge {i}: {v:e}");
+            }
+        }
+        for v in [
+            0.0,
+            -1.0,
+            1e-300,
+            1e300,
+            f64::INFINITY,
+            f64::NAN,
+            f64::MIN_POSITIVE,
+        ] {
+            assert_eq!(H::bin(v), search(v), "{v:e}");
+        }
         // Exact zero and NaN go to the first bin, anything huge to the last.
         assert_eq!(H::bin(0.0), 0);
         assert_eq!(H::bin(f64::NAN), 0);
