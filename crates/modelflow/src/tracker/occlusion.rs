@@ -368,24 +368,18 @@ mod tests {
                 reach,
             )];
             let projections = [proj];
-            let fast = keep_of(
-                &set,
-                &moved,
-                &triangles,
-                &projections,
-                &views,
-                tolerance,
-                true,
-            );
-            let slow = keep_of(
-                &set,
-                &moved,
-                &triangles,
-                &projections,
-                &views,
-                tolerance,
-                false,
-            );
+            let keep = |whole| {
+                keep_of(
+                    &set,
+                    &moved,
+                    &triangles,
+                    &projections,
+                    &views,
+                    tolerance,
+                    whole,
+                )
+            };
+            let (fast, slow) = (keep(true), keep(false));
             let (mut whole, mut dropped) = (0, 0);
             for ((f, s), p) in fast.iter().zip(&slow).zip(&set.patches) {
                 let s = s.as_ref().unwrap();
