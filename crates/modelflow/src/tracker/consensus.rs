@@ -60,6 +60,32 @@ pub(crate) fn drop_contradicted(
     images: &[&RgbImage],
     opts: &ConsensusOptions,
 ) -> ConsensusStats {
+    drop_contradicted_asking(set, positions, triangles, projections, images, opts, false)
+}
+
+/// [`drop_contradicted`] with every other camera asked about every pixel, the verdict's
+/// early end left out: what it must give the same result as.
+#[cfg(test)]
+pub(crate) fn drop_contradicted_asking_all(
+    set: &mut PatchSet,
+    positions: &[Point3<f64>],
+    triangles: &[[u32; 3]],
+    projections: &[Projection],
+    images: &[&RgbImage],
+    opts: &ConsensusOptions,
+) -> ConsensusStats {
+    drop_contradicted_asking(set, positions, triangles, projections, images, opts, true)
+}
+
+fn drop_contradicted_asking(
+    set: &mut PatchSet,
+    positions: &[Point3<f64>],
+    triangles: &[[u32; 3]],
+    projections: &[Projection],
+    images: &[&RgbImage],
+    opts: &ConsensusOptions,
+    ask_all: bool,
+) -> ConsensusStats {
     let ncam = projections.len();
     if ncam < 2 || set.patches.is_empty() {
         return ConsensusStats::default();
@@ -87,7 +113,9 @@ pub(crate) fn drop_contradicted(
     let limit = limit(view.median_residual(patches, &sampled, &gains));
     let keep: Vec<Vec<bool>> = patches
         .par_iter()
-        .map_init(Vec::new, |buf, p| view.verdict(p, &gains, &limit, buf))
+        .map_init(Vec::new, |buf, p| {
+            view.verdict(p, &gains, &limit, buf, ask_all)
+        })
         .collect();
     ConsensusStats {
         dropped: set.retain_pixels(&keep),
@@ -164,27 +192,37 @@ impl View<'_> {
         stride: usize,
         mut f: impl FnMut(usize, [f32; 3], Option<[f32; 9]>, usize, usize),
     ) {
+        let src = p.source as usize;
+        let ncam = self.projections.len();
+        for (slot, other) in (0..ncam).filter(|&c| c != src).enumerate() {
+            self.each_sample_in(p, stride, other, |i, c, smp| f(i, c, smp, other, slot));
+        }
+    }
+
+    /// [`View::each_sample`] in one other camera: nothing when it does not see the triangle.
+    fn each_sample_in(
+        &self,
+        p: &Patch,
+        stride: usize,
+        other: usize,
+        mut f: impl FnMut(usize, [f32; 3], Option<[f32; 9]>),
+    ) {
         let ncam = self.projections.len();
         let t = p.triangle as usize;
+        if !self.covered[t * ncam + other] {
+            return;
+        }
         let x = self.triangles[t].map(|v| self.positions[v as usize]);
-        let src = p.source as usize;
         let px = &self.pixels[p.start as usize..p.end as usize];
-        for (slot, other) in (0..ncam).filter(|&c| c != src).enumerate() {
-            if !self.covered[t * ncam + other] {
-                continue;
-            }
-            let proj = &self.projections[other];
-            let img = self.images[other];
-            for (i, s) in px.iter().enumerate().step_by(stride) {
-                let l = s.lambda;
-                let pt = Point3::from(
-                    x[0].coords * l[0] as f64
-                        + x[1].coords * l[1] as f64
-                        + x[2].coords * l[2] as f64,
-                );
-                let smp = proj.project(&pt).and_then(|q| img.sample_exact(q.x, q.y));
-                f(i, s.color, smp, other, slot);
-            }
+        let proj = &self.projections[other];
+        let img = self.images[other];
+        for (i, s) in px.iter().enumerate().step_by(stride) {
+            let l = s.lambda;
+            let pt = Point3::from(
+                x[0].coords * l[0] as f64 + x[1].coords * l[1] as f64 + x[2].coords * l[2] as f64,
+            );
+            let smp = proj.project(&pt).and_then(|q| img.sample_exact(q.x, q.y));
+            f(i, s.color, smp);
         }
     }
 
@@ -369,33 +407,55 @@ impl View<'_> {
         }
     }
 
-    /// Which of `p`'s pixels to keep.
+    /// Which of `p`'s pixels to keep. The other cameras are asked one at a time, and no
+    /// further once every pixel has agreed with one of them: a pixel is dropped only when every
+    /// camera that checks it contradicts it, and a patch dropped whole has most of its checked
+    /// pixels contradicted, so the cameras not yet asked cannot change the verdict then (on
+    /// footage without occluders most patches are settled by the first camera asked, which
+    /// matters with many cameras). `ask_all` asks them all anyway (tests).
     fn verdict(
         &self,
         p: &Patch,
         gains: &[[f32; 3]],
         limit: &Limit,
         buf: &mut Vec<Option<Seen>>,
+        ask_all: bool,
     ) -> Vec<bool> {
-        let others = self.projections.len() - 1;
+        let ncam = self.projections.len();
         let n = (p.end - p.start) as usize;
+        let src = p.source as usize;
         let px = &self.pixels[p.start as usize..p.end as usize];
-        self.gather(p, gains, 1, buf);
         let mut checked = vec![false; n];
         let mut agreed = vec![false; n];
-        for slot in 0..others {
+        let mut open = n;
+        for other in (0..ncam).filter(|&c| c != src) {
+            if open == 0 && !ask_all {
+                break;
+            }
+            // What this camera sees of every pixel (`buf[i]`, `None` where it does not).
+            buf.clear();
+            buf.resize(n, None);
+            let g = &gains[src * ncam + other];
+            self.each_sample_in(p, 1, other, |i, _, smp| {
+                if let Some(b) = smp {
+                    buf[i] = Some(Seen::new(&b, g));
+                }
+            });
             // Fitted on all pixels, then again on those that fit.
-            let s0 = own_gain(px, buf, others, slot, 1, None);
+            let s0 = own_gain(px, buf, 1, 0, 1, None);
             let fits = |i: usize, s: f32| {
-                buf[i * others + slot].is_some_and(|seen| {
+                buf[i].is_some_and(|seen| {
                     residual2(&px[i], &seen, s) <= limit.d2 + limit.tol2 * seen.g2
                 })
             };
-            let s = own_gain(px, buf, others, slot, 1, Some(&|i| fits(i, s0)));
+            let s = own_gain(px, buf, 1, 0, 1, Some(&|i| fits(i, s0)));
             for i in 0..n {
-                if buf[i * others + slot].is_some() {
+                if buf[i].is_some() {
                     checked[i] = true;
-                    agreed[i] |= fits(i, s);
+                    if !agreed[i] && fits(i, s) {
+                        agreed[i] = true;
+                        open -= 1;
+                    }
                 }
             }
         }

@@ -178,26 +178,59 @@ impl PatchSet {
     }
 
     /// Keeps the pixels `keep[i][j]` says to keep (pixel `j` of patch `i`), and the patches
-    /// with any left; returns how many pixels were dropped.
+    /// with any left; returns how many pixels were dropped. Nothing moves when every pixel is
+    /// kept and no patch is empty; otherwise the pixels are moved down in place when the patches' ranges are in
+    /// increasing order (as built; a copy when not).
     pub fn retain_pixels(&mut self, keep: &[Vec<bool>]) -> usize {
         debug_assert_eq!(keep.len(), self.patches.len());
-        let mut out = PatchSet {
-            patches: Vec::with_capacity(self.patches.len()),
-            pixels: Vec::with_capacity(self.pixels.len()),
+        if keep.iter().all(|k| !k.is_empty() && k.iter().all(|&k| k)) {
+            return 0;
+        }
+        let in_order = self.patches.windows(2).all(|w| w[0].end <= w[1].start);
+        let mut out = if in_order {
+            PatchSet::default()
+        } else {
+            PatchSet {
+                patches: Vec::with_capacity(self.patches.len()),
+                pixels: Vec::with_capacity(self.pixels.len()),
+            }
         };
-        let mut dropped = 0;
-        for (p, keep) in self.patches.iter().zip(keep) {
-            let start = out.pixels.len() as u32;
-            let px = &self.pixels[p.start as usize..p.end as usize];
-            out.pixels
-                .extend(px.iter().zip(keep).filter(|k| *k.1).map(|k| *k.0));
-            let end = out.pixels.len() as u32;
-            dropped += px.len() - (end - start) as usize;
+        let (mut to, mut kept_patches, mut dropped) = (0usize, 0usize, 0usize);
+        for (i, keep) in keep.iter().enumerate() {
+            let p = self.patches[i];
+            let (a, b) = (p.start as usize, p.end as usize);
+            let start = if in_order { to } else { out.pixels.len() };
+            for (j, _) in keep.iter().enumerate().filter(|k| *k.1) {
+                if in_order {
+                    // `to <= a + j`: the ranges are in order, so nothing unread is overwritten.
+                    self.pixels[to] = self.pixels[a + j];
+                    to += 1;
+                } else {
+                    out.pixels.push(self.pixels[a + j]);
+                }
+            }
+            let end = if in_order { to } else { out.pixels.len() };
+            dropped += (b - a) - (end - start);
             if end > start {
-                out.patches.push(Patch { start, end, ..*p });
+                let q = Patch {
+                    start: start as u32,
+                    end: end as u32,
+                    ..p
+                };
+                if in_order {
+                    self.patches[kept_patches] = q;
+                    kept_patches += 1;
+                } else {
+                    out.patches.push(q);
+                }
             }
         }
-        *self = out;
+        if in_order {
+            self.pixels.truncate(to);
+            self.patches.truncate(kept_patches);
+        } else {
+            *self = out;
+        }
         dropped
     }
 
@@ -208,5 +241,102 @@ impl PatchSet {
             c[p.triangle as usize * cameras + p.camera as usize] = true;
         }
         c
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::{Patch, PatchSet, PixelSample};
+
+    /// Three patches of 5, 0 and 7 pixels, pixel `i` tagged by its colour; the patches' ranges
+    /// in the order built, or with the last two swapped (as after sorting by triangle).
+    fn set(in_order: bool) -> PatchSet {
+        let pixels: Vec<PixelSample> = (0..12)
+            .map(|i| PixelSample {
+                lambda: [1.0, 0.0, 0.0],
+                color: [i as f32, 0.0, 0.0],
+            })
+            .collect();
+        let patch = |triangle, start, end| Patch {
+            triangle,
+            camera: 0,
+            source: 0,
+            weight: 1.0,
+            start,
+            end,
+        };
+        let mut patches = vec![patch(0, 0, 5), patch(1, 5, 5), patch(2, 5, 12)];
+        if !in_order {
+            patches.swap(1, 2);
+        }
+        PatchSet { patches, pixels }
+    }
+
+    fn colours(s: &PatchSet) -> Vec<Vec<f32>> {
+        s.patches
+            .iter()
+            .map(|p| {
+                s.pixels[p.start as usize..p.end as usize]
+                    .iter()
+                    .map(|x| x.color[0])
+                    .collect()
+            })
+            .collect()
+    }
+
+    #[test]
+    fn retaining_pixels_keeps_the_marked_ones_in_order_and_drops_emptied_patches() {
+        for in_order in [true, false] {
+            let mut s = set(in_order);
+            let (a, b) = (vec![true, false, true, false, false], vec![false; 7]);
+            let keep = if in_order {
+                vec![a, vec![], b]
+            } else {
+                vec![a, b, vec![]]
+            };
+            assert_eq!(s.retain_pixels(&keep), 10, "in order: {in_order}");
+            assert_eq!(colours(&s), vec![vec![0.0, 2.0]], "in order: {in_order}");
+            let mut s = set(in_order);
+            let c = vec![false, true, true, false, true, false, true];
+            let keep = if in_order {
+                vec![vec![true; 5], vec![], c]
+            } else {
+                vec![vec![true; 5], c, vec![]]
+            };
+            assert_eq!(s.retain_pixels(&keep), 3, "in order: {in_order}");
+            assert_eq!(
+                colours(&s),
+                vec![vec![0.0, 1.0, 2.0, 3.0, 4.0], vec![6.0, 7.0, 9.0, 11.0]],
+                "in order: {in_order}"
+            );
+            assert_eq!(s.pixels.len(), 9);
+            // Every pixel kept: only the empty patch goes.
+            let mut s = set(in_order);
+            let before = colours(&s);
+            let keep: Vec<Vec<bool>> = s
+                .patches
+                .iter()
+                .map(|p| vec![true; (p.end - p.start) as usize])
+                .collect();
+            assert_eq!(s.retain_pixels(&keep), 0);
+            let mut expected = before.clone();
+            expected.retain(|c| !c.is_empty());
+            assert_eq!(colours(&s), expected, "in order: {in_order}");
+            assert_eq!(s.pixels.len(), 12);
+            let s = set(in_order);
+            let keep: Vec<Vec<bool>> = s
+                .patches
+                .iter()
+                .filter(|p| p.end > p.start)
+                .map(|p| vec![true; (p.end - p.start) as usize])
+                .collect();
+            let mut s = PatchSet {
+                patches: s.patches.into_iter().filter(|p| p.end > p.start).collect(),
+                pixels: s.pixels,
+            };
+            let before = s.clone();
+            assert_eq!(s.retain_pixels(&keep), 0);
+            assert_eq!((s.patches, s.pixels), (before.patches, before.pixels));
+        }
     }
 }

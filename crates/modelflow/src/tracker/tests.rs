@@ -1360,6 +1360,81 @@ fn an_occluder_in_one_camera_is_left_out_of_the_templates() {
 }
 
 #[test]
+fn asking_the_other_cameras_only_until_every_pixel_agreed_changes_no_verdict() {
+    // Four cameras see the plane. A rod covers columns 70..86 of camera 0 (its pixels there
+    // are contradicted by every other camera: dropped) and columns 20..40 of camera 1 (camera
+    // 0's pixels that fall under it are contradicted by camera 1, which is asked first, and
+    // kept on the word of camera 2). Stopping once every pixel of a patch has agreed with some
+    // camera must leave the same pixels as asking every camera about every pixel.
+    let rig = Rig::new(&[
+        Point3::new(-0.15, -1.5, 0.2),
+        Point3::new(0.15, -1.5, 0.25),
+        Point3::new(-0.05, -1.5, 0.35),
+        Point3::new(0.05, -1.5, 0.1),
+    ]);
+    let plane = plane_at(Vector3::zeros());
+    let mesh = mesh_of(&plane);
+    let cams = rig.cameras();
+    let mut im = rig.images(&plane);
+    paint_rod(&mut im[0], 70, 86);
+    paint_rod(&mut im[1], 20, 40);
+    let pyr: Vec<Pyramid> = im.iter().map(|i| Pyramid::new(i, 1, 1.0)).collect();
+    let set = frame0_patches(&mesh, &cams, &pyr);
+    let projections: Vec<Projection> = cams.iter().map(|c| c.at(0).clone()).collect();
+    let images: Vec<&RgbImage> = pyr.iter().map(|p| &p.levels[0]).collect();
+    let opts = crate::tracker::consensus::ConsensusOptions {
+        k: TrackOptions::default().consensus,
+        min: SolverOptions::default().tukey_min,
+        px: SolverOptions::default().tukey_px,
+    };
+    let (mut early, mut all) = (set.clone(), set.clone());
+    let args = (
+        &mesh.positions,
+        &mesh.triangles,
+        &projections,
+        &images,
+        &opts,
+    );
+    let dropped_early = crate::tracker::consensus::drop_contradicted(
+        &mut early, args.0, args.1, args.2, args.3, args.4,
+    )
+    .dropped;
+    let dropped_all = crate::tracker::consensus::drop_contradicted_asking_all(
+        &mut all, args.0, args.1, args.2, args.3, args.4,
+    )
+    .dropped;
+    eprintln!("{dropped_early} of {} pixels dropped", set.pixels.len());
+    assert!(dropped_early > 500, "{dropped_early} dropped");
+    assert_eq!(dropped_early, dropped_all);
+    assert_eq!(early.patches, all.patches);
+    assert_eq!(early.pixels, all.pixels);
+    // Camera 0's pixels under camera 1's rod: kept, though camera 1 contradicts them.
+    let under_rod_1 = |s: &PatchSet| {
+        s.patches
+            .iter()
+            .filter(|p| p.source == 0)
+            .flat_map(|p| {
+                let x = mesh.triangles[p.triangle as usize].map(|v| mesh.positions[v as usize]);
+                s.pixels[p.start as usize..p.end as usize]
+                    .iter()
+                    .map(move |px| {
+                        let l = px.lambda;
+                        Point3::from(
+                            x[0].coords * l[0] as f64
+                                + x[1].coords * l[1] as f64
+                                + x[2].coords * l[2] as f64,
+                        )
+                    })
+            })
+            .filter(|pt| (22.0..38.0).contains(&projections[1].project(pt).unwrap().x))
+            .count()
+    };
+    let (before, after) = (under_rod_1(&set), under_rod_1(&early));
+    eprintln!("camera 0's pixels under camera 1's rod: {after} of {before} kept");
+    assert!(before > 500 && after as f64 > 0.9 * before as f64);
+}
+
+#[test]
 fn the_pixels_an_occluder_covers_are_the_ones_dropped() {
     // Two cameras see the plane; a rod covers columns 70..86 of camera 0's image. Checked
     // against camera 1, camera 0's template loses what lies under the rod and keeps the rest;
