@@ -40,6 +40,11 @@ pub struct TrackArgs {
     /// at N times the weight (1 to 64; 1 = all, slower).
     #[arg(long, value_name = "N", default_value_t = TrackOptions::default().stereo_stride)]
     pub stereo_stride: u32,
+    /// Compare each camera (--stereo) with at most N other cameras, those whose view of the
+    /// mesh is most alike its own (0 = every other camera; 0 to 1000). Rigs of more than
+    /// N + 1 cameras then grow in work with the cameras, not with their square.
+    #[arg(long, value_name = "N", default_value_t = TrackOptions::default().stereo_neighbours)]
+    pub stereo_neighbours: u32,
     /// Spring constant k of the cubic edge springs (Eq. 5.16) on the edges' strain, each edge
     /// weighted by its share of the surface's area, so independent of units and triangulation
     /// (0 = off; 0 to 1e6).
@@ -215,6 +220,7 @@ impl TrackArgs {
             consensus: self.consensus,
             stereo: self.stereo,
             stereo_stride: self.stereo_stride,
+            stereo_neighbours: self.stereo_neighbours,
             approach_decrease: self.approach_decrease,
             lent_anchor: self.lent_anchor,
             hidden_ahead: !self.keep_hidden,

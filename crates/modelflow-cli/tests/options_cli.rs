@@ -59,6 +59,7 @@ fn track_options_out_of_range_are_refused_by_name() {
         ("--finest-level", "12", "[0, 11]"),
         ("--stereo", "-1", "[0, 100]"),
         ("--stereo-stride", "0", "[1, 64]"),
+        ("--stereo-neighbours", "1001", "[0, 1000]"),
         ("--gain-range", "0.5", "[1, 100]"),
         ("--gain-range", "NaN", "[1, 100]"),
     ] {

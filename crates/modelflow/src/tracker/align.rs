@@ -400,13 +400,15 @@ fn auto_levels(cameras: &[Camera], frame: u32, x: &[Point3<f64>]) -> usize {
 }
 
 /// The patches of one round: every camera's pixels, warped into every other camera that sees
-/// the triangle.
+/// the triangle; with `neighbours` above 0, only into that many of them per camera, those
+/// whose direction to the mesh's centre is closest to its own ([`neighbour_cameras`]).
 pub(crate) fn cross_patches(
     x: &[Point3<f64>],
     triangles: &[[u32; 3]],
     projections: &[Projection],
     images: &[&RgbImage],
     popts: &PatchOptions,
+    neighbours: usize,
 ) -> PatchSet {
     let ncam = projections.len();
     let per_cam: Vec<PatchSet> = (0..ncam)
@@ -436,6 +438,7 @@ pub(crate) fn cross_patches(
             v
         })
         .collect();
+    let compared = neighbour_cameras(x, projections, &seen, neighbours);
     let mut out = PatchSet::default();
     for (i, set) in per_cam.into_iter().enumerate() {
         let off = out.pixels.len() as u32;
@@ -443,7 +446,7 @@ pub(crate) fn cross_patches(
         for p in set.patches {
             let (start, end) = (p.start + off, p.end + off);
             for (j, seen_j) in seen.iter().enumerate() {
-                if j != i && seen_j[p.triangle as usize] {
+                if j != i && compared[i * ncam + j] && seen_j[p.triangle as usize] {
                     out.patches.push(Patch {
                         triangle: p.triangle,
                         camera: j as u16,
@@ -454,6 +457,54 @@ pub(crate) fn cross_patches(
                     });
                 }
             }
+        }
+    }
+    out
+}
+
+/// Which cameras each camera is compared with (`[i·n + j]`: camera `i`'s pixels warped into
+/// camera `j`): every other one when `neighbours` is 0 or reaches them all; otherwise the
+/// `neighbours` cameras with the best score `overlap · sin(angle)` (ties to the lower index):
+/// the share of the triangles camera `i` sees (`seen[i]`) that camera `j` sees too, times the
+/// sine of the angle between their directions to the mesh's centre (the mean of `x`), so that
+/// views of the same surface are preferred, and among them the wider baselines, which fix depth.
+pub(crate) fn neighbour_cameras(
+    x: &[Point3<f64>],
+    projections: &[Projection],
+    seen: &[Vec<bool>],
+    neighbours: usize,
+) -> Vec<bool> {
+    let n = projections.len();
+    let mut out = vec![true; n * n];
+    if neighbours == 0 || neighbours + 1 >= n || x.is_empty() {
+        return out;
+    }
+    let centre = centroid(x);
+    let dirs: Vec<Vector3<f64>> = projections
+        .iter()
+        .map(|p| (centre - p.center()).normalize())
+        .collect();
+    for i in 0..n {
+        let own = seen[i].iter().filter(|&&s| s).count().max(1) as f64;
+        let score = |j: usize| {
+            let both = seen[i]
+                .iter()
+                .zip(&seen[j])
+                .filter(|(a, b)| **a && **b)
+                .count();
+            both as f64 / own * dirs[i].cross(&dirs[j]).norm()
+        };
+        let mut others: Vec<(usize, f64)> = (0..n)
+            .filter(|&j| j != i)
+            .map(|j| (j, score(j)))
+            .filter(|&(_, s)| s > 0.0)
+            .collect();
+        // Best first; `sort_by` is stable, so equal scores keep the index order.
+        others.sort_by(|a, b| b.1.total_cmp(&a.1));
+        let row = &mut out[i * n..(i + 1) * n];
+        row.fill(false);
+        for &(j, _) in others.iter().take(neighbours) {
+            row[j] = true;
         }
     }
     out
@@ -675,7 +726,7 @@ pub fn align(
         };
         for round in 0..opts.rounds {
             let x0 = x.clone();
-            let mut set = cross_patches(&x0, &triangles, &projections, &targets, &popts);
+            let mut set = cross_patches(&x0, &triangles, &projections, &targets, &popts, 0);
             let by_triangle = set.by_triangle();
             let problem = Problem {
                 moving_source: Some(&x0),
@@ -831,6 +882,60 @@ pub fn perturb(mesh: &Mesh, fraction: f64, degrees: f64, seed: u64) -> Vec<Point
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn each_camera_is_compared_with_the_wide_views_of_what_it_sees() {
+        // Cameras looking at the origin from directions `deg` degrees about the vertical; camera
+        // `i` sees the triangles `seen[i]`.
+        let rig = |deg: &[f64]| -> Vec<Projection> {
+            let k = Matrix3::new(500.0, 0.0, 320.0, 0.0, 500.0, 240.0, 0.0, 0.0, 1.0);
+            deg.iter()
+                .map(|d| {
+                    let a = d.to_radians();
+                    let eye = Point3::new(3.0 * a.sin(), -3.0 * a.cos(), 0.0);
+                    let (r, t) = crate::base::camera::look_at(
+                        &eye,
+                        &Point3::origin(),
+                        &Vector3::new(0.0, 0.0, 1.0),
+                    );
+                    Projection::from_krt(&k, &r, &t).expect("a camera")
+                })
+                .collect()
+        };
+        let x = [Point3::new(0.1, 0.0, 0.0), Point3::new(-0.1, 0.0, 0.0)];
+        let chosen = |c: &[bool], n: usize, i: usize| -> Vec<usize> {
+            (0..n).filter(|&j| c[i * n + j]).collect()
+        };
+        // A row of six cameras 8° apart, all seeing every triangle: camera 0 is compared with
+        // the three widest baselines, camera 2 with those on its far side first.
+        let row = rig(&[-20.0, -12.0, -4.0, 4.0, 12.0, 20.0]);
+        let all = vec![vec![true; 10]; 6];
+        let c = neighbour_cameras(&x, &row, &all, 3);
+        assert_eq!(chosen(&c, 6, 0), vec![3, 4, 5]);
+        assert_eq!(chosen(&c, 6, 2), vec![0, 4, 5]);
+        assert!((0..6).all(|i| !c[i * 6 + i]));
+        // A ring of eight 45° apart around a closed surface: each sees the half facing it
+        // (triangles 0..16 by direction), so the opposite camera, which shares none, is never
+        // chosen, and the two beside it (most shared) come before those at 90°.
+        let ring = rig(&[0.0, 45.0, 90.0, 135.0, 180.0, 225.0, 270.0, 315.0]);
+        let half = |i: usize| -> Vec<bool> { (0..16).map(|t| (t + 16 - 2 * i) % 16 < 8).collect() };
+        let seen: Vec<Vec<bool>> = (0..8).map(half).collect();
+        let c = neighbour_cameras(&x, &ring, &seen, 3);
+        for i in 0..8 {
+            let got = chosen(&c, 8, i);
+            assert!(
+                got.contains(&((i + 1) % 8)) && got.contains(&((i + 7) % 8)),
+                "{i}: {got:?}"
+            );
+            assert!(!got.contains(&((i + 4) % 8)), "{i}: {got:?}");
+            assert_eq!(got.len(), 3);
+        }
+        // Four cameras or fewer with three neighbours, or neighbours 0: every other camera.
+        let c = neighbour_cameras(&x, &row[..4], &all[..4], 3);
+        assert!(c.iter().all(|&b| b));
+        let c = neighbour_cameras(&x, &row, &all, 0);
+        assert!(c.iter().all(|&b| b));
+    }
 
     #[test]
     fn similarity_recovers_a_known_motion() {

@@ -89,7 +89,7 @@ impl Frame<'_> {
                 let d = k as f64 / self.per_unit;
                 let xk: Vec<Point3<f64>> = x.iter().zip(normals).map(|(p, n)| p + n * d).collect();
                 let mut set =
-                    cross_patches(&xk, triangles, &self.projections, &self.targets, &popts);
+                    cross_patches(&xk, triangles, &self.projections, &self.targets, &popts, 0);
                 if set.patches.is_empty() {
                     return None;
                 }

@@ -65,6 +65,14 @@ pub struct TrackOptions {
     /// recorded before it existed kept every pixel (1).
     #[serde(default = "legacy_stereo_stride")]
     pub stereo_stride: u32,
+    /// Each camera's pixels are compared (`stereo`) with at most this many other cameras:
+    /// those whose direction to the mesh is closest to its own (most alike views of the same
+    /// surface; `sequence::stereo_pairs`). 0 = every other camera, as runs recorded before it
+    /// existed did. With four cameras or fewer the default compares them all; a ring of eight
+    /// or sixteen compares each camera with its neighbours instead of the whole ring, whose
+    /// comparisons grow with the square of the cameras (docs/tracker.md).
+    #[serde(default)]
+    pub stereo_neighbours: u32,
     /// An approach stage (the Huber solve of every level but the coarsest, when a finer level
     /// or the Tukey refine still follows) stops once an accepted step lowers its cost by less
     /// than this fraction of it, instead of `solver.min_relative_decrease`: what is left there
@@ -127,6 +135,7 @@ impl Default for TrackOptions {
             consensus: default_consensus(),
             stereo: 0.25,
             stereo_stride: 4,
+            stereo_neighbours: 3,
             approach_decrease: 0.03,
             lent_anchor: 1.0,
             hidden_ahead: true,
@@ -379,6 +388,13 @@ impl TrackOptions {
                 why: "every N-th pixel compared between cameras",
             },
             Range {
+                option: "--stereo-neighbours",
+                value: self.stereo_neighbours as f64,
+                low: (0.0, true),
+                high: (1000.0, true),
+                why: "0 = every other camera",
+            },
+            Range {
                 option: "--finest-level",
                 value: self.finest_level as f64,
                 low: (0.0, true),
@@ -516,12 +532,19 @@ mod tests {
             serde_json::from_value(old.clone()).expect("a run's options from before the stride");
         assert_eq!((read.stereo, read.stereo_stride), (0.25, 1));
         old.as_object_mut().unwrap().remove("stereo").unwrap();
+        old.as_object_mut()
+            .unwrap()
+            .remove("stereo_neighbours")
+            .unwrap();
         let read: TrackOptions = serde_json::from_value(old).expect("an old run's options");
         assert_eq!((read.stereo, read.stereo_stride), (0.0, 1));
+        // Runs made before the neighbours were chosen compared every other camera.
+        assert_eq!(read.stereo_neighbours, 0);
         assert_eq!(
             TrackOptions {
                 stereo: 0.25,
                 stereo_stride: 4,
+                stereo_neighbours: 3,
                 ..read
             },
             d

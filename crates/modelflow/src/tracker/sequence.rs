@@ -639,7 +639,14 @@ impl Tracker {
             ..popts
         };
         let cbw = if popts.checkerboard { 2.0 } else { 1.0 } * popts.stride as f64;
-        let mut set = align::cross_patches(x, &self.triangles, &projections, &images, &popts);
+        let mut set = align::cross_patches(
+            x,
+            &self.triangles,
+            &projections,
+            &images,
+            &popts,
+            self.opts.stereo_neighbours as usize,
+        );
         // Patches of one source pixel range are consecutive, one per other camera.
         let mut i = 0;
         while i < set.patches.len() {

@@ -1075,6 +1075,7 @@ impl CrossPlane {
             &projections,
             &targets,
             &popts,
+            0,
         );
         assert!(set.patches.iter().all(|p| p.source != p.camera));
         let by_triangle = set.by_triangle();
