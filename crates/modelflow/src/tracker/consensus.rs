@@ -9,11 +9,12 @@
 //! so it is left out of the template.
 //!
 //! The colours are compared up to gains: per ordered pair of cameras one per channel (exposure,
-//! white balance), fitted on every fourth pixel of the template, times one per (triangle,
+//! white balance), fitted on every fourth pixel of the template (sparser with more than four
+//! cameras: [`stride`]), times one per (triangle,
 //! camera, other camera) within [2/3, 3/2] (a glossy surface is brighter from one side; the
 //! bound keeps an occluder's flat colour from being explained away), fitted twice, the second
 //! time without the pixels the first fit rejected. A pixel is contradicted by a camera when its
-//! RGB residual exceeds `k` times the median residual (of every fourth pixel; at least `min`),
+//! RGB residual exceeds `k` times the median residual (of the same pixels; at least `min`),
 //! widened by `px` pixels of misalignment times the image gradient there (the mesh is only as
 //! good as the last solve). It is dropped when *every* other camera that sees its triangle
 //! contradicts it, and a patch most of whose checked pixels are dropped is dropped whole (what
@@ -44,8 +45,15 @@ pub(crate) struct ConsensusStats {
     pub dropped: usize,
 }
 
-/// The statistics (pair gains, median residual) are taken on every `STRIDE`-th pixel.
-const STRIDE: usize = 4;
+/// The statistics (pair gains, median residual) are taken on every `stride`-th pixel of each
+/// patch, sampled in every other camera that sees its triangle: every 4th with up to four
+/// cameras, sparser with more, so that they sample about three of every four source pixels'
+/// worth whatever the camera count (each pixel is sampled once per other camera; with eight
+/// cameras at 4K the statistics' sampling had become most of a template's building, and a
+/// ratio of sums over tens of thousands of samples per camera pair needs no more).
+fn stride(cameras: usize) -> usize {
+    (4 * cameras.saturating_sub(1)).div_ceil(3).max(4)
+}
 /// Range of the per-patch gain on top of the pair's.
 const PATCH_GAIN: f64 = 1.5;
 
@@ -92,6 +100,7 @@ fn drop_contradicted_asking(
     }
     let covered = set.coverage(triangles.len(), ncam);
     let view = View {
+        stride: stride(ncam),
         pixels: &set.pixels,
         positions,
         triangles,
@@ -152,7 +161,7 @@ impl Seen {
 }
 
 /// The samples the statistics are taken on: per patch, `[j·others + slot]` for its
-/// `j·STRIDE`-th pixel in the `slot`-th other camera (`None`: not covered there, or outside
+/// `j·stride`-th pixel in the `slot`-th other camera (`None`: not covered there, or outside
 /// that camera's image). Not kept past `STRIDED_BYTES` (many cameras at 4K): the statistics
 /// then sample the images again in each of their four passes, with the same result.
 struct Strided {
@@ -180,6 +189,8 @@ struct View<'a> {
     projections: &'a [Projection],
     images: &'a [&'a RgbImage],
     covered: &'a [bool],
+    /// The statistics' stride ([`stride`]).
+    stride: usize,
 }
 
 impl View<'_> {
@@ -227,7 +238,7 @@ impl View<'_> {
     }
 
     /// Per ordered camera pair `(source, other)` (index `source·n + other`), the per-channel gain
-    /// `Σ a·b / Σ b²` over every `STRIDE`-th pixel both see; with `first` (earlier gains and a
+    /// `Σ a·b / Σ b²` over every `stride`-th pixel both see; with `first` (earlier gains and a
     /// limit), only over the pixels that fit within the limit under those gains.
     fn pair_gains(
         &self,
@@ -254,9 +265,9 @@ impl View<'_> {
                     };
                     self.gather_strided(p, sampled.patch(c * PAIR_CHUNK + k), g, &mut buf);
                     for (slot, other) in (0..ncam).filter(|&c| c != src).enumerate() {
-                        let s = limit.map(|_| own_gain(px, &buf, others, slot, STRIDE, None));
+                        let s = limit.map(|_| own_gain(px, &buf, others, slot, self.stride, None));
                         let gi = &g[src * ncam + other];
-                        for (j, a) in px.iter().step_by(STRIDE).enumerate() {
+                        for (j, a) in px.iter().step_by(self.stride).enumerate() {
                             let Some(seen) = buf[j * others + slot] else {
                                 continue;
                             };
@@ -299,7 +310,7 @@ impl View<'_> {
             .collect()
     }
 
-    /// The median RGB residual over every `STRIDE`-th pixel and the other cameras that see it,
+    /// The median RGB residual over every `stride`-th pixel and the other cameras that see it,
     /// each patch with its own gain fitted on those pixels.
     fn median_residual(&self, patches: &[Patch], sampled: &Strided, gains: &[[f32; 3]]) -> f64 {
         // Each worker appends to one vector of its own (the median of the multiset does not
@@ -314,8 +325,8 @@ impl View<'_> {
                     let px = &self.pixels[p.start as usize..p.end as usize];
                     self.gather_strided(p, sampled.patch(k), gains, &mut buf);
                     for slot in 0..others {
-                        let s = own_gain(px, &buf, others, slot, STRIDE, None);
-                        for (j, a) in px.iter().step_by(STRIDE).enumerate() {
+                        let s = own_gain(px, &buf, others, slot, self.stride, None);
+                        for (j, a) in px.iter().step_by(self.stride).enumerate() {
                             if let Some(seen) = buf[j * others + slot] {
                                 e.push(residual2(a, &seen, s).sqrt());
                             }
@@ -353,13 +364,13 @@ impl View<'_> {
         });
     }
 
-    /// Every `STRIDE`-th pixel of every patch as the other cameras sample it, in `patches`'
+    /// Every `stride`-th pixel of every patch as the other cameras sample it, in `patches`'
     /// order (what [`View::gather_strided`] reads back).
     fn sample_strided(&self, patches: &[Patch]) -> Strided {
         let others = self.projections.len() - 1;
         let entries: usize = patches
             .iter()
-            .map(|p| ((p.end - p.start) as usize).div_ceil(STRIDE) * others)
+            .map(|p| ((p.end - p.start) as usize).div_ceil(self.stride) * others)
             .sum();
         if entries * std::mem::size_of::<Option<[f32; 9]>>() > STRIDED_BYTES {
             return Strided { per_patch: None };
@@ -368,9 +379,9 @@ impl View<'_> {
             .par_iter()
             .map(|p| {
                 let n = (p.end - p.start) as usize;
-                let mut out = vec![None; n.div_ceil(STRIDE) * others];
-                self.each_sample(p, STRIDE, |i, _, smp, _, slot| {
-                    out[(i / STRIDE) * others + slot] = smp;
+                let mut out = vec![None; n.div_ceil(self.stride) * others];
+                self.each_sample(p, self.stride, |i, _, smp, _, slot| {
+                    out[(i / self.stride) * others + slot] = smp;
                 });
                 out
             })
@@ -380,7 +391,7 @@ impl View<'_> {
         }
     }
 
-    /// [`View::gather`] with stride `STRIDE`, from the samples `sample_strided` took of `p`.
+    /// [`View::gather`] with the statistics' stride, from the samples `sample_strided` took of `p`.
     fn gather_strided(
         &self,
         p: &Patch,
@@ -389,17 +400,17 @@ impl View<'_> {
         buf: &mut Vec<Option<Seen>>,
     ) {
         let Some(samples) = samples else {
-            return self.gather(p, gains, STRIDE, buf);
+            return self.gather(p, gains, self.stride, buf);
         };
         let ncam = self.projections.len();
         let others = ncam - 1;
         let n = (p.end - p.start) as usize;
         let src = p.source as usize;
         buf.clear();
-        buf.resize(n.div_ceil(STRIDE) * others, None);
+        buf.resize(n.div_ceil(self.stride) * others, None);
         for (slot, other) in (0..ncam).filter(|&c| c != src).enumerate() {
             let g = &gains[src * ncam + other];
-            for j in 0..n.div_ceil(STRIDE) {
+            for j in 0..n.div_ceil(self.stride) {
                 if let Some(b) = &samples[j * others + slot] {
                     buf[j * others + slot] = Some(Seen::new(b, g));
                 }

@@ -1436,6 +1436,83 @@ fn asking_the_other_cameras_only_until_every_pixel_agreed_changes_no_verdict() {
 }
 
 #[test]
+fn with_eight_cameras_an_occluder_in_one_is_still_left_out() {
+    // Eight cameras in a row see the plane (the statistics sample every 10th pixel instead of
+    // every 4th); a rod covers columns 70..86 of camera 0. Its pixels under the rod are
+    // dropped, those clear of it kept, and next to nothing is dropped without the rod.
+    let rig = Rig::new(
+        &(0..8)
+            .map(|i| Point3::new(-0.2 + 0.057 * i as f64, -1.5, 0.2 + 0.02 * (i % 3) as f64))
+            .collect::<Vec<_>>(),
+    );
+    let plane = plane_at(Vector3::zeros());
+    let mesh = mesh_of(&plane);
+    let cams = rig.cameras();
+    let projections: Vec<Projection> = cams.iter().map(|c| c.at(0).clone()).collect();
+    let opts = crate::tracker::consensus::ConsensusOptions {
+        k: TrackOptions::default().consensus,
+        min: SolverOptions::default().tukey_min,
+        px: SolverOptions::default().tukey_px,
+    };
+    // Camera 0's pixels under the rod and clear of it, in `set`.
+    let count = |set: &PatchSet| {
+        let (mut under, mut clear) = (0usize, 0usize);
+        for p in set.patches.iter().filter(|p| p.source == 0) {
+            let x = mesh.triangles[p.triangle as usize].map(|v| mesh.positions[v as usize]);
+            for px in &set.pixels[p.start as usize..p.end as usize] {
+                let l = px.lambda;
+                let pt = Point3::from(
+                    x[0].coords * l[0] as f64
+                        + x[1].coords * l[1] as f64
+                        + x[2].coords * l[2] as f64,
+                );
+                let u = projections[0].project(&pt).unwrap().x;
+                if (70.0..86.0).contains(&u) {
+                    under += 1;
+                } else if !(66.0..90.0).contains(&u) {
+                    clear += 1;
+                }
+            }
+        }
+        (under, clear)
+    };
+    let check = |rod: bool| {
+        let mut im = rig.images(&plane);
+        if rod {
+            paint_rod(&mut im[0], 70, 86);
+        }
+        let pyr: Vec<Pyramid> = im.iter().map(|i| Pyramid::new(i, 1, 1.0)).collect();
+        let mut set = frame0_patches(&mesh, &cams, &pyr);
+        let before = set.clone();
+        let images: Vec<&RgbImage> = pyr.iter().map(|p| &p.levels[0]).collect();
+        crate::tracker::consensus::drop_contradicted(
+            &mut set,
+            &mesh.positions,
+            &mesh.triangles,
+            &projections,
+            &images,
+            &opts,
+        );
+        (
+            count(&before),
+            count(&set),
+            before.pixels.len(),
+            set.pixels.len(),
+        )
+    };
+    let ((u0, c0), (u1, c1), _, _) = check(true);
+    eprintln!("rod: under it {u1} of {u0} kept, clear of it {c1} of {c0}");
+    assert!(u0 > 1000 && u1 * 10 < u0, "under the rod {u1} of {u0} kept");
+    assert!(
+        c1 as f64 > 0.9 * c0 as f64,
+        "clear of the rod {c1} of {c0} kept"
+    );
+    let (_, _, all0, all1) = check(false);
+    eprintln!("no rod: {all1} of {all0} kept");
+    assert!(all1 as f64 > 0.99 * all0 as f64, "{all1} of {all0} kept");
+}
+
+#[test]
 fn the_pixels_an_occluder_covers_are_the_ones_dropped() {
     // Two cameras see the plane; a rod covers columns 70..86 of camera 0's image. Checked
     // against camera 1, camera 0's template loses what lies under the rod and keeps the rest;
