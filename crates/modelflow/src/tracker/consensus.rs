@@ -162,8 +162,9 @@ impl Seen {
 
 /// The samples the statistics are taken on: per patch, `[j·others + slot]` for its
 /// `j·stride`-th pixel in the `slot`-th other camera (`None`: not covered there, or outside
-/// that camera's image). Not kept past `STRIDED_BYTES` (many cameras at 4K): the statistics
-/// then sample the images again in each of their four passes, with the same result.
+/// that camera's image). Not kept past `STRIDED_BYTES_PER_PIXEL` per pixel of the cameras'
+/// images: the statistics then sample the images again in each of their four passes, with the
+/// same result.
 struct Strided {
     per_patch: Option<Vec<Vec<Option<[f32; 9]>>>>,
 }
@@ -178,8 +179,13 @@ impl Strided {
 /// among the kept samples).
 const PAIR_CHUNK: usize = 256;
 
-/// The most memory the statistics' samples may take (bytes).
-const STRIDED_BYTES: usize = 256 << 20;
+/// The most memory the statistics' samples may take, in bytes per pixel of the cameras' images
+/// at the level checked. Since the stride grows with the cameras ([`stride`]), the samples
+/// take at most about 15 bytes per image pixel (a template keeps every other pixel it covers,
+/// and each sample is 40 bytes), whatever the camera count: within the 100 bytes per pixel and
+/// camera that `--max-memory` reserves. (A fixed 256 MiB had left eight cameras at 4K sampling
+/// again in every pass: 2.6 s of a 16 s frame.)
+const STRIDED_BYTES_PER_PIXEL: usize = 24;
 
 /// The template's patches' pixels and mesh, and the other cameras' views of the same frame.
 struct View<'a> {
@@ -372,7 +378,10 @@ impl View<'_> {
             .iter()
             .map(|p| ((p.end - p.start) as usize).div_ceil(self.stride) * others)
             .sum();
-        if entries * std::mem::size_of::<Option<[f32; 9]>>() > STRIDED_BYTES {
+        let image_pixels: usize = self.images.iter().map(|i| i.width() * i.height()).sum();
+        if entries * std::mem::size_of::<Option<[f32; 9]>>()
+            > STRIDED_BYTES_PER_PIXEL * image_pixels
+        {
             return Strided { per_patch: None };
         }
         let per_patch: Vec<Vec<Option<[f32; 9]>>> = patches
