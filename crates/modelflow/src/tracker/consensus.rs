@@ -180,12 +180,14 @@ impl Strided {
 const PAIR_CHUNK: usize = 256;
 
 /// The most memory the statistics' samples may take, in bytes per pixel of the cameras' images
-/// at the level checked. Since the stride grows with the cameras ([`stride`]), the samples
-/// take at most about 15 bytes per image pixel (a template keeps every other pixel it covers,
-/// and each sample is 40 bytes), whatever the camera count: within the 100 bytes per pixel and
-/// camera that `--max-memory` reserves. (A fixed 256 MiB had left eight cameras at 4K sampling
-/// again in every pass: 2.6 s of a 16 s frame.)
-const STRIDED_BYTES_PER_PIXEL: usize = 24;
+/// at the level checked. Since the stride grows with the cameras ([`stride`]), the samples of
+/// patches larger than the stride take at most about 15 bytes per image pixel at full
+/// resolution (a template keeps every other pixel it covers, each sample is 40 bytes) and 30 at
+/// the coarser levels, whatever the camera count; a patch smaller than the stride still gives
+/// one sample per other camera (a dense mesh at a coarse level), hence the margin. Within the
+/// 100 bytes per pixel and camera that `--max-memory` reserves. (A fixed 256 MiB had left eight
+/// cameras at 4K sampling again in every pass: 2.6 s of a 16 s frame.)
+const STRIDED_BYTES_PER_PIXEL: usize = 48;
 
 /// The template's patches' pixels and mesh, and the other cameras' views of the same frame.
 struct View<'a> {
