@@ -34,7 +34,7 @@ use crate::base::image::RgbImage;
 use crate::base::mesh::{centroid, rms_radius, Mesh};
 use crate::error::{Error, Result};
 use crate::tracker::outline;
-use crate::tracker::patch::{Patch, PatchOptions, PatchSet};
+use crate::tracker::patch::{CameraPatches, Patch, PatchOptions, PatchSet};
 use crate::tracker::pyramid::Pyramid;
 use crate::tracker::sequence::{level_projection, one_per_camera};
 use crate::tracker::solve::{pose_stiffness, Motion, Problem, SolverOptions, StopReason};
@@ -401,7 +401,7 @@ fn auto_levels(cameras: &[Camera], frame: u32, x: &[Point3<f64>]) -> usize {
 
 /// The patches of one round: every camera's pixels, warped into every other camera that sees
 /// the triangle; with `neighbours` above 0, only into that many of them per camera, those
-/// whose direction to the mesh's centre is closest to its own ([`neighbour_cameras`]).
+/// [`neighbour_cameras`] chooses.
 pub(crate) fn cross_patches(
     x: &[Point3<f64>],
     triangles: &[[u32; 3]],
@@ -411,11 +411,10 @@ pub(crate) fn cross_patches(
     neighbours: usize,
 ) -> PatchSet {
     let ncam = projections.len();
-    let per_cam: Vec<PatchSet> = (0..ncam)
+    let per_cam: Vec<CameraPatches> = (0..ncam)
         .into_par_iter()
         .map(|c| {
-            let mut set = PatchSet::default();
-            set.add_camera(
+            CameraPatches::new(
                 x,
                 triangles,
                 &projections[c],
@@ -424,42 +423,35 @@ pub(crate) fn cross_patches(
                 1.0,
                 popts,
                 None,
-            );
-            set
+            )
         })
         .collect();
-    let seen: Vec<Vec<bool>> = per_cam
-        .iter()
-        .map(|s| {
-            let mut v = vec![false; triangles.len()];
-            for p in &s.patches {
-                v[p.triangle as usize] = true;
-            }
-            v
-        })
-        .collect();
+    // Every camera's pixels in one allocation; each source patch is then listed once per other
+    // camera it is warped into (the same pixel range).
+    let sources = PatchSet::from_cameras(&per_cam);
+    drop(per_cam);
+    let mut seen = vec![vec![false; triangles.len()]; ncam];
+    for p in &sources.patches {
+        seen[p.camera as usize][p.triangle as usize] = true;
+    }
     let compared = neighbour_cameras(x, projections, &seen, neighbours);
-    let mut out = PatchSet::default();
-    for (i, set) in per_cam.into_iter().enumerate() {
-        let off = out.pixels.len() as u32;
-        out.pixels.extend(set.pixels);
-        for p in set.patches {
-            let (start, end) = (p.start + off, p.end + off);
-            for (j, seen_j) in seen.iter().enumerate() {
-                if j != i && compared[i * ncam + j] && seen_j[p.triangle as usize] {
-                    out.patches.push(Patch {
-                        triangle: p.triangle,
-                        camera: j as u16,
-                        source: i as u16,
-                        weight: 1.0,
-                        start,
-                        end,
-                    });
-                }
+    let mut patches = Vec::new();
+    for p in &sources.patches {
+        let i = p.camera as usize;
+        for (j, seen_j) in seen.iter().enumerate() {
+            if j != i && compared[i * ncam + j] && seen_j[p.triangle as usize] {
+                patches.push(Patch {
+                    camera: j as u16,
+                    source: i as u16,
+                    ..*p
+                });
             }
         }
     }
-    out
+    PatchSet {
+        patches,
+        pixels: sources.pixels,
+    }
 }
 
 /// Which cameras each camera is compared with (`[i·n + j]`: camera `i`'s pixels warped into

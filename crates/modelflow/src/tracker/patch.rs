@@ -10,11 +10,12 @@ use crate::base::camera::Projection;
 use crate::base::image::RgbImage;
 use crate::base::raster::{rasterize, trackable_mask, usable_triangles, IndexBuffer, NONE};
 use crate::tracker::warp::{barycentric, source_matrix};
-use nalgebra::Point3;
+use nalgebra::{Matrix3, Point3};
+use rayon::prelude::*;
 
 /// One source pixel: barycentric coordinates on its triangle and its RGB value. Laid out as six
 /// `f32` (the GPU path uploads the slice as it is).
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
 #[repr(C)]
 pub struct PixelSample {
     pub lambda: [f32; 3],
@@ -77,20 +78,41 @@ pub struct PatchSet {
     pub pixels: Vec<PixelSample>,
 }
 
-impl PatchSet {
-    /// Adds the patches of one camera of one template frame.
+/// One camera's view of a template, ready to be written out as patches: which pixels each
+/// triangle owns (counting-sorted by triangle), and each kept triangle's inverse source matrix.
+/// Taken apart from the writing so that several cameras, prepared in parallel, are written
+/// into one set without a copy ([`PatchSet::from_cameras`]).
+pub(crate) struct CameraPatches<'a> {
+    ib: IndexBuffer,
+    /// Kept pixels (indices into the index buffer's window) of triangle `t`:
+    /// `order[count[t]..count[t + 1]]`.
+    count: Vec<u32>,
+    order: Vec<u32>,
+    /// Per triangle with pixels, its inverse source matrix (`None`: skipped).
+    s_inv: Vec<Option<Matrix3<f64>>>,
+    image: &'a RgbImage,
+    camera: u16,
+    weight: f32,
+    stride: usize,
+    /// Pixels and patches it will write.
+    pixels: usize,
+    patches: usize,
+}
+
+impl<'a> CameraPatches<'a> {
+    /// The pixels of `positions` seen through `proj` in `image` that `opts` trusts, for the
+    /// triangles `only` accepts (all without it).
     #[allow(clippy::too_many_arguments)]
-    pub fn add_camera(
-        &mut self,
+    pub(crate) fn new(
         positions: &[Point3<f64>],
         triangles: &[[u32; 3]],
         proj: &Projection,
-        image: &RgbImage,
+        image: &'a RgbImage,
         camera: u16,
         weight: f32,
         opts: &PatchOptions,
         only: Option<&dyn Fn(u32) -> bool>,
-    ) {
+    ) -> Self {
         let (w, h) = (image.width(), image.height());
         let (ib, mask) = trackable_pixels(positions, triangles, proj, (w, h), opts);
         let owners = ib.owners();
@@ -106,9 +128,6 @@ impl PatchSet {
             count[t + 1] += count[t];
         }
         let mut order = vec![0u32; count[triangles.len()] as usize];
-        // Grown once, not doubled (and copied) as the pixels are pushed.
-        self.pixels.reserve(order.len());
-        self.patches.reserve(triangles.len().min(order.len()));
         let mut next = count.clone();
         for (i, &m) in mask.iter().enumerate() {
             if m {
@@ -117,33 +136,120 @@ impl PatchSet {
                 next[t] += 1;
             }
         }
-        for t in 0..triangles.len() {
-            let (a, b) = (count[t] as usize, count[t + 1] as usize);
-            if a == b || only.is_some_and(|f| !f(t as u32)) {
-                continue;
-            }
-            let x = triangles[t].map(|v| positions[v as usize]);
-            let Some(s_inv) = source_matrix(proj, &x).try_inverse() else {
+        let stride = opts.stride.max(1);
+        let (mut pixels, mut patches) = (0, 0);
+        let s_inv = (0..triangles.len())
+            .map(|t| {
+                let n = (count[t + 1] - count[t]) as usize;
+                if n == 0 || only.is_some_and(|f| !f(t as u32)) {
+                    return None;
+                }
+                let x = triangles[t].map(|v| positions[v as usize]);
+                let inv = source_matrix(proj, &x).try_inverse()?;
+                pixels += n.div_ceil(stride);
+                patches += 1;
+                Some(inv)
+            })
+            .collect();
+        CameraPatches {
+            ib,
+            count,
+            order,
+            s_inv,
+            image,
+            camera,
+            weight,
+            stride,
+            pixels,
+            patches,
+        }
+    }
+
+    /// Writes the patches (pixel ranges from `offset`) and their pixels into `pixels`, which
+    /// holds exactly [`CameraPatches::pixels`] of them.
+    fn write(&self, offset: u32, pixels: &mut [PixelSample], patches: &mut Vec<Patch>) {
+        debug_assert_eq!(pixels.len(), self.pixels);
+        let owners = self.ib.owners();
+        let mut k = 0usize;
+        for (t, s_inv) in self.s_inv.iter().enumerate() {
+            let Some(s_inv) = s_inv else {
                 continue;
             };
-            let start = self.pixels.len() as u32;
-            for &pi in order[a..b].iter().step_by(opts.stride.max(1)) {
-                let (px, py) = ib.window.pixel(pi as usize);
+            let (a, b) = (self.count[t] as usize, self.count[t + 1] as usize);
+            let start = k;
+            for &pi in self.order[a..b].iter().step_by(self.stride) {
+                let (px, py) = self.ib.window.pixel(pi as usize);
                 debug_assert!(owners[pi as usize] != NONE);
-                let l = barycentric(&s_inv, px as f64, py as f64);
-                self.pixels.push(PixelSample {
+                let l = barycentric(s_inv, px as f64, py as f64);
+                pixels[k] = PixelSample {
                     lambda: [l[0] as f32, l[1] as f32, l[2] as f32],
-                    color: image.get(px, py),
-                });
+                    color: self.image.get(px, py),
+                };
+                k += 1;
             }
-            self.patches.push(Patch {
+            patches.push(Patch {
                 triangle: t as u32,
-                camera,
-                source: camera,
-                weight,
-                start,
-                end: self.pixels.len() as u32,
+                camera: self.camera,
+                source: self.camera,
+                weight: self.weight,
+                start: offset + start as u32,
+                end: offset + k as u32,
             });
+        }
+    }
+}
+
+impl PatchSet {
+    /// Adds the patches of one camera of one template frame (the tests' way; the tracker
+    /// writes its cameras at once with [`PatchSet::from_cameras`]).
+    #[cfg(test)]
+    #[allow(clippy::too_many_arguments)]
+    pub fn add_camera(
+        &mut self,
+        positions: &[Point3<f64>],
+        triangles: &[[u32; 3]],
+        proj: &Projection,
+        image: &RgbImage,
+        camera: u16,
+        weight: f32,
+        opts: &PatchOptions,
+        only: Option<&dyn Fn(u32) -> bool>,
+    ) {
+        let c = CameraPatches::new(
+            positions, triangles, proj, image, camera, weight, opts, only,
+        );
+        let offset = self.pixels.len();
+        self.pixels
+            .resize(offset + c.pixels, PixelSample::default());
+        self.patches.reserve(c.patches);
+        c.write(offset as u32, &mut self.pixels[offset..], &mut self.patches);
+    }
+
+    /// The patches of several cameras, in the order given: what adding each with
+    /// [`PatchSet::add_camera`] gives, written in parallel into one allocation.
+    pub(crate) fn from_cameras(cameras: &[CameraPatches<'_>]) -> PatchSet {
+        let total: usize = cameras.iter().map(|c| c.pixels).sum();
+        let mut pixels = vec![PixelSample::default(); total];
+        let mut chunks = Vec::with_capacity(cameras.len());
+        let (mut rest, mut offset) = (&mut pixels[..], 0u32);
+        for c in cameras {
+            let (head, tail) = rest.split_at_mut(c.pixels);
+            chunks.push((offset, head));
+            offset += c.pixels as u32;
+            rest = tail;
+        }
+        let per_camera: Vec<Vec<Patch>> = cameras
+            .par_iter()
+            .zip(chunks)
+            .map(|(c, (offset, chunk))| {
+                let mut patches = Vec::with_capacity(c.patches);
+                c.write(offset, chunk, &mut patches);
+                patches
+            })
+            .collect();
+        PatchSet {
+            patches: per_camera.concat(),
+            pixels,
         }
     }
 

@@ -23,7 +23,7 @@ use crate::tracker::health;
 use crate::tracker::occlusion;
 use crate::tracker::offset::{moved_onto_surface, SurfaceMove};
 use crate::tracker::options::{OptionsUsed, TrackOptions};
-use crate::tracker::patch::{PatchOptions, PatchSet};
+use crate::tracker::patch::{CameraPatches, PatchOptions, PatchSet};
 use crate::tracker::pyramid::Pyramid;
 use crate::tracker::regularise::{self, EdgeSet, FrameContext, Regulariser};
 use crate::tracker::solve::{
@@ -551,12 +551,11 @@ impl Tracker {
             checkerboard,
             ..self.patch_options()
         };
-        let per_cam: Vec<PatchSet> = self
+        let per_cam: Vec<CameraPatches> = self
             .cameras
             .par_iter()
             .enumerate()
             .map(|(c, cam)| {
-                let mut set = PatchSet::default();
                 let proj = level_projection(cam.at(tpl.frame), level);
                 let d = cam.time_offset;
                 let seen: std::borrow::Cow<[Point3<f64>]> = match before {
@@ -568,7 +567,7 @@ impl Tracker {
                         .collect(),
                     _ => std::borrow::Cow::Borrowed(&tpl.positions),
                 };
-                set.add_camera(
+                CameraPatches::new(
                     &seen,
                     &self.triangles,
                     &proj,
@@ -577,11 +576,13 @@ impl Tracker {
                     weight,
                     &popts,
                     None,
-                );
-                set
+                )
             })
             .collect();
-        let mut set = merge(per_cam);
+        // Written into one allocation (a merge of the cameras' sets copied every pixel again:
+        // 0.65 s of eight 4K cameras' finest template).
+        let mut set = PatchSet::from_cameras(&per_cam);
+        drop(per_cam);
         let mut contradicted = 0;
         if self.opts.consensus > 0.0 && self.cameras.len() > 1 {
             let projections: Vec<Projection> = self
@@ -1308,20 +1309,6 @@ fn build_pyramids(images: &[RgbImage], levels: usize, blur: f64) -> Vec<Pyramid>
         .par_iter()
         .map(|img| Pyramid::new(img, levels, blur))
         .collect()
-}
-
-fn merge(sets: Vec<PatchSet>) -> PatchSet {
-    let pixels = sets.iter().map(|s| s.pixels.len()).sum::<usize>();
-    let patches = sets.iter().map(|s| s.patches.len()).sum::<usize>();
-    let mut sets = sets.into_iter();
-    // The first set grown once to hold them all, the others appended (no copy of the first).
-    let mut out = sets.next().unwrap_or_default();
-    out.pixels.reserve(pixels - out.pixels.len());
-    out.patches.reserve(patches - out.patches.len());
-    for s in sets {
-        merge_into(&mut out, s);
-    }
-    out
 }
 
 #[cfg(test)]
