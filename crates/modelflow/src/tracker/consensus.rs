@@ -10,16 +10,18 @@
 //!
 //! The colours are compared up to gains: per ordered pair of cameras one per channel (exposure,
 //! white balance), fitted on every fourth pixel of the template (sparser with more than four
-//! cameras: [`stride`]), times one per (triangle,
-//! camera, other camera) within [2/3, 3/2] (a glossy surface is brighter from one side; the
-//! bound keeps an occluder's flat colour from being explained away), fitted twice, the second
-//! time without the pixels the first fit rejected. A pixel is contradicted by a camera when its
-//! RGB residual exceeds `k` times the median residual (of the same pixels; at least `min`),
-//! widened by `px` pixels of misalignment times the image gradient there (the mesh is only as
-//! good as the last solve). It is dropped when *every* other camera that sees its triangle
-//! contradicts it, and a patch most of whose checked pixels are dropped is dropped whole (what
-//! agrees in it agrees by chance); a pixel no other camera can check is kept. Hand-written: the
-//! tracker's own data on its own warps. Deterministic whatever the thread count.
+//! cameras: [`stride`]), times one per (triangle, camera, other camera) within [2/3, 3/2] (a
+//! glossy surface is brighter from one side; the bound keeps an occluder's flat colour from
+//! being explained away), fitted twice, the second time without the pixels the first fit
+//! rejected. A pixel is contradicted by a camera when its RGB residual exceeds `k` times the
+//! median residual (of the same pixels; at least `min`), widened by `px` pixels of misalignment
+//! times the image gradient there (the mesh is only as good as the last solve). It is dropped
+//! when *every* other camera that sees its triangle contradicts it, and a patch most of whose
+//! checked pixels are dropped is dropped whole (what agrees in it agrees by chance); a pixel no
+//! other camera can check is kept. The cameras are asked one at a time, no further once every
+//! pixel of the patch has agreed with one of them (the verdict cannot change then).
+//! Hand-written: the tracker's own data on its own warps. Deterministic whatever the thread
+//! count.
 
 use crate::base::camera::Projection;
 use crate::base::image::RgbImage;
@@ -54,6 +56,7 @@ pub(crate) struct ConsensusStats {
 fn stride(cameras: usize) -> usize {
     (4 * cameras.saturating_sub(1)).div_ceil(3).max(4)
 }
+
 /// Range of the per-patch gain on top of the pair's.
 const PATCH_GAIN: f64 = 1.5;
 
