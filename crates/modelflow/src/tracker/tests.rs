@@ -953,6 +953,45 @@ fn paint_rod(img: &mut RgbImage, x0: usize, x1: usize) {
     }
 }
 
+/// The surface points (through `mesh`) of camera `source`'s template pixels in `set`.
+fn source_points<'a>(
+    set: &'a PatchSet,
+    mesh: &'a Mesh,
+    source: u16,
+) -> impl Iterator<Item = Point3<f64>> + 'a {
+    set.patches
+        .iter()
+        .filter(move |p| p.source == source)
+        .flat_map(move |p| {
+            let x = mesh.triangles[p.triangle as usize].map(|v| mesh.positions[v as usize]);
+            set.pixels[p.start as usize..p.end as usize]
+                .iter()
+                .map(move |px| {
+                    let l = px.lambda;
+                    Point3::from(
+                        x[0].coords * l[0] as f64
+                            + x[1].coords * l[1] as f64
+                            + x[2].coords * l[2] as f64,
+                    )
+                })
+        })
+}
+
+/// Camera 0's template pixels in `set` that `proj` (camera 0's) puts under a rod painted over
+/// columns 70..86 of its image, and those clear of it (beyond four columns either side).
+fn under_and_clear_of_rod(set: &PatchSet, mesh: &Mesh, proj: &Projection) -> (usize, usize) {
+    let (mut under, mut clear) = (0usize, 0usize);
+    for pt in source_points(set, mesh, 0) {
+        let u = proj.project(&pt).unwrap().x;
+        if (70.0..86.0).contains(&u) {
+            under += 1;
+        } else if !(66.0..90.0).contains(&u) {
+            clear += 1;
+        }
+    }
+    (under, clear)
+}
+
 /// The plane moving 1 px per frame for 5 frames behind a static rod in camera 0: the RMS error
 /// per frame.
 fn track_behind_rod(opts: TrackOptions) -> Vec<f64> {
@@ -1411,22 +1450,7 @@ fn asking_the_other_cameras_only_until_every_pixel_agreed_changes_no_verdict() {
     assert_eq!(early.pixels, all.pixels);
     // Camera 0's pixels under camera 1's rod: kept, though camera 1 contradicts them.
     let under_rod_1 = |s: &PatchSet| {
-        s.patches
-            .iter()
-            .filter(|p| p.source == 0)
-            .flat_map(|p| {
-                let x = mesh.triangles[p.triangle as usize].map(|v| mesh.positions[v as usize]);
-                s.pixels[p.start as usize..p.end as usize]
-                    .iter()
-                    .map(move |px| {
-                        let l = px.lambda;
-                        Point3::from(
-                            x[0].coords * l[0] as f64
-                                + x[1].coords * l[1] as f64
-                                + x[2].coords * l[2] as f64,
-                        )
-                    })
-            })
+        source_points(s, &mesh, 0)
             .filter(|pt| (22.0..38.0).contains(&projections[1].project(pt).unwrap().x))
             .count()
     };
@@ -1454,28 +1478,7 @@ fn with_eight_cameras_an_occluder_in_one_is_still_left_out() {
         min: SolverOptions::default().tukey_min,
         px: SolverOptions::default().tukey_px,
     };
-    // Camera 0's pixels under the rod and clear of it, in `set`.
-    let count = |set: &PatchSet| {
-        let (mut under, mut clear) = (0usize, 0usize);
-        for p in set.patches.iter().filter(|p| p.source == 0) {
-            let x = mesh.triangles[p.triangle as usize].map(|v| mesh.positions[v as usize]);
-            for px in &set.pixels[p.start as usize..p.end as usize] {
-                let l = px.lambda;
-                let pt = Point3::from(
-                    x[0].coords * l[0] as f64
-                        + x[1].coords * l[1] as f64
-                        + x[2].coords * l[2] as f64,
-                );
-                let u = projections[0].project(&pt).unwrap().x;
-                if (70.0..86.0).contains(&u) {
-                    under += 1;
-                } else if !(66.0..90.0).contains(&u) {
-                    clear += 1;
-                }
-            }
-        }
-        (under, clear)
-    };
+    let count = |set: &PatchSet| under_and_clear_of_rod(set, &mesh, &projections[0]);
     let check = |rod: bool| {
         let mut im = rig.images(&plane);
         if rod {
@@ -1548,27 +1551,7 @@ fn the_pixels_an_occluder_covers_are_the_ones_dropped() {
             &opts,
         );
         // Camera 0's template pixels, before and after, by column: under the rod or clear of it.
-        let columns = |set: &PatchSet| {
-            let (mut under, mut clear) = (0usize, 0usize);
-            for p in set.patches.iter().filter(|p| p.source == 0) {
-                let x = mesh.triangles[p.triangle as usize].map(|v| mesh.positions[v as usize]);
-                for px in &set.pixels[p.start as usize..p.end as usize] {
-                    let l = px.lambda;
-                    let pt = Point3::from(
-                        x[0].coords * l[0] as f64
-                            + x[1].coords * l[1] as f64
-                            + x[2].coords * l[2] as f64,
-                    );
-                    let u = projections[0].project(&pt).unwrap().x;
-                    if (70.0..86.0).contains(&u) {
-                        under += 1;
-                    } else if !(66.0..90.0).contains(&u) {
-                        clear += 1;
-                    }
-                }
-            }
-            (under, clear)
-        };
+        let columns = |set: &PatchSet| under_and_clear_of_rod(set, &mesh, &projections[0]);
         let (under0, clear0) = columns(&before);
         let (under1, clear1) = columns(&set);
         (
