@@ -8,7 +8,7 @@
 
 use crate::base::camera::Projection;
 use crate::base::image::RgbImage;
-use crate::base::raster::{rasterize, trackable_mask, usable_triangles, IndexBuffer, NONE};
+use crate::base::raster::{rasterize, trackable_mask, usable_triangles, IndexBuffer, Window, NONE};
 use crate::tracker::warp::{barycentric, source_matrix};
 use nalgebra::{Matrix3, Point3};
 use rayon::prelude::*;
@@ -83,7 +83,8 @@ pub struct PatchSet {
 /// Taken apart from the writing so that several cameras, prepared in parallel, are written
 /// into one set without a copy ([`PatchSet::from_cameras`]).
 pub(crate) struct CameraPatches<'a> {
-    ib: IndexBuffer,
+    /// Where the index buffer lay in the image (the buffer itself is not kept).
+    window: Window,
     /// Kept pixels (indices into the index buffer's window) of triangle `t`:
     /// `order[count[t]..count[t + 1]]`.
     count: Vec<u32>,
@@ -121,6 +122,7 @@ impl<'a> CameraPatches<'a> {
         let mut count = vec![0u32; triangles.len() + 1];
         for (i, &m) in mask.iter().enumerate() {
             if m {
+                debug_assert!(owners[i] != NONE);
                 count[owners[i] as usize + 1] += 1;
             }
         }
@@ -152,7 +154,7 @@ impl<'a> CameraPatches<'a> {
             })
             .collect();
         CameraPatches {
-            ib,
+            window: ib.window,
             count,
             order,
             s_inv,
@@ -169,7 +171,6 @@ impl<'a> CameraPatches<'a> {
     /// holds exactly [`CameraPatches::pixels`] of them.
     fn write(&self, offset: u32, pixels: &mut [PixelSample], patches: &mut Vec<Patch>) {
         debug_assert_eq!(pixels.len(), self.pixels);
-        let owners = self.ib.owners();
         let mut k = 0usize;
         for (t, s_inv) in self.s_inv.iter().enumerate() {
             let Some(s_inv) = s_inv else {
@@ -178,8 +179,7 @@ impl<'a> CameraPatches<'a> {
             let (a, b) = (self.count[t] as usize, self.count[t + 1] as usize);
             let start = k;
             for &pi in self.order[a..b].iter().step_by(self.stride) {
-                let (px, py) = self.ib.window.pixel(pi as usize);
-                debug_assert!(owners[pi as usize] != NONE);
+                let (px, py) = self.window.pixel(pi as usize);
                 let l = barycentric(s_inv, px as f64, py as f64);
                 pixels[k] = PixelSample {
                     lambda: [l[0] as f32, l[1] as f32, l[2] as f32],
