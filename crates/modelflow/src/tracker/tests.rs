@@ -1459,16 +1459,11 @@ fn asking_the_other_cameras_only_until_every_pixel_agreed_changes_no_verdict() {
     assert!(before > 500 && after as f64 > 0.9 * before as f64);
 }
 
-#[test]
-fn with_eight_cameras_an_occluder_in_one_is_still_left_out() {
-    // Eight cameras in a row see the plane (the statistics sample every 10th pixel instead of
-    // every 4th); a rod covers columns 70..86 of camera 0. Its pixels under the rod are
-    // dropped, those clear of it kept, and next to nothing is dropped without the rod.
-    let rig = Rig::new(
-        &(0..8)
-            .map(|i| Point3::new(-0.2 + 0.057 * i as f64, -1.5, 0.2 + 0.02 * (i % 3) as f64))
-            .collect::<Vec<_>>(),
-    );
+/// A rod painted over columns 70..86 of camera 0's image of the plane, checked against the
+/// other cameras of `rig` (camera 1 exposed `exposure_1` times as bright): camera 0's template
+/// loses what lies under the rod and keeps the rest; without the rod next to nothing is
+/// dropped.
+fn assert_the_rod_alone_is_dropped(rig: &Rig, exposure_1: f32) {
     let plane = plane_at(Vector3::zeros());
     let mesh = mesh_of(&plane);
     let cams = rig.cameras();
@@ -1478,9 +1473,13 @@ fn with_eight_cameras_an_occluder_in_one_is_still_left_out() {
         min: SolverOptions::default().tukey_min,
         px: SolverOptions::default().tukey_px,
     };
-    let count = |set: &PatchSet| under_and_clear_of_rod(set, &mesh, &projections[0]);
+    // Camera 0's template pixels, before and after, by column: under the rod or clear of it;
+    // and all pixels, before and after.
     let check = |rod: bool| {
         let mut im = rig.images(&plane);
+        for p in im[1].pixels_mut() {
+            *p = p.map(|v| v * exposure_1);
+        }
         if rod {
             paint_rod(&mut im[0], 70, 86);
         }
@@ -1496,9 +1495,10 @@ fn with_eight_cameras_an_occluder_in_one_is_still_left_out() {
             &images,
             &opts,
         );
+        let columns = |set: &PatchSet| under_and_clear_of_rod(set, &mesh, &projections[0]);
         (
-            count(&before),
-            count(&set),
+            columns(&before),
+            columns(&set),
             before.pixels.len(),
             set.pixels.len(),
         )
@@ -1516,63 +1516,22 @@ fn with_eight_cameras_an_occluder_in_one_is_still_left_out() {
 }
 
 #[test]
-fn the_pixels_an_occluder_covers_are_the_ones_dropped() {
-    // Two cameras see the plane; a rod covers columns 70..86 of camera 0's image. Checked
-    // against camera 1, camera 0's template loses what lies under the rod and keeps the rest;
-    // without the rod (same texture, same gains up to 20 % exposure) next to nothing is dropped.
-    let rig = rig();
-    let plane = plane_at(Vector3::zeros());
-    let mesh = mesh_of(&plane);
-    let cams = rig.cameras();
-    let opts = crate::tracker::consensus::ConsensusOptions {
-        k: TrackOptions::default().consensus,
-        min: SolverOptions::default().tukey_min,
-        px: SolverOptions::default().tukey_px,
-    };
-    let check = |rod: bool| {
-        let mut im = rig.images(&plane);
-        for p in im[1].pixels_mut() {
-            *p = p.map(|v| v * 0.8); // camera 1 exposed darker
-        }
-        if rod {
-            paint_rod(&mut im[0], 70, 86);
-        }
-        let pyr: Vec<Pyramid> = im.iter().map(|i| Pyramid::new(i, 1, 1.0)).collect();
-        let mut set = frame0_patches(&mesh, &cams, &pyr);
-        let before = set.clone();
-        let projections: Vec<Projection> = cams.iter().map(|c| c.at(0).clone()).collect();
-        let images: Vec<&RgbImage> = pyr.iter().map(|p| &p.levels[0]).collect();
-        crate::tracker::consensus::drop_contradicted(
-            &mut set,
-            &mesh.positions,
-            &mesh.triangles,
-            &projections,
-            &images,
-            &opts,
-        );
-        // Camera 0's template pixels, before and after, by column: under the rod or clear of it.
-        let columns = |set: &PatchSet| under_and_clear_of_rod(set, &mesh, &projections[0]);
-        let (under0, clear0) = columns(&before);
-        let (under1, clear1) = columns(&set);
-        (
-            under0,
-            under1,
-            clear0,
-            clear1,
-            before.pixels.len(),
-            set.pixels.len(),
-        )
-    };
-    let (u0, u1, c0, c1, _, _) = check(true);
-    eprintln!("rod: under it {u1} of {u0} kept, clear of it {c1} of {c0}");
-    assert!(u0 > 1000 && u1 * 10 < u0, "under the rod {u1} of {u0} kept");
-    assert!(
-        c1 as f64 > 0.9 * c0 as f64,
-        "clear of the rod {c1} of {c0} kept"
+fn with_eight_cameras_an_occluder_in_one_is_still_left_out() {
+    // Eight cameras in a row see the plane (the statistics sample every 10th pixel instead of
+    // every 4th).
+    let rig = Rig::new(
+        &(0..8)
+            .map(|i| Point3::new(-0.2 + 0.057 * i as f64, -1.5, 0.2 + 0.02 * (i % 3) as f64))
+            .collect::<Vec<_>>(),
     );
-    let (_, _, _, _, all0, all1) = check(false);
-    eprintln!("no rod: {all1} of {all0} kept");
-    assert!(all1 as f64 > 0.99 * all0 as f64, "{all1} of {all0} kept");
+    assert_the_rod_alone_is_dropped(&rig, 1.0);
+}
+
+#[test]
+fn the_pixels_an_occluder_covers_are_the_ones_dropped() {
+    // Two cameras see the plane: camera 0's template is checked against camera 1 alone, which
+    // is exposed darker (same texture, same gains up to 20 % exposure).
+    assert_the_rod_alone_is_dropped(&rig(), 0.8);
 }
 
 /// The GPU kernels, run on the CPU as C (`gpu::Gpu::emulated`), give the CPU loop's sums to the
