@@ -9,7 +9,7 @@
 //! `k1, k2` → `(k1, k2, 0, 0)`, `OPENCV` → 4, `FULL_OPENCV` → 8 coefficients, `OPENCV_FISHEYE`
 //! → fisheye). Other models (FOV, the other fisheyes, ...) are refused by name.
 
-use super::{check_rotation, quaternion_rotation, CalibratedCamera};
+use super::{check_rotation, quaternion_rotation, strip_bom, CalibratedCamera};
 use crate::base::lens::Distortion;
 use crate::error::{Error, Result};
 use nalgebra::{Matrix3, Vector3};
@@ -36,6 +36,20 @@ struct ColmapImage {
 /// The cameras of the COLMAP model in `dir`: the text files if `cameras.txt` is there, else the
 /// binary ones.
 pub fn read_colmap(dir: &Path) -> Result<Vec<CalibratedCamera>> {
+    if dir.is_file() {
+        let parent = dir
+            .parent()
+            .filter(|p| !p.as_os_str().is_empty())
+            .unwrap_or(Path::new("."));
+        return Err(Error::invalid(
+            dir,
+            "(path)",
+            format!(
+                "is a file, but a COLMAP model is a folder (holding cameras.txt and images.txt, or the .bin files): give the folder, {}",
+                parent.display()
+            ),
+        ));
+    }
     let (cams_path, images_path, cams, images) = if dir.join("cameras.txt").is_file() {
         let (c, i) = (dir.join("cameras.txt"), dir.join("images.txt"));
         let cams = read_cameras_text(&c)?;
@@ -116,6 +130,7 @@ pub fn read_colmap(dir: &Path) -> Result<Vec<CalibratedCamera>> {
             r,
             t: Vector3::from(im.t),
             distortion,
+            note: None,
         });
     }
     Ok(out)
@@ -175,10 +190,10 @@ fn intrinsics(c: &ColmapCamera) -> std::result::Result<(Matrix3<f64>, Option<Dis
     Ok((k, d.filter(|d| !d.is_identity())))
 }
 
-/// Lines that are not blank or comments, with their numbers from 1.
+/// The file's lines with their numbers from 1 (a byte-order mark at its start dropped).
 fn data_lines(path: &Path) -> Result<Vec<(usize, String)>> {
     let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
-    Ok(text
+    Ok(strip_bom(&text)
         .lines()
         .enumerate()
         .map(|(i, l)| (i + 1, l.to_string()))
@@ -242,6 +257,42 @@ fn read_cameras_text(path: &Path) -> Result<BTreeMap<u64, ColmapCamera>> {
     Ok(out)
 }
 
+/// One image line: `IMAGE_ID QW QX QY QZ TX TY TZ CAMERA_ID NAME`.
+fn image_line(path: &Path, n: usize, l: &str) -> Result<ColmapImage> {
+    let mut it = l.split_whitespace();
+    let _id: u64 = number(path, n, "IMAGE_ID", it.next())?;
+    let mut q = [0.0; 4];
+    for (j, name) in ["QW", "QX", "QY", "QZ"].iter().enumerate() {
+        q[j] = number(path, n, name, it.next())?;
+    }
+    let mut t = [0.0; 3];
+    for (j, name) in ["TX", "TY", "TZ"].iter().enumerate() {
+        t[j] = number(path, n, name, it.next())?;
+    }
+    let camera_id = number(path, n, "CAMERA_ID", it.next())?;
+    let name = it.collect::<Vec<_>>().join(" ");
+    if name.is_empty() {
+        return Err(Error::invalid(path, format!("line {n}: NAME"), "missing"));
+    }
+    Ok(ColmapImage {
+        q,
+        t,
+        camera_id,
+        name,
+        at: format!("line {n}"),
+    })
+}
+
+/// Whether `l` is a POINTS2D line: `X Y POINT3D_ID` triples (finite numbers, an integer id; -1
+/// for a point without a 3D point), or nothing.
+fn is_points2d(l: &str) -> bool {
+    let v: Vec<&str> = l.split_whitespace().collect();
+    let coord = |s: &str| s.parse::<f64>().is_ok_and(|x| x.is_finite());
+    v.len() % 3 == 0
+        && v.chunks(3)
+            .all(|p| coord(p[0]) && coord(p[1]) && p[2].parse::<i64>().is_ok())
+}
+
 fn read_images_text(path: &Path) -> Result<Vec<ColmapImage>> {
     let mut out = Vec::new();
     let lines = data_lines(path)?;
@@ -254,28 +305,31 @@ fn read_images_text(path: &Path) -> Result<Vec<ColmapImage>> {
             i += 1;
             continue;
         }
-        let mut it = l.split_whitespace();
-        let _id: u64 = number(path, *n, "IMAGE_ID", it.next())?;
-        let mut q = [0.0; 4];
-        for (j, name) in ["QW", "QX", "QY", "QZ"].iter().enumerate() {
-            q[j] = number(path, *n, name, it.next())?;
+        out.push(image_line(path, *n, l)?);
+        // The file may end without the last image's (empty) POINTS2D line.
+        if let Some((m, points)) = lines.get(i + 1) {
+            let p = points.trim();
+            if !is_points2d(p) {
+                if image_line(path, *m, p).is_ok() {
+                    return Err(Error::invalid(
+                        path,
+                        format!("line {m}"),
+                        format!(
+                            "the (possibly empty) POINTS2D line after image line {n} is missing: line {m} is the next image's line (COLMAP writes two lines per image; were the empty lines removed?)"
+                        ),
+                    ));
+                }
+                let shown: String = p.chars().take(60).collect();
+                let more = if shown.len() < p.len() { "..." } else { "" };
+                return Err(Error::invalid(
+                    path,
+                    format!("line {m}: POINTS2D"),
+                    format!(
+                        "{shown:?}{more} is not a list of X Y POINT3D_ID triples (the second line of the image on line {n}; empty when it has none)"
+                    ),
+                ));
+            }
         }
-        let mut t = [0.0; 3];
-        for (j, name) in ["TX", "TY", "TZ"].iter().enumerate() {
-            t[j] = number(path, *n, name, it.next())?;
-        }
-        let camera_id = number(path, *n, "CAMERA_ID", it.next())?;
-        let name = it.collect::<Vec<_>>().join(" ");
-        if name.is_empty() {
-            return Err(Error::invalid(path, format!("line {n}: NAME"), "missing"));
-        }
-        out.push(ColmapImage {
-            q,
-            t,
-            camera_id,
-            name,
-            at: format!("line {n}"),
-        });
         i += 2;
     }
     Ok(out)
@@ -420,4 +474,99 @@ fn read_images_bin(path: &Path) -> Result<Vec<ColmapImage>> {
         });
     }
     Ok(out)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn fixture(file: &str) -> String {
+        let p = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../fixtures/colmap/text");
+        std::fs::read_to_string(p.join(file)).unwrap()
+    }
+
+    /// A text model of the fixture's cameras.txt and `images` as images.txt.
+    fn model(images: &str) -> tempfile::TempDir {
+        let dir = tempfile::tempdir().unwrap();
+        std::fs::write(dir.path().join("cameras.txt"), fixture("cameras.txt")).unwrap();
+        std::fs::write(dir.path().join("images.txt"), images).unwrap();
+        dir
+    }
+
+    fn err(r: Result<Vec<CalibratedCamera>>) -> String {
+        match r {
+            Ok(c) => panic!("should be refused, read {} cameras", c.len()),
+            Err(e) => e.to_string(),
+        }
+    }
+
+    fn has(msg: &str, parts: &[&str]) {
+        for p in parts {
+            assert!(msg.contains(p), "{msg:?} should mention {p:?}");
+        }
+    }
+
+    #[test]
+    fn images_txt_without_its_empty_points2d_lines_is_refused_with_the_line() {
+        let images = fixture("images.txt");
+        // `grep -v '^$'`: every image line is followed by the next one.
+        let stripped: String = images
+            .lines()
+            .filter(|l| !l.is_empty())
+            .map(|l| format!("{l}\n"))
+            .collect();
+        has(
+            &err(read_colmap(model(&stripped).path())),
+            &[
+                "images.txt",
+                "line 6",
+                "POINTS2D line after image line 5 is missing",
+            ],
+        );
+    }
+
+    #[test]
+    fn points2d_lines_are_triples_of_numbers_or_empty() {
+        let images = fixture("images.txt");
+        let mut lines: Vec<String> = images.lines().map(String::from).collect();
+        assert_eq!(lines[5], "", "the fixture's first POINTS2D line is line 6");
+        lines[5] = "100.5 200.5 -1 300.25 400.75 5".into();
+        let cams = read_colmap(model(&lines.join("\n")).path()).unwrap();
+        assert_eq!(cams.len(), 7);
+        for bad in ["hello world", "1 2 3 4", "1 2 3.5"] {
+            lines[5] = bad.into();
+            has(
+                &err(read_colmap(model(&lines.join("\n")).path())),
+                &["images.txt", "line 6: POINTS2D", bad, "X Y POINT3D_ID"],
+            );
+        }
+    }
+
+    #[test]
+    fn a_byte_order_mark_is_skipped() {
+        let dir = tempfile::tempdir().unwrap();
+        for f in ["cameras.txt", "images.txt"] {
+            std::fs::write(dir.path().join(f), format!("\u{feff}{}", fixture(f))).unwrap();
+        }
+        let plain = model(&fixture("images.txt"));
+        assert_eq!(
+            read_colmap(dir.path()).unwrap(),
+            read_colmap(plain.path()).unwrap()
+        );
+    }
+
+    #[test]
+    fn a_file_given_for_the_model_folder_names_the_folder() {
+        let dir = model(&fixture("images.txt"));
+        let file = dir.path().join("cameras.txt");
+        has(
+            &err(read_colmap(&file)),
+            &[
+                "cameras.txt",
+                "is a file",
+                "a COLMAP model is a folder",
+                &format!("give the folder, {}", dir.path().display()),
+            ],
+        );
+    }
 }

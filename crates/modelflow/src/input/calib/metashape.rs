@@ -241,6 +241,7 @@ pub fn read_metashape(path: &Path) -> Result<Vec<CalibratedCamera>> {
             r,
             t,
             distortion: sensor.distortion.clone(),
+            note: None,
         });
     }
     if out.is_empty() {

@@ -29,6 +29,9 @@ pub struct CalibratedCamera {
     pub r: Matrix3<f64>,
     pub t: Vector3<f64>,
     pub distortion: Option<Distortion>,
+    /// Something the user should know about this camera (e.g. "disabled in Metashape"), shown
+    /// next to it when it is imported.
+    pub note: Option<String>,
 }
 
 /// A scene file for `cameras`: the mesh file and frames as given, and each camera's images at
@@ -81,6 +84,11 @@ pub(crate) fn quaternion_rotation(w: f64, x: f64, y: f64, z: f64) -> Option<Matr
             .to_rotation_matrix()
             .into_inner()
     })
+}
+
+/// `text` without a UTF-8 byte-order mark at its start (Windows editors write one).
+pub(crate) fn strip_bom(text: &str) -> &str {
+    text.strip_prefix('\u{feff}').unwrap_or(text)
 }
 
 /// Whether `r` is a rotation within the scene format's tolerance.

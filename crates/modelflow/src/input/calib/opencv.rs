@@ -280,6 +280,7 @@ impl File<'_> {
             r,
             t,
             distortion,
+            note: None,
         })
     }
 }
