@@ -6,14 +6,18 @@
 //! - **per camera**: a camera's fields at the top level (one camera, named after the file) or in
 //!   one map per camera (named by the map's key): a camera matrix (`camera_matrix`, `K`,
 //!   `cameraMatrix`, `M`), distortion (`distortion_coefficients`, `dist_coeffs`, `D`,
-//!   `distCoeffs`; optional), a pose (`R` or `rvec` as `cv::Rodrigues` takes it, and `T`/`tvec`;
-//!   absent: the world), and `distortion_model: fisheye` for `cv::fisheye` coefficients.
+//!   `distCoeffs`; optional), a pose (`R` or `rvec` as `cv::Rodrigues` takes it, and `T`/`tvec`),
+//!   and `distortion_model: fisheye` for `cv::fisheye` coefficients (`opencv`, the default, and
+//!   ROS's names `plumb_bob`, `rational_polynomial`, `equidistant` are read too; any other model
+//!   is refused). A file of several cameras needs every camera's pose; a lone camera without one
+//!   is the world (`calibrateCamera`'s intrinsics only). `R` and `rvec` together must agree.
 //!
 //! The image size comes from `image_width`/`image_height` (or `width`/`height`, or
 //! `image_size: [w, h]`), or else from the caller. OpenCV's pixel-centre convention is ours, so
-//! `K` is taken as it is.
+//! `K` is taken as it is. A byte-order mark at the start is skipped; XML `FileStorage` files are
+//! refused with how to convert them.
 
-use super::{check_rotation, CalibratedCamera};
+use super::{check_rotation, strip_bom, CalibratedCamera};
 use crate::base::lens::Distortion;
 use crate::error::{Error, Result};
 use nalgebra::{Matrix3, Vector3};
@@ -24,8 +28,16 @@ use std::path::Path;
 /// size of cameras whose file gives none.
 pub fn read_opencv(path: &Path, size: Option<(u32, u32)>) -> Result<Vec<CalibratedCamera>> {
     let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
+    let text = strip_bom(&text);
+    if text.trim_start().starts_with('<') {
+        return Err(Error::invalid(
+            path,
+            "(file)",
+            "an XML FileStorage file, which is not read: save the calibration with a .yml or .json file name instead (cv::FileStorage picks the format from the file name), or read this file with cv::FileStorage and write its nodes to a .yml file",
+        ));
+    }
     let root = if text.trim_start().starts_with('{') {
-        serde_json::from_str::<Value>(&text).map_err(|e| {
+        serde_json::from_str::<Value>(text).map_err(|e| {
             Error::invalid(
                 path,
                 format!("line {} column {}", e.line(), e.column()),
@@ -33,12 +45,12 @@ pub fn read_opencv(path: &Path, size: Option<(u32, u32)>) -> Result<Vec<Calibrat
             )
         })?
     } else {
-        parse_yaml(path, &text)?
+        parse_yaml(path, text)?
     };
     let top = root
         .as_object()
         .ok_or_else(|| Error::invalid(path, "(top level)", "expected a map of named nodes"))?;
-    let file = File { path, text: &text };
+    let file = File { path, text };
     let stem = path
         .file_stem()
         .map(|s| s.to_string_lossy().into_owned())
@@ -46,8 +58,8 @@ pub fn read_opencv(path: &Path, size: Option<(u32, u32)>) -> Result<Vec<Calibrat
     let top_size = file.size(top, "")?;
     if let (Some(_), Some(_)) = (pick(top, K1), pick(top, K2)) {
         let size = top_size.or(size);
-        let first = file.camera(top, "cam0", "", K1, D1, false, size)?;
-        let second = file.camera(top, "cam1", "", K2, D2, true, size)?;
+        let first = file.camera(top, "cam0", "", K1, D1, Pose::World, size)?;
+        let second = file.camera(top, "cam1", "", K2, D2, Pose::Required, size)?;
         return Ok(vec![first, second]);
     }
     if pick(top, K).is_some() {
@@ -57,16 +69,25 @@ pub fn read_opencv(path: &Path, size: Option<(u32, u32)>) -> Result<Vec<Calibrat
             "",
             K,
             D,
-            true,
+            Pose::Optional,
             top_size.or(size),
         )?]);
     }
+    let maps: Vec<(&String, &Map<String, Value>)> = top
+        .iter()
+        .filter_map(|(key, node)| Some((key, node.as_object()?)))
+        .filter(|(_, m)| pick(m, K).is_some())
+        .collect();
+    // Several cameras need every pose: a missing one is not the world's origin.
+    let pose = if maps.len() > 1 {
+        Pose::Required
+    } else {
+        Pose::Optional
+    };
     let mut out = Vec::new();
-    for (key, node) in top {
-        if let Some(map) = node.as_object().filter(|m| pick(m, K).is_some()) {
-            let size = file.size(map, &format!("{key}."))?.or(top_size).or(size);
-            out.push(file.camera(map, key, &format!("{key}."), K, D, true, size)?);
-        }
+    for (key, map) in maps {
+        let size = file.size(map, &format!("{key}."))?.or(top_size).or(size);
+        out.push(file.camera(map, key, &format!("{key}."), K, D, pose, size)?);
     }
     if out.is_empty() {
         return Err(Error::invalid(
@@ -93,6 +114,31 @@ const D: &[&str] = &[
     "dist",
 ];
 const K1: &[&str] = &["K1", "M1"];
+const R: &[&str] = &["R", "rotation_matrix"];
+const RVEC: &[&str] = &["rvec", "rotation_vector", "r"];
+const T: &[&str] = &["T", "tvec", "translation", "t"];
+
+/// How a camera's missing pose is taken.
+#[derive(Clone, Copy, PartialEq)]
+enum Pose {
+    /// The world itself (stereo's first camera): no pose is read.
+    World,
+    /// A camera among several: its pose must be given.
+    Required,
+    /// The file's only camera: no pose means the world.
+    Optional,
+}
+
+/// The distortion models read (`distortion_model`, case aside), and ours for each: ROS's
+/// `camera_info` names OpenCV's model `plumb_bob` (5 coefficients) or `rational_polynomial` (8),
+/// and `cv::fisheye`'s `equidistant`.
+const MODELS: [(&str, &str); 5] = [
+    ("opencv", "opencv"),
+    ("plumb_bob", "opencv"),
+    ("rational_polynomial", "opencv"),
+    ("fisheye", "fisheye"),
+    ("equidistant", "fisheye"),
+];
 const D1: &[&str] = &["D1"];
 const K2: &[&str] = &["K2", "M2"];
 const D2: &[&str] = &["D2"];
@@ -110,15 +156,29 @@ struct File<'a> {
 }
 
 impl File<'_> {
-    /// "line N: FIELD" for the first line where `key` is written as a key, else just the field.
+    /// "line N: FIELD" for the line where the field's key is written (`cam1.D`: the first `D`
+    /// key after the `cam1` key), else just the field.
     fn at(&self, field: &str) -> String {
-        let key = field.rsplit('.').next().unwrap_or(field);
-        let pats = [format!("{key}:"), format!("\"{key}\":")];
-        match self
-            .text
-            .lines()
-            .position(|l| pats.iter().any(|p| l.trim_start().starts_with(p.as_str())))
-        {
+        let lines: Vec<&str> = self.text.lines().collect();
+        let mut from = 0;
+        let mut found = None;
+        for key in field.split('.') {
+            let pats = [format!("{key}:"), format!("\"{key}\":")];
+            match lines[from..]
+                .iter()
+                .position(|l| pats.iter().any(|p| l.trim_start().starts_with(p.as_str())))
+            {
+                Some(i) => {
+                    found = Some(from + i);
+                    from += i + 1;
+                }
+                None => {
+                    found = None;
+                    break;
+                }
+            }
+        }
+        match found {
             Some(i) => format!("line {}: {field}", i + 1),
             None => field.to_string(),
         }
@@ -212,7 +272,7 @@ impl File<'_> {
         prefix: &str,
         k_names: &[&'static str],
         d_names: &[&'static str],
-        posed: bool,
+        pose: Pose,
         size: Option<(u32, u32)>,
     ) -> Result<CalibratedCamera> {
         let (kn, kv) = pick(m, k_names)
@@ -226,10 +286,27 @@ impl File<'_> {
         if k[(0, 0)] <= 0.0 || k[(1, 1)] <= 0.0 {
             return Err(self.bad(&kf, "focal lengths must be positive"));
         }
-        let fisheye = m
-            .get("distortion_model")
-            .and_then(|v| v.as_str())
-            .is_some_and(|s| s.eq_ignore_ascii_case("fisheye"));
+        let fisheye = match m.get("distortion_model") {
+            None => false,
+            Some(v) => {
+                let model = v.as_str().and_then(|s| {
+                    MODELS
+                        .iter()
+                        .find(|(name, _)| s.trim().eq_ignore_ascii_case(name))
+                });
+                match model {
+                    Some((_, ours)) => *ours == "fisheye",
+                    None => {
+                        return Err(self.bad(
+                            &format!("{prefix}distortion_model"),
+                            format!(
+                                "camera {name}: {v} is not a model that is read (opencv, also written plumb_bob or rational_polynomial; fisheye, also written equidistant)"
+                            ),
+                        ))
+                    }
+                }
+            }
+        };
         let distortion = match pick(m, d_names) {
             None => None,
             Some((dn, dv)) => {
@@ -240,31 +317,89 @@ impl File<'_> {
                 Some(d).filter(|d| !d.is_identity())
             }
         };
-        let (r, t) = if !posed {
+        let (r, t) = if pose == Pose::World {
             (Matrix3::identity(), Vector3::zeros())
         } else {
-            let r = if let Some((rn, rv)) = pick(m, &["R", "rotation_matrix"]) {
-                let rf = format!("{prefix}{rn}");
-                let r = Matrix3::from_row_slice(&self.numbers(rv, &rf, &[9])?);
-                if !check_rotation(&r) {
-                    return Err(self.bad(&rf, "not a rotation matrix"));
+            let matrix = match pick(m, R) {
+                Some((rn, rv)) => {
+                    let rf = format!("{prefix}{rn}");
+                    let r = Matrix3::from_row_slice(&self.numbers(rv, &rf, &[9])?);
+                    if !check_rotation(&r) {
+                        return Err(self.bad(&rf, "not a rotation matrix"));
+                    }
+                    Some((rf, r))
                 }
-                r
-            } else if let Some((rn, rv)) = pick(m, &["rvec", "rotation_vector", "r"]) {
-                let v = self.numbers(rv, &format!("{prefix}{rn}"), &[3])?;
-                // cv::Rodrigues: the axis times the angle.
-                nalgebra::Rotation3::new(Vector3::new(v[0], v[1], v[2])).into_inner()
-            } else {
-                Matrix3::identity()
+                None => None,
             };
-            let t = match pick(m, &["T", "tvec", "translation", "t"]) {
+            let vector = match pick(m, RVEC) {
+                Some((rn, rv)) => {
+                    let rf = format!("{prefix}{rn}");
+                    let v = self.numbers(rv, &rf, &[3])?;
+                    // cv::Rodrigues: the axis times the angle.
+                    let v = Vector3::new(v[0], v[1], v[2]);
+                    Some((rf, v, nalgebra::Rotation3::new(v).into_inner()))
+                }
+                None => None,
+            };
+            let t = match pick(m, T) {
                 Some((tn, tv)) => {
                     let v = self.numbers(tv, &format!("{prefix}{tn}"), &[3])?;
-                    Vector3::new(v[0], v[1], v[2])
+                    Some(Vector3::new(v[0], v[1], v[2]))
                 }
-                None => Vector3::zeros(),
+                None => None,
             };
-            (r, t)
+            let r = match (matrix, vector) {
+                (Some((rf, r)), Some((vf, v, rv))) => {
+                    // Rotations by θ apart: |R1 - R2| (Frobenius) = 2·sqrt(2)·sin(θ/2).
+                    let angle = 2.0
+                        * ((r - rv).norm() / (2.0 * std::f64::consts::SQRT_2))
+                            .min(1.0)
+                            .asin();
+                    if angle > 1e-6 {
+                        return Err(self.bad(
+                            &vf,
+                            format!(
+                                "camera {name}: {rf} {:?} and {vf} {:?} are different rotations (by {angle:.2e} rad): give one of them",
+                                [0, 1, 2].map(|i| [0, 1, 2].map(|j| r[(i, j)])),
+                                [v.x, v.y, v.z]
+                            ),
+                        ));
+                    }
+                    Some(r)
+                }
+                (Some((_, r)), None) | (None, Some((_, _, r))) => Some(r),
+                (None, None) => None,
+            };
+            // Where the pose would be: the camera's map, or the top level's R and T.
+            let here = if prefix.is_empty() {
+                "R".to_string()
+            } else {
+                prefix.trim_end_matches('.').to_string()
+            };
+            match (r, t) {
+                (Some(r), Some(t)) => (r, t),
+                (None, None) if pose == Pose::Optional => (Matrix3::identity(), Vector3::zeros()),
+                (None, None) => {
+                    return Err(self.bad(
+                        &here,
+                        format!(
+                            "camera {name} has no pose (R or rvec, and T or tvec): in a file of several cameras each needs one (the reference camera's is R = identity, T = 0)"
+                        ),
+                    ))
+                }
+                (Some(_), None) => {
+                    return Err(self.bad(
+                        &here,
+                        format!("camera {name} has a rotation but no translation (T or tvec)"),
+                    ))
+                }
+                (None, Some(_)) => {
+                    return Err(self.bad(
+                        &here,
+                        format!("camera {name} has a translation but no rotation (R or rvec)"),
+                    ))
+                }
+            }
         };
         let (width, height) = size.ok_or_else(|| {
             self.bad(
@@ -332,5 +467,161 @@ fn to_json(y: &yaml_rust2::Yaml) -> Value {
                 .collect(),
         ),
         _ => Value::Null,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn fixture(file: &str) -> String {
+        let p = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../fixtures/opencv");
+        std::fs::read_to_string(p.join(file)).unwrap()
+    }
+
+    fn read(name: &str, text: &str) -> Result<Vec<CalibratedCamera>> {
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join(name);
+        std::fs::write(&p, text).unwrap();
+        read_opencv(&p, None)
+    }
+
+    fn err(r: Result<Vec<CalibratedCamera>>) -> String {
+        match r {
+            Ok(c) => panic!("should be refused, read {} cameras", c.len()),
+            Err(e) => e.to_string(),
+        }
+    }
+
+    fn has(msg: &str, parts: &[&str]) {
+        for p in parts {
+            assert!(msg.contains(p), "{msg:?} should mention {p:?}");
+        }
+    }
+
+    /// The line (from 1) of the `nth` (from 0) line holding `s`.
+    fn line_of(text: &str, s: &str, nth: usize) -> usize {
+        1 + text
+            .lines()
+            .enumerate()
+            .filter(|(_, l)| l.contains(s))
+            .nth(nth)
+            .unwrap()
+            .0
+    }
+
+    /// A camera map of a rig file: 640x480, K of f 800, and `pose` (YAML lines).
+    fn camera(name: &str, pose: &str) -> String {
+        format!(
+            "{name}:\n   image_width: 640\n   image_height: 480\n   camera_matrix: [ 800., 0., 319.5, 0., 800., 239.5, 0., 0., 1. ]\n{pose}"
+        )
+    }
+
+    const ORIGIN: &str = "   rvec: [ 0., 0., 0. ]\n   tvec: [ 0., 0., 0. ]\n";
+
+    #[test]
+    fn an_unknown_distortion_model_is_refused_with_the_models_read() {
+        let rig = fixture("rig.yml");
+        // cam2 is the third camera: its model's line is the third distortion_model line.
+        let omnidir = rig.replace("distortion_model: fisheye", "distortion_model: omnidir");
+        has(
+            &err(read("rig.yml", &omnidir)),
+            &[
+                "rig.yml",
+                &format!(
+                    "line {}: cam2.distortion_model",
+                    line_of(&rig, "distortion_model", 2)
+                ),
+                "\"omnidir\" is not a model that is read",
+                "opencv",
+                "fisheye",
+            ],
+        );
+        // ROS's names for OpenCV's models are read as them.
+        let ros = rig
+            .replacen("distortion_model: opencv", "distortion_model: plumb_bob", 1)
+            .replace("distortion_model: fisheye", "distortion_model: equidistant");
+        assert_eq!(
+            read("rig.yml", &ros).unwrap(),
+            read("rig.yml", &rig).unwrap()
+        );
+    }
+
+    #[test]
+    fn every_camera_of_several_needs_a_pose_but_a_lone_one_is_the_world() {
+        let rig = format!(
+            "%YAML:1.0\n---\n{}{}",
+            camera("cam0", ORIGIN),
+            camera("cam1", "")
+        );
+        has(
+            &err(read("rig.yml", &rig)),
+            &[
+                "rig.yml",
+                &format!("line {}: cam1", line_of(&rig, "cam1:", 0)),
+                "camera cam1 has no pose (R or rvec, and T or tvec)",
+            ],
+        );
+        let half = format!(
+            "%YAML:1.0\n---\n{}{}",
+            camera("cam0", ORIGIN),
+            camera("cam1", "   rvec: [ 0., 0.1, 0. ]\n")
+        );
+        has(
+            &err(read("rig.yml", &half)),
+            &["rig.yml", "cam1", "no translation (T or tvec)"],
+        );
+        // calibrateCamera's intrinsics alone: the camera is the world.
+        let lone = format!("%YAML:1.0\n---\n{}", camera("cam0", ""));
+        let c = read("cam.yml", &lone).unwrap();
+        assert_eq!((c[0].r, c[0].t), (Matrix3::identity(), Vector3::zeros()));
+    }
+
+    #[test]
+    fn r_and_rvec_must_be_the_same_rotation() {
+        // A quarter turn about z, as a matrix and as cv::Rodrigues's vector.
+        let quarter = "   R: [ 0., -1., 0., 1., 0., 0., 0., 0., 1. ]\n   tvec: [ 0.5, 0., 0. ]\n";
+        let rvec = |z: f64| format!("   rvec: [ 0., 0., {z} ]\n");
+        let rig = |z: f64| {
+            format!(
+                "%YAML:1.0\n---\n{}{}",
+                camera("cam0", ORIGIN),
+                camera("cam1", &format!("{quarter}{}", rvec(z)))
+            )
+        };
+        let c = read("rig.yml", &rig(std::f64::consts::FRAC_PI_2)).unwrap();
+        assert!((c[1].r - Matrix3::new(0., -1., 0., 1., 0., 0., 0., 0., 1.)).norm() < 1e-12);
+        let text = rig(std::f64::consts::FRAC_PI_2 + 1e-4);
+        has(
+            &err(read("rig.yml", &text)),
+            &[
+                "rig.yml",
+                &format!("line {}: cam1.rvec", line_of(&text, "rvec:", 1)),
+                "cam1.R [[0.0, -1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, 1.0]]",
+                "cam1.rvec [0.0, 0.0, 1.5708",
+                "different rotations (by 1.00e-4 rad)",
+            ],
+        );
+    }
+
+    #[test]
+    fn a_byte_order_mark_is_skipped_and_xml_is_refused_with_how_to_convert() {
+        for f in ["stereo.yml", "stereo.json"] {
+            let text = fixture(f);
+            assert_eq!(
+                read(f, &format!("\u{feff}{text}")).unwrap(),
+                read(f, &text).unwrap()
+            );
+        }
+        let xml = "<?xml version=\"1.0\"?>\n<opencv_storage>\n<image_width>640</image_width>\n</opencv_storage>\n";
+        has(
+            &err(read("calib.xml", xml)),
+            &[
+                "calib.xml",
+                "XML FileStorage",
+                "not read",
+                "with a .yml or .json file name",
+            ],
+        );
     }
 }
