@@ -9,7 +9,7 @@ mod metashape;
 mod opencv;
 
 pub use colmap::read_colmap;
-pub use metashape::read_metashape;
+pub use metashape::{read_metashape, read_metashape_chunk};
 pub use opencv::read_opencv;
 
 use crate::base::camera::is_rotation;
