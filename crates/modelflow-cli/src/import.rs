@@ -2,8 +2,9 @@
 //! sparse model, an OpenCV `FileStorage` file, a Metashape camera XML), with the user's mesh, image pattern and frames.
 //! The readers and the conversion of conventions are the library's (`input::calib`).
 
-use modelflow::input::calib::{read_colmap, read_metashape, read_opencv, scene_file};
-use modelflow::input::Scene;
+use modelflow::input::calib::{read_colmap, read_metashape_chunk, read_opencv, scene_file};
+use modelflow::input::{FramePattern, Scene};
+use std::collections::BTreeSet;
 use std::path::PathBuf;
 
 #[derive(clap::ValueEnum, Clone, Copy, Debug)]
@@ -30,8 +31,9 @@ pub struct Args {
     /// scene file's folder).
     #[arg(long, default_value = "mesh/initial.obj")]
     mesh: String,
-    /// Each camera's images: {camera} becomes the camera's name, {frame:04} the frame number
-    /// (relative to the scene file's folder).
+    /// Each camera's images: {camera} becomes the camera's name, {frame} or {frame:0N} the frame
+    /// number zero-padded to N digits (relative to the scene file's folder); or each camera's
+    /// video file (videos/{camera}.mp4).
     #[arg(long, default_value = "images/{camera}/{frame:04}.png")]
     images: String,
     /// The frames, A..B inclusive.
@@ -41,6 +43,10 @@ pub struct Args {
     /// image_width/image_height), as WxH.
     #[arg(long, value_name = "WxH", value_parser = parse_size)]
     size: Option<(u32, u32)>,
+    /// Metashape: the chunk to import, by its label or id (needed when several enabled chunks
+    /// have aligned cameras).
+    #[arg(long, value_name = "LABEL_OR_ID")]
+    chunk: Option<String>,
     /// The unit of the calibration's world coordinates (m, cm or mm), written into the scene so
     /// that errors are shown in mm; without it they are shown in scene units.
     #[arg(long)]
@@ -63,16 +69,16 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     if args.out.exists() && !args.force {
         anyhow::bail!("{} exists; give --force to replace it", args.out.display());
     }
-    if !args.images.contains("{frame") {
-        anyhow::bail!(
-            "--images {:?}: needs a {{frame}} or {{frame:0N}} placeholder",
-            args.images
-        );
+    if args.chunk.is_some() && !matches!(args.format, Format::Metashape) {
+        anyhow::bail!("--chunk: only a Metashape file has chunks");
     }
+    // The pattern the scene loader will read, checked before anything is read or written.
+    FramePattern::new("", args.images.replace("{camera}", "cam"))
+        .map_err(|e| anyhow::anyhow!("--images: {e}"))?;
     let cameras = match args.format {
         Format::Colmap => read_colmap(&args.input)?,
         Format::Opencv => read_opencv(&args.input, args.size)?,
-        Format::Metashape => read_metashape(&args.input)?,
+        Format::Metashape => read_metashape_chunk(&args.input, args.chunk.as_deref())?,
     };
     if cameras.len() > 1 && !args.images.contains("{camera}") {
         anyhow::bail!(
@@ -80,6 +86,26 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             args.images,
             cameras.len()
         );
+    }
+    // A scene that could never load is not written: each camera needs a name of its own, and
+    // its images a pattern the loader reads.
+    let mut names = BTreeSet::new();
+    for c in &cameras {
+        if c.name.trim().is_empty() {
+            anyhow::bail!(
+                "{}: a camera has no name: name every camera in the calibration",
+                args.input.display()
+            );
+        }
+        if !names.insert(c.name.as_str()) {
+            anyhow::bail!(
+                "{}: two cameras are named {:?}: camera names must be unique; rename one in the calibration",
+                args.input.display(),
+                c.name
+            );
+        }
+        FramePattern::new("", args.images.replace("{camera}", &c.name))
+            .map_err(|e| anyhow::anyhow!("--images {:?}: camera {:?}: {e}", args.images, c.name))?;
     }
     let (first, last) = args.frames;
     let mut file = scene_file(&cameras, &args.mesh, &args.images, first, last);
@@ -90,8 +116,12 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             Some(d) => format!("{} {:?}", d.model(), d.coefficients()),
             None => "pinhole".into(),
         };
+        let note = c
+            .note
+            .as_ref()
+            .map_or(String::new(), |n| format!("  ({n})"));
         eprintln!(
-            "  {:<12} {}x{}  f {:.2}, {:.2}  c {:.2}, {:.2}  {lens}",
+            "  {:<12} {}x{}  f {:.2}, {:.2}  c {:.2}, {:.2}  {lens}{note}",
             c.name,
             c.width,
             c.height,

@@ -95,3 +95,122 @@ fn colmap_and_opencv_calibrations_become_scene_files() {
     let err = String::from_utf8_lossy(&r.stderr);
     assert!(!r.status.success() && err.contains("m, cm or mm"), "{err}");
 }
+
+fn fails(r: &std::process::Output, out: &Path, parts: &[&str]) {
+    let err = String::from_utf8_lossy(&r.stderr);
+    assert!(!r.status.success(), "should fail: {err}");
+    assert!(!out.exists(), "nothing is written when it fails: {err}");
+    for p in parts {
+        assert!(err.contains(p), "{err:?} should mention {p:?}");
+    }
+}
+
+#[test]
+fn scenes_that_could_never_load_are_not_written() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("scene.json");
+    let stereo = fixtures().join("opencv/stereo.yml");
+    for (pattern, why) in [
+        (
+            "images/{camera}/{frame:4}.png",
+            "unknown placeholder {frame:4}",
+        ),
+        (
+            "images/{camera}/{frame:040}.png",
+            "bad placeholder {frame:040}",
+        ),
+        ("images/{camera}/{frame:04}{.png", "unclosed `{`"),
+        (
+            "images/{camera}/0000.png",
+            "no {frame} or {frame:0N} placeholder",
+        ),
+    ] {
+        let r = import(&["opencv", "--images", pattern], &stereo, &out);
+        fails(&r, &out, &["--images", why]);
+    }
+    // A video per camera is a pattern the scene reads.
+    let r = import(
+        &["opencv", "--images", "videos/{camera}.mp4"],
+        &stereo,
+        &out,
+    );
+    assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
+    let file = SceneFile::parse(&out, &std::fs::read_to_string(&out).unwrap()).unwrap();
+    assert_eq!(file.cameras[1].images, "videos/cam1.mp4");
+    std::fs::remove_file(&out).unwrap();
+
+    // Two Metashape cameras labelled cam0.
+    let xml = std::fs::read_to_string(fixtures().join("metashape/cameras.xml")).unwrap();
+    let p = dir.path().join("cameras.xml");
+    std::fs::write(&p, xml.replace("label=\"cam1\"", "label=\"cam0\"")).unwrap();
+    let r = import(&["metashape"], &p, &out);
+    fails(
+        &r,
+        &out,
+        &["cameras.xml", "camera \"cam0\": label", "unique"],
+    );
+}
+
+#[test]
+fn metashape_chunks_are_chosen_and_disabled_cameras_are_named() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("scene.json");
+    let xml = std::fs::read_to_string(fixtures().join("metashape/cameras.xml")).unwrap();
+    // A second chunk, its cameras renamed.
+    let start = xml.find("  <chunk").unwrap();
+    let end = xml.find("</chunk>").unwrap() + "</chunk>\n".len();
+    let second = xml[start..end]
+        .replace("Chunk 1", "Chunk 2")
+        .replace("label=\"cam", "label=\"other");
+    let two = format!("{}{second}{}", &xml[..end], &xml[end..]);
+    let p = dir.path().join("cameras.xml");
+    std::fs::write(&p, &two).unwrap();
+    let r = import(&["metashape"], &p, &out);
+    fails(
+        &r,
+        &out,
+        &[
+            "cameras.xml",
+            "2 chunks have aligned cameras",
+            "\"Chunk 1\" (id 0",
+            "\"Chunk 2\" (id 1",
+            "--chunk LABEL_OR_ID",
+        ],
+    );
+    let names = |out: &Path| -> Vec<String> {
+        let file = SceneFile::parse(out, &std::fs::read_to_string(out).unwrap()).unwrap();
+        file.cameras.into_iter().map(|c| c.name).collect()
+    };
+    let r = import(&["metashape", "--chunk", "Chunk 2"], &p, &out);
+    assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
+    assert_eq!(names(&out), ["other0", "other1"]);
+    // The first chunk disabled: the second is read without --chunk.
+    std::fs::write(&p, two.replacen("enabled=\"true\"", "enabled=\"false\"", 1)).unwrap();
+    let r = import(&["metashape", "--force"], &p, &out);
+    assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
+    assert_eq!(names(&out), ["other0", "other1"]);
+    // --chunk is Metashape's only.
+    let r = import(
+        &["opencv", "--force", "--chunk", "0"],
+        &fixtures().join("opencv/stereo.yml"),
+        &out,
+    );
+    let err = String::from_utf8_lossy(&r.stderr);
+    assert!(!r.status.success() && err.contains("--chunk"), "{err}");
+
+    // A camera disabled in Metashape but aligned is kept, and the summary says so.
+    std::fs::write(
+        &p,
+        xml.replace("label=\"cam1\"", "label=\"cam1\" enabled=\"false\""),
+    )
+    .unwrap();
+    let r = import(&["metashape", "--force"], &p, &out);
+    let err = String::from_utf8_lossy(&r.stderr);
+    assert!(r.status.success(), "{err}");
+    assert_eq!(names(&out), ["cam0", "cam1"]);
+    let line = err
+        .lines()
+        .find(|l| l.trim_start().starts_with("cam1"))
+        .unwrap();
+    assert!(line.contains("(disabled in Metashape)"), "{err}");
+}
