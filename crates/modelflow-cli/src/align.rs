@@ -15,7 +15,7 @@ pub struct Args {
     scene: PathBuf,
     /// Where to write the lined-up mesh (OBJ, with the input's UVs and normals; written under a
     /// temporary name, then renamed). Track from it with `track --mesh FILE`.
-    #[arg(long)]
+    #[arg(long, value_name = "FILE.obj", value_parser = obj_path)]
     out: PathBuf,
     #[command(flatten)]
     select: crate::select::SelectArgs,
@@ -45,11 +45,39 @@ pub struct Args {
     #[arg(long, default_value_t = 1)]
     seed: u64,
     /// Also draw the mesh as placed and as aligned over every camera's frame into this PNG.
-    #[arg(long, value_name = "FILE.png")]
+    #[arg(long, value_name = "FILE.png", value_parser = png_path)]
     picture: Option<PathBuf>,
     /// Print the result as JSON on stdout.
     #[arg(long)]
     json: bool,
+}
+
+/// An output file path whose extension is `ext` (any case) and that is not a folder: checked
+/// when the command line is read, so that nothing is written before a bad path is refused.
+fn output_path(s: &str, ext: &str, what: &str) -> Result<PathBuf, String> {
+    let p = PathBuf::from(s);
+    if p.is_dir() || s.ends_with('/') {
+        return Err(format!(
+            "{s} is a folder; expected a file path ending in .{ext}"
+        ));
+    }
+    let ok = p
+        .extension()
+        .is_some_and(|e| e.to_string_lossy().eq_ignore_ascii_case(ext));
+    if !ok {
+        return Err(format!(
+            "expected a file ending in .{ext} ({what}), got {s:?}"
+        ));
+    }
+    Ok(p)
+}
+
+fn obj_path(s: &str) -> Result<PathBuf, String> {
+    output_path(s, "obj", "the mesh is written as OBJ")
+}
+
+fn png_path(s: &str) -> Result<PathBuf, String> {
+    output_path(s, "png", "the picture is written as PNG")
 }
 
 fn parse_perturb(s: &str) -> Result<(f64, f64), String> {
@@ -81,7 +109,13 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         ..AlignOptions::default()
     };
     opts.validate()?;
-    let images = scene.load_images(frame)?;
+    let shown = scene.load_images(frame)?;
+    // Colour and monochrome cameras together are compared in luminance (as `track` does); the
+    // picture shows the frames as they are.
+    let images = modelflow::base::comparable(&shown);
+    if matches!(images, std::borrow::Cow::Owned(_)) {
+        eprintln!("note: some cameras record no colour: every camera is compared in luminance");
+    }
     let t = std::time::Instant::now();
     // With --surface, a mesh off the surface has its shape moved first (it pulls the pose the
     // cameras agree on: docs/tracker.md, "The first mesh must lie on the surface"), then its
@@ -131,7 +165,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let out = mesh.with_positions(a.positions.clone());
     modelflow::input::write_obj(&args.out, &out)?;
     if let Some(p) = &args.picture {
-        let pic = alignment_picture(&scene.cameras, frame, &images, &mesh, &out)?;
+        let pic = alignment_picture(&scene.cameras, frame, &shown, &mesh, &out)?;
         modelflow::input::write_png(p, &pic)?;
     }
 

@@ -312,7 +312,24 @@ fn first_mesh_checks(
     scene_path: &std::path::Path,
     keep_shape: bool,
 ) -> anyhow::Result<()> {
-    let images = scene.load_images(scene.first)?;
+    let shown = scene.load_images(scene.first)?;
+    // As the tracker compares them: in luminance when colour and monochrome cameras mix.
+    let images = modelflow::base::comparable(&shown);
+    if let std::borrow::Cow::Owned(_) = images {
+        let grey: Vec<&str> = scene
+            .cameras
+            .iter()
+            .zip(shown.iter())
+            .filter(|(_, i)| i.is_grey())
+            .map(|(c, _)| c.name.as_str())
+            .collect();
+        eprintln!(
+            "note: camera{} {} record{} no colour: every camera is compared in luminance",
+            if grey.len() > 1 { "s" } else { "" },
+            grey.join(", "),
+            if grey.len() > 1 { "" } else { "s" }
+        );
+    }
     let len = modelflow::base::Length::of(scene.units);
     let off = modelflow::tracker::surface_offset(&scene.mesh, &scene.cameras, scene.first, &images);
     if let Some(off) = off.filter(|o| o.is_off()) {

@@ -30,6 +30,34 @@ fn catmull_rom(t: f32) -> ([f32; 4], [f32; 4]) {
     )
 }
 
+/// Whether a rig mixes cameras that record colour with ones that do not ([`RgbImage::is_grey`]
+/// on each camera's `images`): comparing a colour camera's pixels with a grey one's colours would
+/// find no match where the surface's hues differ and a false one on any grey background, so such
+/// a rig is compared in luminance throughout ([`RgbImage::to_luminance`]).
+pub fn mixes_grey_and_colour(images: &[RgbImage]) -> bool {
+    let grey = images.iter().filter(|i| i.is_grey()).count();
+    grey > 0 && grey < images.len()
+}
+
+/// One frame's images (one per camera) as the cameras are compared with each other: in
+/// luminance when the rig [mixes grey and colour](mixes_grey_and_colour), as given otherwise.
+pub fn comparable(images: &[RgbImage]) -> std::borrow::Cow<'_, [RgbImage]> {
+    if mixes_grey_and_colour(images) {
+        std::borrow::Cow::Owned(
+            images
+                .iter()
+                .map(|i| {
+                    let mut i = i.clone();
+                    i.to_luminance();
+                    i
+                })
+                .collect(),
+        )
+    } else {
+        std::borrow::Cow::Borrowed(images)
+    }
+}
+
 /// An RGB image with `f32` channels.
 #[derive(Clone, Debug, PartialEq)]
 pub struct RgbImage {
@@ -101,6 +129,24 @@ impl RgbImage {
 
     /// Whether a bilinear sample at `(u, v)` touches only pixels inside the image.
     #[inline]
+    /// Whether the image records no colour: every pixel's three channels equal (a monochrome
+    /// camera, or a file decoded from one channel), allowing 2/255 of spread in 1 pixel of
+    /// 1 000 (compression noise).
+    pub fn is_grey(&self) -> bool {
+        let spread = |p: &[f32; 3]| p[0].max(p[1]).max(p[2]) - p[0].min(p[1]).min(p[2]);
+        let coloured = self.data.iter().filter(|p| spread(p) > 2.0 / 255.0).count();
+        coloured * 1000 < self.data.len()
+    }
+
+    /// Every pixel replaced by its luminance (Rec. 709 weights) in all three channels: what a
+    /// colour camera and a monochrome one can both be compared in.
+    pub fn to_luminance(&mut self) {
+        for p in &mut self.data {
+            let y = 0.2126 * p[0] + 0.7152 * p[1] + 0.0722 * p[2];
+            *p = [y; 3];
+        }
+    }
+
     pub fn inside(&self, u: f64, v: f64) -> bool {
         u >= 0.0 && v >= 0.0 && u <= (self.width - 1) as f64 && v <= (self.height - 1) as f64
     }

@@ -637,6 +637,9 @@ pub fn align(
 ) -> Result<Alignment> {
     opts.validate()?;
     one_per_camera(cameras.len(), images.len())?;
+    // Colour and monochrome cameras together are compared in luminance (as the tracker does).
+    let compared = crate::base::image::comparable(images);
+    let images = &compared[..];
     if let Some(i) = mesh
         .positions
         .iter()

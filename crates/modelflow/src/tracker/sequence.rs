@@ -171,6 +171,9 @@ pub struct Tracker {
     weld: Option<Weld>,
     /// When the given mesh lay off the surface and was moved onto it (`TrackOptions::onto_surface`).
     first_mesh_moved: Option<SurfaceMove>,
+    /// Some cameras record colour and some do not (`image::mixes_grey_and_colour`, judged on
+    /// the first frame): every image is compared in luminance.
+    luminance: bool,
     /// The first frame's neighbouring triangles that face the same way (`FrameReport::folded`).
     folds: FoldWatch,
     /// Each vertex's photometric information in the last frame solved (the bending term's yield
@@ -245,6 +248,11 @@ impl Tracker {
                 ));
             }
         }
+        // A rig that mixes colour and monochrome cameras is compared in luminance, from the
+        // first look at its images on (the surface check below compares cameras too).
+        let luminance = crate::base::image::mixes_grey_and_colour(images);
+        let compared = crate::base::image::comparable(images);
+        let images = &compared[..];
         // A mesh off the surface the cameras agree on is moved onto it first: everything below
         // (rest lengths, templates, the anchor) starts from the moved mesh.
         let moved = if opts.onto_surface {
@@ -298,6 +306,7 @@ impl Tracker {
             before_frame: frame,
             weld,
             first_mesh_moved,
+            luminance,
             folds: FoldWatch::new(&mesh.positions, &mesh.triangles),
             information: None,
         };
@@ -426,7 +435,7 @@ impl Tracker {
         }
         self.prev = Template {
             positions,
-            pyramids: prepared.pyramids,
+            pyramids: self.in_luminance(prepared).pyramids,
             frame,
         };
         self.before_prev = before;
@@ -505,6 +514,28 @@ impl Tracker {
     /// check found and how far they moved. [`Tracker::positions`] starts from the moved mesh.
     pub fn first_mesh_moved(&self) -> Option<&SurfaceMove> {
         self.first_mesh_moved.as_ref()
+    }
+
+    /// Whether the rig mixes cameras that record colour with ones that do not, so that every
+    /// image is compared in luminance (judged on the first frame's images).
+    pub fn compares_luminance(&self) -> bool {
+        self.luminance
+    }
+
+    /// A frame's pyramids in luminance when the rig is compared so (the blur and the 2×2
+    /// reduction are linear per channel, so converting the levels equals building them from the
+    /// converted image).
+    fn in_luminance(&self, mut prepared: Prepared) -> Prepared {
+        if self.luminance {
+            for level in prepared
+                .pyramids
+                .iter_mut()
+                .flat_map(|p| p.levels.iter_mut())
+            {
+                level.to_luminance();
+            }
+        }
+        prepared
     }
 
     /// Current vertex positions (the last solved frame), one per vertex of the mesh given to
@@ -724,7 +755,8 @@ impl Tracker {
     pub fn step_prepared(&mut self, frame: u32, prepared: Prepared) -> Result<FrameReport> {
         self.check_prepared(&prepared)?;
         let levels = self.opts.levels;
-        let next = prepared.pyramids;
+        let pyramid_seconds = prepared.seconds;
+        let next = self.in_luminance(prepared).pyramids;
         let mut out = Outcome {
             summaries: Vec::with_capacity(levels),
             predicted: false,
@@ -738,7 +770,7 @@ impl Tracker {
             stop: StopReason::NoData,
             confidence: Vec::new(),
             timing: StepTiming {
-                pyramids: prepared.seconds,
+                pyramids: pyramid_seconds,
                 ..Default::default()
             },
         };
