@@ -170,3 +170,28 @@ fn surface_moves_a_mesh_outside_the_surface_onto_it_and_leaves_one_on_it_alone()
     assert!(err.contains("its shape is left as it is"), "{err}");
     assert!(v["error_after_pct"].as_f64().unwrap() < 0.1, "{v}");
 }
+
+#[test]
+fn output_paths_of_another_kind_are_refused_before_anything_is_written() {
+    let dir = tempfile::tempdir().unwrap();
+    // A mesh asked for as PLY would have been OBJ text under a .ply name.
+    let ply = dir.path().join("aligned.ply");
+    let o = align(&ply, &[]);
+    assert!(!o.status.success());
+    assert!(text(&o.stderr).contains(".obj"), "{}", text(&o.stderr));
+    assert!(!ply.exists());
+    // A picture that is not a PNG file: refused before the mesh is written.
+    let out = dir.path().join("aligned.obj");
+    for bad in ["picture.jpg", "."] {
+        let o = align(
+            &out,
+            &["--picture".as_ref(), dir.path().join(bad).as_os_str()],
+        );
+        assert!(!o.status.success(), "{bad}");
+        assert!(text(&o.stderr).contains("--picture"), "{}", text(&o.stderr));
+        assert!(
+            !out.exists(),
+            "{bad}: the mesh was written before the refusal"
+        );
+    }
+}

@@ -44,6 +44,53 @@ pub fn write_atomic_with(
     Ok(())
 }
 
+/// Writes two files that belong together (a point cache and the mesh beside it) so that either
+/// both are replaced or neither: each goes to a temporary name first, and only when both are
+/// written are they renamed into place. On an error the temporaries are removed and the old
+/// files are left as they were.
+pub fn write_atomic_pair(first: (&Path, &[u8]), second: (&Path, &[u8])) -> Result<()> {
+    let tmp_of = |path: &Path| -> Result<std::path::PathBuf> {
+        let dir = match path.parent() {
+            Some(d) if !d.as_os_str().is_empty() => d,
+            _ => Path::new("."),
+        };
+        std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
+        let name = path
+            .file_name()
+            .ok_or_else(|| Error::option("path", path.display(), "a file path"))?;
+        if let Some(kind) = not_a_file(path) {
+            return Err(Error::invalid(
+                path,
+                "output",
+                format!("is {kind}, not a file"),
+            ));
+        }
+        Ok(dir.join(format!(
+            ".{}.{}.tmp",
+            name.to_string_lossy(),
+            std::process::id()
+        )))
+    };
+    let write = |tmp: &Path, bytes: &[u8]| -> std::io::Result<()> {
+        let mut f = std::fs::File::create(tmp)?;
+        f.write_all(bytes)?;
+        f.sync_all()
+    };
+    let (t1, t2) = (tmp_of(first.0)?, tmp_of(second.0)?);
+    let written = write(&t1, first.1)
+        .map_err(|e| Error::io(first.0, e))
+        .and_then(|()| write(&t2, second.1).map_err(|e| Error::io(second.0, e)));
+    let renamed = written.and_then(|()| {
+        std::fs::rename(&t1, first.0).map_err(|e| Error::io(first.0, e))?;
+        std::fs::rename(&t2, second.0).map_err(|e| Error::io(second.0, e))
+    });
+    if renamed.is_err() {
+        let _ = std::fs::remove_file(&t1);
+        let _ = std::fs::remove_file(&t2);
+    }
+    renamed
+}
+
 /// What `path` is when it exists but is not a regular file (`"a folder"`, `"a FIFO"`, ...), so
 /// that readers refuse it with a reason instead of "not found" or a read that never ends.
 pub fn not_a_file(path: &Path) -> Option<&'static str> {

@@ -264,3 +264,38 @@ fn a_run_folder_without_frames_is_refused_by_name() {
     assert!(e.contains("no frame meshes"), "{e}");
     assert!(!dir.path().join("x.usda").exists());
 }
+
+#[test]
+fn a_point_cache_is_not_written_over_by_its_own_mesh_nor_left_without_it() {
+    let dir = tempfile::tempdir().unwrap();
+    let run = folded_run(dir.path());
+    let opts = ExportOptions {
+        fps: 24.0,
+        units: None,
+    };
+    // `--out a.obj`: the OBJ beside the cache would be the cache's own file.
+    for format in [ExportFormat::Pc2, ExportFormat::Mdd] {
+        let out = dir.path().join("a.obj");
+        let err = export_run(&run, format, &out, &opts)
+            .unwrap_err()
+            .to_string();
+        assert!(err.contains("--out") && err.contains(".obj"), "{err}");
+        assert!(!out.exists(), "nothing written for {format:?}");
+    }
+    // The OBJ's place is a folder: neither file is written (no cache without its mesh).
+    let out = dir.path().join("b.pc2");
+    std::fs::create_dir_all(dir.path().join("b.obj")).unwrap();
+    let err = export_run(&run, ExportFormat::Pc2, &out, &opts).unwrap_err();
+    assert!(err.to_string().contains("b.obj"), "{err}");
+    assert!(!out.exists());
+    let left: Vec<_> = std::fs::read_dir(dir.path())
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .filter(|n| n.ends_with(".tmp"))
+        .collect();
+    assert!(left.is_empty(), "temporaries left: {left:?}");
+    // And where both can be written, both are.
+    let out = dir.path().join("c.mdd");
+    export_run(&run, ExportFormat::Mdd, &out, &opts).unwrap();
+    assert!(out.is_file() && dir.path().join("c.obj").is_file());
+}

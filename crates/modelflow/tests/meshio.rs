@@ -431,3 +431,19 @@ mod junk {
         }
     }
 }
+
+#[test]
+fn obj_with_a_byte_order_mark_or_carriage_returns_alone_reads_every_vertex() {
+    let dir = tempfile::tempdir().unwrap();
+    let text = "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nf 1 2 3\nf 1 3 4\n";
+    let plain = read_mesh(&write(dir.path(), "plain.obj", text.as_bytes())).unwrap();
+    assert_eq!(plain.positions.len(), 4);
+    // A byte-order mark (Windows editors) before the first `v` line: that vertex is kept.
+    let bom = format!("\u{feff}{text}");
+    let m = read_mesh(&write(dir.path(), "bom.obj", bom.as_bytes())).unwrap();
+    assert_eq!(m, plain);
+    // Lines ended by a carriage return alone (classic Mac OS).
+    let cr = text.replace('\n', "\r");
+    let m = read_mesh(&write(dir.path(), "cr.obj", cr.as_bytes())).unwrap();
+    assert_eq!(m, plain);
+}

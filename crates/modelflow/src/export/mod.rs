@@ -16,7 +16,6 @@ use crate::base::mesh::Mesh;
 use crate::base::units::Units;
 use crate::error::{Error, Result};
 use crate::fsutil::write_atomic_with;
-use crate::input::meshio::write_obj;
 use crate::tracker::VertexConfidence;
 use std::path::{Path, PathBuf};
 
@@ -220,9 +219,25 @@ pub fn export_with_cameras(
             } else {
                 cache::mdd(frames, opts.fps)
             };
-            write_atomic_with(out, |w| std::io::Write::write_all(w, &bytes))?;
+            // The topology goes beside the cache as OBJ, under the cache's name: `--out` must
+            // then be the cache's own name, or the OBJ would be written over it.
             let obj = out.with_extension("obj");
-            write_obj(&obj, first)?;
+            if obj == out {
+                return Err(Error::option(
+                    "--out",
+                    out.display(),
+                    format!(
+                        "the {} cache's file (ending in .{}): the first frame's mesh is written \
+                         beside it as .obj",
+                        format.extension().to_uppercase(),
+                        format.extension()
+                    ),
+                ));
+            }
+            let mut text = Vec::new();
+            crate::input::meshio::write_obj_to(&mut text, first).map_err(|e| Error::io(&obj, e))?;
+            // Both or neither: a cache without its mesh (or beside another run's) is useless.
+            crate::fsutil::write_atomic_pair((out, &bytes), (&obj, &text))?;
             files.push(obj);
         }
     }

@@ -170,6 +170,16 @@ pub fn validate(
 /// texture coordinates ([`Mesh::uvs`]) only when the faces map each vertex to one `vt`
 /// consistently.
 pub fn parse_obj(path: &Path, text: &str, checks: Checks) -> Result<Mesh> {
+    // A byte-order mark is not part of the first line (it would hide a `v` line), and a file
+    // whose lines end in a carriage return alone (classic Mac OS) has lines all the same.
+    let text = text.strip_prefix('\u{feff}').unwrap_or(text);
+    let cr_only;
+    let text = if !text.contains('\n') && text.contains('\r') {
+        cr_only = text.replace('\r', "\n");
+        cr_only.as_str()
+    } else {
+        text
+    };
     let mut positions: Vec<Point3<f64>> = Vec::new();
     let mut tex: Vec<[f64; 2]> = Vec::new();
     let mut normals: Vec<[f64; 3]> = Vec::new();
@@ -386,12 +396,17 @@ fn resolve_index(s: &str, count: usize) -> Option<u32> {
 /// the input had them (normals turned with the surface, [`Mesh::current_normals`]), or per-vertex
 /// texture coordinates; then one `f` per triangle (1-based).
 pub fn write_obj(path: &Path, mesh: &Mesh) -> Result<()> {
+    write_atomic_with(path, |w| write_obj_to(w, mesh))
+}
+
+/// [`write_obj`]'s text, into `w`.
+pub(crate) fn write_obj_to(w: &mut impl Write, mesh: &Mesh) -> std::io::Result<()> {
     let vertex_uvs = mesh
         .uvs
         .as_ref()
         .filter(|u| u.len() == mesh.positions.len() && mesh.corner_uvs.is_none());
     let normals = mesh.current_normals();
-    write_atomic_with(path, |w| {
+    {
         writeln!(
             w,
             "# modelflow mesh: {} vertices, {} triangles",
@@ -439,7 +454,7 @@ pub fn write_obj(path: &Path, mesh: &Mesh) -> Result<()> {
             w.write_all(b"\n")?;
         }
         Ok(())
-    })
+    }
 }
 
 // ---------------------------------------------------------------------------------------------
