@@ -796,3 +796,50 @@ fn paths_that_are_not_regular_files_say_what_they_are() {
         }
     }
 }
+
+#[test]
+fn a_frame_offset_beyond_any_frame_number_is_refused_not_wrapped() {
+    let msg = broken(|f, _| f.cameras[1].frame_offset = i64::MAX);
+    assert_names(
+        &msg,
+        &["cameras[1].frame_offset", "beyond any frame number"],
+    );
+}
+
+#[test]
+fn a_value_of_the_wrong_kind_names_its_field_not_the_json_syntax() {
+    let dir = tempfile::tempdir().unwrap();
+    let (path, _) = write_scene(dir.path());
+    let text = std::fs::read_to_string(&path).unwrap();
+    let mut v: serde_json::Value = serde_json::from_str(&text).unwrap();
+    v["units"] = serde_json::json!(1);
+    std::fs::write(&path, serde_json::to_string_pretty(&v).unwrap()).unwrap();
+    let msg = load_err(&path);
+    assert_names(&msg, &["units", "wrong kind"]);
+    assert!(!msg.contains("invalid JSON"), "{msg}");
+    // An object where a struct is expected is said as JSON, not as a Rust type name.
+    v["units"] = serde_json::json!("mm");
+    v["cameras"][0]["distortion"] = serde_json::json!(1);
+    std::fs::write(&path, serde_json::to_string_pretty(&v).unwrap()).unwrap();
+    let msg = load_err(&path);
+    assert_names(&msg, &["cameras[0].distortion", "a JSON object"]);
+    assert!(!msg.contains("struct "), "{msg}");
+}
+
+#[test]
+fn a_byte_order_mark_before_the_scene_file_is_read_past() {
+    let dir = tempfile::tempdir().unwrap();
+    let (path, _) = write_scene(dir.path());
+    let text = std::fs::read_to_string(&path).unwrap();
+    std::fs::write(&path, format!("\u{feff}{text}")).unwrap();
+    assert_eq!(Scene::load(&path).unwrap().mesh, mesh());
+}
+
+#[test]
+fn a_mesh_path_that_is_a_folder_is_named_as_one() {
+    let msg = broken(|f, dir| {
+        std::fs::create_dir_all(dir.join("meshdir")).unwrap();
+        f.mesh = "meshdir".into();
+    });
+    assert_names(&msg, &["mesh", "meshdir", "is a folder"]);
+}

@@ -321,6 +321,11 @@ impl FramePattern {
         FramePattern { transfer, ..self }
     }
 
+    /// Whether the frames are a video file's (every frame's [`FramePattern::path`] is that file).
+    pub fn is_video(&self) -> bool {
+        self.video
+    }
+
     /// The file of `frame`: `{frame}` becomes the plain number `frame + offset`, `{frame:0N}`
     /// that number zero-padded to `N` digits; relative patterns are joined to `base`. (The scene
     /// reader refuses offsets that make a used frame's number negative.)
@@ -500,6 +505,8 @@ impl SceneFile {
     /// error and, for a structural one, the JSON path of the field (`cameras[0].K`,
     /// `cameras[1].width`).
     pub fn parse(path: &Path, text: &str) -> Result<SceneFile> {
+        // A byte-order mark (some Windows editors write one) is not part of the JSON.
+        let text = text.strip_prefix('\u{feff}').unwrap_or(text);
         #[derive(Deserialize)]
         struct Tag {
             format: Option<serde_json::Value>,
@@ -548,11 +555,19 @@ impl SceneFile {
         serde_path_to_error::deserialize::<_, SceneFile>(de).map_err(|e| {
             let field = e.path().to_string();
             let inner = e.into_inner();
-            if inner.is_syntax() || inner.is_eof() {
+            if inner.is_eof() || inner.to_string().starts_with("number out of range") {
                 return syntax(inner);
             }
             let at = format!("line {} column {}", inner.line(), inner.column());
             let what = inner.to_string().replace(&format!(" at {at}"), "");
+            // The text parsed as JSON above (the format tag), so what serde_json calls a
+            // syntax error here is a value of the wrong kind (a number where a name is
+            // expected); internal type names are said as the JSON they stand for.
+            let what = if inner.is_syntax() {
+                format!("a value of the wrong kind here ({what}): see docs/scene-format.md")
+            } else {
+                struct_names_as_json(&what)
+            };
             let field = if field == "." {
                 "(top level)".to_string()
             } else {
@@ -561,6 +576,24 @@ impl SceneFile {
             Error::invalid(path, format!("{field} ({at})"), what)
         })
     }
+}
+
+/// serde's "expected struct Name" (a Rust type the user never sees) said as "expected a JSON
+/// object".
+fn struct_names_as_json(what: &str) -> String {
+    let mut out = String::with_capacity(what.len());
+    let mut rest = what;
+    while let Some(i) = rest.find("struct ") {
+        out.push_str(&rest[..i]);
+        let after = &rest[i + "struct ".len()..];
+        let end = after
+            .find(|c: char| !(c.is_alphanumeric() || c == '_'))
+            .unwrap_or(after.len());
+        out.push_str("a JSON object");
+        rest = &after[end..];
+    }
+    out.push_str(rest);
+    out
 }
 
 fn mat3(m: &[[f64; 3]; 3]) -> Matrix3<f64> {
@@ -887,6 +920,13 @@ impl Scene {
         let (first, last) = file.frame_range(path)?;
         // Mesh.
         let mesh_path = base.join(&file.mesh);
+        if let Some(kind) = crate::fsutil::not_a_file(&mesh_path) {
+            return Err(Error::invalid(
+                path,
+                "mesh",
+                format!("{} is {kind}, not a mesh file", mesh_path.display()),
+            ));
+        }
         if !mesh_path.is_file() {
             return Err(Error::invalid(
                 path,
@@ -903,6 +943,18 @@ impl Scene {
         let mut images = Vec::with_capacity(file.cameras.len());
         for (i, c) in file.cameras.iter().enumerate() {
             cameras.push(file.camera(path, i)?);
+            // Within what a frame number can be: an offset beyond it would wrap around.
+            if c.frame_offset.unsigned_abs() > u64::from(u32::MAX) {
+                return Err(Error::invalid(
+                    path,
+                    format!("cameras[{i}].frame_offset"),
+                    format!(
+                        "{} is beyond any frame number (at most ±{})",
+                        c.frame_offset,
+                        u32::MAX
+                    ),
+                ));
+            }
             if first as i64 + c.frame_offset < 0 {
                 return Err(Error::invalid(
                     path,
