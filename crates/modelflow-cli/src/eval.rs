@@ -30,6 +30,14 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         .or_the_runs(&scene, &[&args.track], "evaluating")?;
     let scene = select.apply(scene)?;
     let mut run = read_run(&args.track)?;
+    if let Some(other) = modelflow::run::made_from_another_scene(&args.track, &args.scene) {
+        eprintln!(
+            "warning: {} was made from {}, and is scored here against {}",
+            args.track.display(),
+            other.display(),
+            args.scene.display()
+        );
+    }
     if chosen {
         // `--frames` scores part of a run: the frames outside it are left aside, not refused.
         run.retain(|(f, _)| scene.frames().contains(f));

@@ -316,6 +316,41 @@ fn a_folder_of_other_files_is_refused_and_force_replaces_only_run_files() {
 }
 
 #[test]
+fn the_scene_s_own_ground_truth_and_image_folders_are_refused_even_with_force() {
+    let (_, scene, _) = shot();
+    let footage = scene.parent().unwrap();
+    let s = Scene::load(scene).unwrap();
+    let truth_dir = s
+        .ground_truth
+        .as_ref()
+        .unwrap()
+        .path(s.first)
+        .parent()
+        .unwrap()
+        .to_path_buf();
+    let image_dir = s.images[0].path(s.first).parent().unwrap().to_path_buf();
+    let force = RunOptions {
+        mode: OpenMode::Force,
+        ..RunOptions::default()
+    };
+    for (dir, says) in [
+        (truth_dir, "ground-truth folder"),
+        (image_dir, "image folder"),
+    ] {
+        let before = contents(&dir);
+        let err = track(scene, &dir, &force).unwrap_err().to_string();
+        assert!(err.contains(says), "{err}");
+        assert_eq!(
+            contents(&dir),
+            before,
+            "{}: nothing in it changes",
+            dir.display()
+        );
+    }
+    assert!(footage.join("scene.json").is_file());
+}
+
+#[test]
 fn another_scene_s_run_and_other_options_are_refused() {
     let (tmp, scene, reference) = shot();
     // Resuming with other options than the run's.
@@ -354,7 +389,7 @@ fn another_scene_s_run_and_other_options_are_refused() {
         .unwrap_err()
         .to_string();
     assert!(err.contains("solver.patch_scale: none -> 0.5"), "{err}");
-    // The same folder for a shorter shot is another scene's run.
+    // The same folder for a shorter shot: the refusal names the frames it was made for.
     s.last -= 1;
     let err = track_scene(
         &s,
@@ -365,8 +400,15 @@ fn another_scene_s_run_and_other_options_are_refused() {
     )
     .unwrap_err()
     .to_string();
+    let want = format!(
+        "for frames {}..{}, not {}..{}",
+        s.first,
+        s.last + 1,
+        s.first,
+        s.last
+    );
     assert!(
-        err.contains("another scene") && err.contains("nothing to resume"),
+        err.contains(&want) && err.contains("nothing to resume"),
         "{err}"
     );
 }

@@ -64,6 +64,48 @@ impl RunOptions {
     }
 }
 
+/// Refuses a run folder the scene reads its own frames from: its ground truth's folder (whose
+/// `NNNN.obj` files a run would replace, even with `--force`, which replaces frame meshes) or a
+/// camera's image folder. Compared as resolved paths, so `truth/` and `./x/../truth` match.
+fn refuse_scene_inputs(dir: &Path, scene: &Scene) -> Result<()> {
+    let Ok(out) = std::fs::canonicalize(dir) else {
+        return Ok(()); // not there yet: a new folder holds nothing of the scene
+    };
+    let folder_of = |p: PathBuf| {
+        p.parent()
+            .map(|d| {
+                if d.as_os_str().is_empty() {
+                    Path::new(".")
+                } else {
+                    d
+                }
+            })
+            .and_then(|d| std::fs::canonicalize(d).ok())
+    };
+    if let Some(g) = &scene.ground_truth {
+        if folder_of(g.path(scene.first)).is_some_and(|d| d == out) {
+            return Err(Error::run_folder(
+                dir,
+                "is the scene's ground-truth folder: a run there would replace the truth's \
+                 frame meshes; choose another folder",
+            ));
+        }
+    }
+    for (cam, pattern) in scene.cameras.iter().zip(&scene.images) {
+        if !pattern.is_video() && folder_of(pattern.path(scene.first)).is_some_and(|d| d == out) {
+            return Err(Error::run_folder(
+                dir,
+                format!(
+                    "is camera {}'s image folder: the run's files would mix with its frames; \
+                     choose another folder",
+                    cam.name
+                ),
+            ));
+        }
+    }
+    Ok(())
+}
+
 /// A run folder open for writing.
 pub struct RunFolder {
     dir: PathBuf,
@@ -90,6 +132,7 @@ pub fn write_run<T>(
         given: run.given.clone(),
         used,
     };
+    refuse_scene_inputs(dir, scene)?;
     let manifest = Manifest::new(method, scene, run.command.clone(), options)?;
     let Opened {
         mut folder,
@@ -143,7 +186,7 @@ impl RunFolder {
             OpenMode::New => {
                 return Err(Error::run_folder(
                     dir,
-                    refusal(&listing, &existing, same_scene),
+                    refusal(&listing, &existing, same_scene, &manifest),
                 ))
             }
             OpenMode::Resume => {
@@ -153,7 +196,7 @@ impl RunFolder {
                         format!(
                             "{}, so there is nothing to resume; choose another folder, or add \
                              --force to replace the run files in this one",
-                            refusal_reason(&listing, &existing)
+                            refusal_reason(&listing, &existing, &manifest)
                         ),
                     ));
                 };
@@ -341,7 +384,12 @@ impl Listing {
 }
 
 /// Why a folder is refused for a new run, and what to do.
-fn refusal(listing: &Listing, existing: &Option<Manifest>, same_scene: bool) -> String {
+fn refusal(
+    listing: &Listing,
+    existing: &Option<Manifest>,
+    same_scene: bool,
+    new: &Manifest,
+) -> String {
     if same_scene {
         let m = existing.as_ref().expect("same scene implies a manifest");
         let done = match m.status {
@@ -357,11 +405,25 @@ fn refusal(listing: &Listing, existing: &Option<Manifest>, same_scene: bool) -> 
     format!(
         "{}; choose an empty folder, or add --force to replace the run files in it (frame \
          meshes NNNN.obj, {LOG}, {MANIFEST}; other files are kept)",
-        refusal_reason(listing, existing)
+        refusal_reason(listing, existing, new)
     )
 }
 
-fn refusal_reason(listing: &Listing, existing: &Option<Manifest>) -> String {
+fn refusal_reason(listing: &Listing, existing: &Option<Manifest>, new: &Manifest) -> String {
+    if let Some(m) = existing.as_ref().filter(|m| m.method == new.method) {
+        // The same scene file: say what differs, rather than call it another scene.
+        if same_file(&m.scene.path, &new.scene.path) {
+            return if (m.scene.first, m.scene.last) != (new.scene.first, new.scene.last) {
+                format!(
+                    "holds a run of this scene for frames {}..{}, not {}..{} (repeat the run's                      --frames to continue it)",
+                    m.scene.first, m.scene.last, new.scene.first, new.scene.last
+                )
+            } else {
+                "holds a run of this scene made from other inputs: the mesh, a camera or an                  image file's size has changed since it started (a repaired or replaced image                  counts), so its frames would not match a continuation"
+                    .to_string()
+            };
+        }
+    }
     if let Some(m) = existing {
         return format!(
             "holds a {} run of another scene ({})",
@@ -380,6 +442,14 @@ fn refusal_reason(listing: &Listing, existing: &Option<Manifest>) -> String {
         shown.join(", "),
         if names.len() > 3 { ", ..." } else { "" }
     )
+}
+
+/// Whether two paths name the same file (compared as given when either cannot be resolved).
+fn same_file(a: &Path, b: &Path) -> bool {
+    match (std::fs::canonicalize(a), std::fs::canonicalize(b)) {
+        (Ok(x), Ok(y)) => x == y,
+        _ => a == b,
+    }
 }
 
 /// Where two option sets differ, as `path: old -> new` (dotted paths to the leaves).
@@ -429,7 +499,13 @@ fn truncate_to_complete(dir: &Path, m: &Manifest) -> Result<Option<u32>> {
     let mut kept = 0;
     if last.is_some() {
         for (i, line) in read.lines.iter().enumerate() {
-            let expected = first + 1 + i as u32;
+            // (Frame numbers are checked, not wrapped: the last one may be u32::MAX.)
+            let Some(expected) = u32::try_from(i)
+                .ok()
+                .and_then(|i| first.checked_add(1)?.checked_add(i))
+            else {
+                break;
+            };
             if line.frame != expected || expected > m.scene.last || !has_mesh(expected) {
                 break;
             }
@@ -456,8 +532,11 @@ fn truncate_to_complete(dir: &Path, m: &Manifest) -> Result<Option<u32>> {
         f.set_len(keep_len).map_err(|e| Error::io(&log_path, e))?;
     }
     // Meshes past the last complete frame belong to the interrupted frame(s).
-    let from = last.map_or(first, |l| l + 1);
-    for f in from..=m.scene.last {
+    let from = match last {
+        None => Some(first),
+        Some(l) => l.checked_add(1),
+    };
+    for f in from.into_iter().flat_map(|from| from..=m.scene.last) {
         for p in [dir.join(frame_file(f)), dir.join(confidence_file(f))] {
             if p.is_file() {
                 std::fs::remove_file(&p).map_err(|e| Error::io(&p, e))?;

@@ -181,6 +181,23 @@ pub(crate) fn now() -> String {
     humantime::format_rfc3339_seconds(std::time::SystemTime::now()).to_string()
 }
 
+/// The scene file a run folder's `run.json` names, when it names another file than `scene`
+/// (`None` when they are the same file, or the folder has no readable manifest): scoring or
+/// reporting a run against a scene it was not made from is allowed (a copy of the shot moved
+/// elsewhere), but should be said.
+pub fn made_from_another_scene(run: &Path, scene: &Path) -> Option<PathBuf> {
+    let m = Manifest::read(&run.join(crate::run::MANIFEST)).ok()?;
+    let recorded = m.scene.path;
+    let same = match (
+        std::fs::canonicalize(&recorded),
+        std::fs::canonicalize(scene),
+    ) {
+        (Ok(a), Ok(b)) => a == b,
+        _ => recorded == scene,
+    };
+    (!same).then_some(recorded)
+}
+
 /// A checksum of everything tracking depends on, so that a run is resumed only on the inputs it
 /// began with: the frame range, the mesh (positions and triangles), every camera (name, size and
 /// projection at every frame) and, for every camera and frame, the image's path relative to the
