@@ -447,3 +447,34 @@ fn obj_with_a_byte_order_mark_or_carriage_returns_alone_reads_every_vertex() {
     let m = read_mesh(&write(dir.path(), "cr.obj", cr.as_bytes())).unwrap();
     assert_eq!(m, plain);
 }
+
+#[test]
+fn a_polygon_with_three_corners_in_a_row_is_triangulated_without_a_flat_triangle() {
+    let dir = tempfile::tempdir().unwrap();
+    // A hexagon whose corners 1, 2, 3 lie on one straight edge (as CAD and Blender export a
+    // face split along an edge); listed so that a fan from its first corner has a flat triangle.
+    let text = "v 0 0 0\nv 1 0 0\nv 2 0 0\nv 2 1 0\nv 1 2 0\nv 0 1 0\nf 1 2 3 4 5 6\n";
+    let m = read_mesh(&write(dir.path(), "hex.obj", text.as_bytes())).unwrap();
+    assert_eq!(m.triangles.len(), 4);
+    let area: f64 = m
+        .triangles
+        .iter()
+        .map(|t| {
+            let [a, b, c] = t.map(|v| m.positions[v as usize]);
+            0.5 * (b - a).cross(&(c - a)).norm()
+        })
+        .collect::<Vec<_>>()
+        .iter()
+        .inspect(|&&a| assert!(a > 1e-9, "a flat triangle: {:?}", m.triangles))
+        .sum();
+    assert!((area - 3.0).abs() < 1e-12, "the hexagon's area, {area}");
+    // Written back as one hexagon (its corners turned, the same face).
+    let out = dir.path().join("back.obj");
+    write_obj(&out, &m).unwrap();
+    let back = std::fs::read_to_string(&out).unwrap();
+    assert_eq!(
+        back.lines().filter(|l| l.starts_with("f ")).count(),
+        1,
+        "{back}"
+    );
+}

@@ -55,6 +55,25 @@ pub fn read_mesh_with(path: &Path, checks: Checks) -> Result<Mesh> {
     }
 }
 
+/// The corner of polygon `poly` (vertex indices, in order) from which its fan triangulation has
+/// no flat triangle (the test [`validate`] applies), the first such; 0 when every corner gives one
+/// (a truly degenerate polygon, then refused with its line) or an index is not yet known.
+fn fan_start(poly: &[u32], positions: &[Point3<f64>]) -> usize {
+    let n = poly.len();
+    if n <= 3 || poly.iter().any(|&v| v as usize >= positions.len()) {
+        return 0;
+    }
+    let flat = |a: u32, b: u32, c: u32| {
+        let [a, b, c] = [a, b, c].map(|v| positions[v as usize]);
+        let (e1, e2) = (b - a, c - a);
+        let longest = e1.norm().max(e2.norm()).max((c - b).norm());
+        e1.cross(&e2).norm() <= 1e-12 * longest * longest
+    };
+    (0..n)
+        .find(|&r| (1..n - 1).all(|k| !flat(poly[r], poly[(r + k) % n], poly[(r + k + 1) % n])))
+        .unwrap_or(0)
+}
+
 /// Checks a mesh read from `path`: at least one triangle, finite positions, indices in range,
 /// and with [`Checks::Full`] no degenerate triangle (repeated index or zero area). `locate(i)`
 /// names triangle `i`'s place in the file (e.g. `line 12`); vertex numbers in messages start at
@@ -306,6 +325,11 @@ pub fn parse_obj(path: &Path, text: &str, checks: Checks) -> Result<Mesh> {
                     corner_vn = None;
                 }
                 face_sizes.push(corners.len() as u32);
+                // The fan starts at a corner from which no triangle is flat (a polygon with
+                // three corners in a row, as CAD and Blender export them); the polygon is the
+                // same with its corners turned, and is written back so.
+                let r = fan_start(&corners.iter().map(|c| c.0).collect::<Vec<_>>(), &positions);
+                corners.rotate_left(r);
                 for k in 1..corners.len() - 1 {
                     let tri = [corners[0], corners[k], corners[k + 1]];
                     triangles.push(tri.map(|c| c.0));
