@@ -11,11 +11,9 @@ pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
     write_atomic_with(path, |w| w.write_all(bytes))
 }
 
-/// Like [`write_atomic`], with the content produced by a writer callback.
-pub fn write_atomic_with(
-    path: &Path,
-    fill: impl FnOnce(&mut std::io::BufWriter<std::fs::File>) -> std::io::Result<()>,
-) -> Result<()> {
+/// The temporary name `path` is written under before the rename (`.NAME.PID.tmp` in its folder,
+/// which is made if missing).
+fn temporary_beside(path: &Path) -> Result<std::path::PathBuf> {
     let dir = match path.parent() {
         Some(d) if !d.as_os_str().is_empty() => d,
         _ => Path::new("."),
@@ -24,11 +22,19 @@ pub fn write_atomic_with(
     let name = path
         .file_name()
         .ok_or_else(|| Error::option("path", path.display(), "a file path"))?;
-    let tmp = dir.join(format!(
+    Ok(dir.join(format!(
         ".{}.{}.tmp",
         name.to_string_lossy(),
         std::process::id()
-    ));
+    )))
+}
+
+/// Like [`write_atomic`], with the content produced by a writer callback.
+pub fn write_atomic_with(
+    path: &Path,
+    fill: impl FnOnce(&mut std::io::BufWriter<std::fs::File>) -> std::io::Result<()>,
+) -> Result<()> {
+    let tmp = temporary_beside(path)?;
     let result = (|| {
         let file = std::fs::File::create(&tmp)?;
         let mut w = std::io::BufWriter::new(file);
@@ -50,14 +56,6 @@ pub fn write_atomic_with(
 /// files are left as they were.
 pub fn write_atomic_pair(first: (&Path, &[u8]), second: (&Path, &[u8])) -> Result<()> {
     let tmp_of = |path: &Path| -> Result<std::path::PathBuf> {
-        let dir = match path.parent() {
-            Some(d) if !d.as_os_str().is_empty() => d,
-            _ => Path::new("."),
-        };
-        std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
-        let name = path
-            .file_name()
-            .ok_or_else(|| Error::option("path", path.display(), "a file path"))?;
         if let Some(kind) = not_a_file(path) {
             return Err(Error::invalid(
                 path,
@@ -65,11 +63,7 @@ pub fn write_atomic_pair(first: (&Path, &[u8]), second: (&Path, &[u8])) -> Resul
                 format!("is {kind}, not a file"),
             ));
         }
-        Ok(dir.join(format!(
-            ".{}.{}.tmp",
-            name.to_string_lossy(),
-            std::process::id()
-        )))
+        temporary_beside(path)
     };
     let write = |tmp: &Path, bytes: &[u8]| -> std::io::Result<()> {
         let mut f = std::fs::File::create(tmp)?;

@@ -479,6 +479,7 @@ fn read_images_bin(path: &Path) -> Result<Vec<ColmapImage>> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::input::calib::testing::{err, has};
 
     fn fixture(file: &str) -> String {
         let p = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../fixtures/colmap/text");
@@ -491,19 +492,6 @@ mod tests {
         std::fs::write(dir.path().join("cameras.txt"), fixture("cameras.txt")).unwrap();
         std::fs::write(dir.path().join("images.txt"), images).unwrap();
         dir
-    }
-
-    fn err(r: Result<Vec<CalibratedCamera>>) -> String {
-        match r {
-            Ok(c) => panic!("should be refused, read {} cameras", c.len()),
-            Err(e) => e.to_string(),
-        }
-    }
-
-    fn has(msg: &str, parts: &[&str]) {
-        for p in parts {
-            assert!(msg.contains(p), "{msg:?} should mention {p:?}");
-        }
     }
 
     #[test]

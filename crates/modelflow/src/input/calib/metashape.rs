@@ -439,6 +439,7 @@ pub fn read_metashape_chunk(path: &Path, chunk: Option<&str>) -> Result<Vec<Cali
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::input::calib::testing::{err, has};
     use nalgebra::Rotation3;
 
     /// A chunk with one 640x480 sensor (f 500) and the given cameras; `extra` goes before the
@@ -495,19 +496,6 @@ mod tests {
         );
         std::fs::write(&p, doc).unwrap();
         p
-    }
-
-    fn err(r: Result<Vec<CalibratedCamera>>) -> String {
-        match r {
-            Ok(c) => panic!("should be refused, read {} cameras", c.len()),
-            Err(e) => e.to_string(),
-        }
-    }
-
-    fn has(msg: &str, parts: &[&str]) {
-        for p in parts {
-            assert!(msg.contains(p), "{msg:?} should mention {p:?}");
-        }
     }
 
     fn identity() -> (Matrix3<f64>, Vector3<f64>) {

@@ -95,3 +95,24 @@ pub(crate) fn strip_bom(text: &str) -> &str {
 pub(crate) fn check_rotation(r: &Matrix3<f64>) -> bool {
     is_rotation(r, crate::input::scene::ROTATION_TOLERANCE)
 }
+
+/// What the importers' tests share: the error of a file that must be refused, and a check that
+/// it names every part it should.
+#[cfg(test)]
+pub(crate) mod testing {
+    use super::CalibratedCamera;
+    use crate::error::Result;
+
+    pub fn err(r: Result<Vec<CalibratedCamera>>) -> String {
+        match r {
+            Ok(c) => panic!("should be refused, read {} cameras", c.len()),
+            Err(e) => e.to_string(),
+        }
+    }
+
+    pub fn has(msg: &str, parts: &[&str]) {
+        for p in parts {
+            assert!(msg.contains(p), "{msg:?} should mention {p:?}");
+        }
+    }
+}

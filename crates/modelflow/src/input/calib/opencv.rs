@@ -473,6 +473,7 @@ fn to_json(y: &yaml_rust2::Yaml) -> Value {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::input::calib::testing::{err, has};
 
     fn fixture(file: &str) -> String {
         let p = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../fixtures/opencv");
@@ -484,19 +485,6 @@ mod tests {
         let p = dir.path().join(name);
         std::fs::write(&p, text).unwrap();
         read_opencv(&p, None)
-    }
-
-    fn err(r: Result<Vec<CalibratedCamera>>) -> String {
-        match r {
-            Ok(c) => panic!("should be refused, read {} cameras", c.len()),
-            Err(e) => e.to_string(),
-        }
-    }
-
-    fn has(msg: &str, parts: &[&str]) {
-        for p in parts {
-            assert!(msg.contains(p), "{msg:?} should mention {p:?}");
-        }
     }
 
     /// The line (from 1) of the `nth` (from 0) line holding `s`.
