@@ -85,6 +85,14 @@ pub fn write_atomic_pair(first: (&Path, &[u8]), second: (&Path, &[u8])) -> Resul
     renamed
 }
 
+/// Whether two paths name the same file (compared as given when either cannot be resolved).
+pub fn same_file(a: &Path, b: &Path) -> bool {
+    match (std::fs::canonicalize(a), std::fs::canonicalize(b)) {
+        (Ok(x), Ok(y)) => x == y,
+        _ => a == b,
+    }
+}
+
 /// What `path` is when it exists but is not a regular file (`"a folder"`, `"a FIFO"`, ...), so
 /// that readers refuse it with a reason instead of "not found" or a read that never ends.
 pub fn not_a_file(path: &Path) -> Option<&'static str> {

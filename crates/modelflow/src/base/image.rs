@@ -127,8 +127,6 @@ impl RgbImage {
         self.data[y * self.width + x] = v;
     }
 
-    /// Whether a bilinear sample at `(u, v)` touches only pixels inside the image.
-    #[inline]
     /// Whether the image records no colour: every pixel's three channels equal (a monochrome
     /// camera, or a file decoded from one channel), allowing 2/255 of spread in 1 pixel of
     /// 1 000 (compression noise).
@@ -147,6 +145,8 @@ impl RgbImage {
         }
     }
 
+    /// Whether a bilinear sample at `(u, v)` touches only pixels inside the image.
+    #[inline]
     pub fn inside(&self, u: f64, v: f64) -> bool {
         u >= 0.0 && v >= 0.0 && u <= (self.width - 1) as f64 && v <= (self.height - 1) as f64
     }

@@ -412,7 +412,7 @@ fn refusal(
 fn refusal_reason(listing: &Listing, existing: &Option<Manifest>, new: &Manifest) -> String {
     if let Some(m) = existing.as_ref().filter(|m| m.method == new.method) {
         // The same scene file: say what differs, rather than call it another scene.
-        if same_file(&m.scene.path, &new.scene.path) {
+        if crate::fsutil::same_file(&m.scene.path, &new.scene.path) {
             return if (m.scene.first, m.scene.last) != (new.scene.first, new.scene.last) {
                 format!(
                     "holds a run of this scene for frames {}..{}, not {}..{} (repeat the run's                      --frames to continue it)",
@@ -442,14 +442,6 @@ fn refusal_reason(listing: &Listing, existing: &Option<Manifest>, new: &Manifest
         shown.join(", "),
         if names.len() > 3 { ", ..." } else { "" }
     )
-}
-
-/// Whether two paths name the same file (compared as given when either cannot be resolved).
-fn same_file(a: &Path, b: &Path) -> bool {
-    match (std::fs::canonicalize(a), std::fs::canonicalize(b)) {
-        (Ok(x), Ok(y)) => x == y,
-        _ => a == b,
-    }
 }
 
 /// Where two option sets differ, as `path: old -> new` (dotted paths to the leaves).

@@ -188,13 +188,7 @@ pub(crate) fn now() -> String {
 pub fn made_from_another_scene(run: &Path, scene: &Path) -> Option<PathBuf> {
     let m = Manifest::read(&run.join(crate::run::MANIFEST)).ok()?;
     let recorded = m.scene.path;
-    let same = match (
-        std::fs::canonicalize(&recorded),
-        std::fs::canonicalize(scene),
-    ) {
-        (Ok(a), Ok(b)) => a == b,
-        _ => recorded == scene,
-    };
+    let same = crate::fsutil::same_file(&recorded, scene);
     (!same).then_some(recorded)
 }
 

@@ -250,8 +250,8 @@ impl Tracker {
         }
         // A rig that mixes colour and monochrome cameras is compared in luminance, from the
         // first look at its images on (the surface check below compares cameras too).
-        let luminance = crate::base::image::mixes_grey_and_colour(images);
         let compared = crate::base::image::comparable(images);
+        let luminance = matches!(compared, std::borrow::Cow::Owned(_));
         let images = &compared[..];
         // A mesh off the surface the cameras agree on is moved onto it first: everything below
         // (rest lengths, templates, the anchor) starts from the moved mesh.

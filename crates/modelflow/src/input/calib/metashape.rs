@@ -137,6 +137,8 @@ pub fn read_metashape_chunk(path: &Path, chunk: Option<&str>) -> Result<Vec<Cali
             .join(", ")
     };
     let all: Vec<usize> = (0..chunks.len()).collect();
+    // Every refusal of the chunk choice names the chunks there are.
+    let refuse = |msg: String| Error::invalid(path, "chunk", msg);
     let chunk = match chunk {
         Some(want) => {
             let found: Vec<usize> = all
@@ -147,24 +149,16 @@ pub fn read_metashape_chunk(path: &Path, chunk: Option<&str>) -> Result<Vec<Cali
             match found[..] {
                 [i] => chunks[i],
                 [] => {
-                    return Err(Error::invalid(
-                        path,
-                        "chunk",
-                        format!(
-                            "no chunk has the label or id {want:?}; the chunks: {}",
-                            list(&all)
-                        ),
-                    ))
+                    return Err(refuse(format!(
+                        "no chunk has the label or id {want:?}; the chunks: {}",
+                        list(&all)
+                    )))
                 }
                 _ => {
-                    return Err(Error::invalid(
-                        path,
-                        "chunk",
-                        format!(
-                            "{want:?} names several chunks: {}; choose by id",
-                            list(&found)
-                        ),
-                    ))
+                    return Err(refuse(format!(
+                        "{want:?} names several chunks: {}; choose by id",
+                        list(&found)
+                    )))
                 }
             }
         }
@@ -183,25 +177,17 @@ pub fn read_metashape_chunk(path: &Path, chunk: Option<&str>) -> Result<Vec<Cali
                 ([i], _) => chunks[*i],
                 ([], [i, ..]) => chunks[*i],
                 ([], []) => {
-                    return Err(Error::invalid(
-                        path,
-                        "chunk",
-                        format!(
+                    return Err(refuse(format!(
                             "every chunk is disabled in Metashape: {}; choose one with --chunk LABEL_OR_ID",
                             list(&all)
-                        ),
-                    ))
+                        )))
                 }
                 _ => {
-                    return Err(Error::invalid(
-                        path,
-                        "chunk",
-                        format!(
+                    return Err(refuse(format!(
                             "{} chunks have aligned cameras: {}; choose one with --chunk LABEL_OR_ID (or export one chunk from Metashape)",
                             with.len(),
                             list(&with)
-                        ),
-                    ))
+                        )))
                 }
             }
         }
