@@ -3,7 +3,7 @@ geometry from calibrated multi-view footage). Lengths are in the scene's unit; i
 (height, width, 3) arrays, float32 in 0..1 or uint8; positions are (V, 3) float64 arrays."""
 
 from os import PathLike
-from typing import Any, Dict, List, Optional, Sequence, Union
+from typing import Any, Dict, List, Optional, Sequence, Tuple, Union
 
 import numpy as np
 import numpy.typing as npt
@@ -20,8 +20,13 @@ class Scene:
     """A scene: calibrated cameras, footage and the mesh lined up with the first frame."""
 
     @staticmethod
-    def load(path: _Path) -> "Scene":
-        """Loads and checks a scene file (modelflow-scene/1)."""
+    def load(
+        path: _Path,
+        cameras: Optional[Sequence[str]] = None,
+        frames: Optional[Tuple[int, int]] = None,
+    ) -> "Scene":
+        """Loads and checks a scene file (modelflow-scene/1); `cameras` and `frames` load only
+        that part, whose images alone are checked (track --cameras, --frames)."""
     def with_frames(self, first: int, last: int) -> "Scene":
         """The same scene restricted to frames first..=last (the mesh lined up with `first`)."""
     @property

@@ -145,11 +145,19 @@ struct Scene {
 
 #[pymethods]
 impl Scene {
-    /// Loads and checks a scene file (`modelflow-scene/1`).
+    /// Loads and checks a scene file (`modelflow-scene/1`); `cameras` (names) and `frames`
+    /// (`(first, last)`) load only that part, whose images alone are checked (`track
+    /// --cameras`, `--frames`).
     #[staticmethod]
-    fn load(path: PathBuf) -> PyResult<Self> {
+    #[pyo3(signature = (path, cameras=None, frames=None))]
+    fn load(
+        path: PathBuf,
+        cameras: Option<Vec<String>>,
+        frames: Option<(u32, u32)>,
+    ) -> PyResult<Self> {
+        let selection = mf::input::Selection { cameras, frames };
         Ok(Scene {
-            inner: mf::Scene::load(&path).map_err(err)?,
+            inner: mf::Scene::load_selected(&path, &selection).map_err(err)?,
         })
     }
 

@@ -61,6 +61,14 @@ def test_tracker_loop_gives_the_clis_result(cli_run):
     assert tracker.first_mesh_moved is None
 
 
+def test_part_of_a_scene_loads_by_cameras_and_frames():
+    s = modelflow.Scene.load(SCENE, cameras=["cam1", "cam0"], frames=(1, 2))
+    assert (s.first, s.last) == (1, 2)
+    assert s.cameras == ["cam1", "cam0"]
+    with pytest.raises(modelflow.ModelflowError, match="--cameras"):
+        modelflow.Scene.load(SCENE, cameras=["cam7"])
+
+
 def test_uint8_images_are_taken_too():
     s = modelflow.Scene.load(SCENE).with_frames(0, 1)
     as_u8 = [np.round(i * 255).astype(np.uint8) for i in s.load_images(0)]

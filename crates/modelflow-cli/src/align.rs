@@ -3,7 +3,6 @@
 //! library's (`tracker::align`).
 
 use modelflow::base::{rms_distance, Length};
-use modelflow::input::Scene;
 use modelflow::report::{alignment_picture, surface_rms};
 use modelflow::tracker::{align, onto_surface, perturb, surface_offset, AlignOptions, MotionKind};
 use std::path::PathBuf;
@@ -96,7 +95,7 @@ fn parse_perturb(s: &str) -> Result<(f64, f64), String> {
 }
 
 pub fn run(args: Args) -> anyhow::Result<()> {
-    let scene = args.select.apply(Scene::load(&args.scene)?)?;
+    let scene = args.select.load(&args.scene)?;
     let frame = scene.first;
     let mut mesh = scene.mesh.clone();
     if let Some((pct, deg)) = args.perturb {

@@ -5,7 +5,6 @@ use crate::progress::Progress;
 use crate::runfolder::{run_options, Invocation, OutArgs};
 use anyhow::Context;
 use modelflow::baseline::{self, BaselineOptions, LkOptions, Seeding};
-use modelflow::input::Scene;
 use std::path::PathBuf;
 
 #[derive(clap::Args)]
@@ -73,7 +72,7 @@ pub fn run(args: Args, invocation: &Invocation) -> anyhow::Result<()> {
         ..defaults
     };
     opts.validate()?;
-    let scene = args.select.apply(Scene::load(&args.scene)?)?;
+    let scene = args.select.load(&args.scene)?;
     args.memory.check(&scene)?;
     let run = run_options(args.out.mode(false), invocation);
     let progress = Progress::new("baseline", (scene.last - scene.first) as u64);

@@ -3,7 +3,7 @@
 
 use anyhow::Context;
 use modelflow::base::Length;
-use modelflow::input::Scene;
+use modelflow::input::SceneFile;
 use modelflow::{evaluate, read_run, EvalReport};
 use std::path::PathBuf;
 
@@ -23,12 +23,12 @@ pub struct Args {
 }
 
 pub fn run(args: Args) -> anyhow::Result<()> {
-    let scene = Scene::load(&args.scene)?;
+    let file = SceneFile::read(&args.scene)?;
     let chosen = args.select.frames.is_some();
     let select = args
         .select
-        .or_the_runs(&scene, &[&args.track], "evaluating")?;
-    let scene = select.apply(scene)?;
+        .or_the_runs(&file, &[&args.track], "evaluating")?;
+    let scene = select.load(&args.scene)?;
     let mut run = read_run(&args.track)?;
     if let Some(other) = modelflow::run::made_from_another_scene(&args.track, &args.scene) {
         eprintln!(

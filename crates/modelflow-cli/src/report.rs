@@ -2,7 +2,7 @@
 //! oblique views, error and confidence maps, a flipbook of every frame) comparing runs on a scene.
 
 use anyhow::{bail, Context};
-use modelflow::input::Scene;
+use modelflow::input::SceneFile;
 use modelflow::report::{write_report, ReportOptions};
 use std::path::PathBuf;
 
@@ -52,12 +52,12 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         }
         runs.push((name.to_string(), PathBuf::from(dir)));
     }
-    let scene = Scene::load(&args.scene)?;
+    let file = SceneFile::read(&args.scene)?;
     let dirs: Vec<&std::path::Path> = runs.iter().map(|(_, d)| d.as_path()).collect();
     let scene = args
         .select
-        .or_the_runs(&scene, &dirs, "reporting on")?
-        .apply(scene)?;
+        .or_the_runs(&file, &dirs, "reporting on")?
+        .load(&args.scene)?;
     let opts = ReportOptions {
         frames: args.overlay_frames,
         oblique_degrees: args.oblique_degrees,

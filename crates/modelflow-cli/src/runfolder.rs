@@ -41,12 +41,17 @@ pub fn given_options(cmd: &clap::Command, matches: &clap::ArgMatches) -> BTreeMa
         if matches.value_source(id) != Some(ValueSource::CommandLine) {
             continue;
         }
+        // A list given as one comma-separated value (`--cameras a,b`) is written back so, and
+        // read back so (`select::SelectArgs::or_the_runs`).
+        let sep = arg
+            .get_value_delimiter()
+            .map_or(" ".to_string(), |c| c.to_string());
         let value = matches
             .get_raw(id)
             .map(|vals| {
                 vals.map(|v| v.to_string_lossy().into_owned())
                     .collect::<Vec<_>>()
-                    .join(" ")
+                    .join(&sep)
             })
             .filter(|v| !v.is_empty())
             .unwrap_or_else(|| "true".into());

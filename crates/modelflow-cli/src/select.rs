@@ -1,6 +1,6 @@
 //! `--frames A..B`, `--cameras NAME,...` and `--mesh FILE`, shared by the commands that read a scene (`track`,
 //! `baseline`, `eval`, `report`): parsing here, the selection itself in the library
-//! (`Scene::with_frames`, `Scene::with_cameras`, `Scene::with_mesh`).
+//! (`Scene::load_selected`, `Scene::with_mesh`).
 
 use modelflow::input::Scene;
 
@@ -46,16 +46,15 @@ impl MemoryArgs {
 }
 
 impl SelectArgs {
-    /// The scene restricted as asked (unchanged when nothing is asked).
-    pub fn apply(&self, scene: Scene) -> modelflow::Result<Scene> {
-        let scene = match &self.cameras {
-            Some(names) => scene.with_cameras(names)?,
-            None => scene,
+    /// The scene at `path`, restricted as asked: only the chosen cameras' images over the
+    /// chosen frames are checked (`Scene::load_selected`), so a camera with broken footage can
+    /// be left out and a shot tracked over the frames that exist.
+    pub fn load(&self, path: &std::path::Path) -> modelflow::Result<Scene> {
+        let selection = modelflow::input::Selection {
+            cameras: self.cameras.clone(),
+            frames: self.frames,
         };
-        let scene = match self.frames {
-            Some((a, b)) => scene.with_frames(a, b)?,
-            None => scene,
-        };
+        let scene = Scene::load_selected(path, &selection)?;
         match &self.mesh {
             Some(m) => scene.with_mesh(m),
             None => Ok(scene),
@@ -72,7 +71,7 @@ impl SelectArgs {
     /// scene's.
     pub fn or_the_runs(
         mut self,
-        scene: &Scene,
+        scene: &modelflow::input::SceneFile,
         runs: &[&std::path::Path],
         doing: &str,
     ) -> anyhow::Result<Self> {
@@ -97,7 +96,10 @@ impl SelectArgs {
         ) else {
             return Ok(self);
         };
-        if self.frames.is_none() && first <= last && (first, last) != (scene.first, scene.last) {
+        if self.frames.is_none()
+            && first <= last
+            && (first, last) != (scene.frames.first, scene.frames.last)
+        {
             self.frames = Some((first, last));
             let stopped = ranges.iter().any(|r| r.2);
             eprintln!(

@@ -379,7 +379,7 @@ fn first_mesh_checks(
 
 pub fn run(args: Args, invocation: &Invocation) -> anyhow::Result<()> {
     args.track.options().validate()?;
-    let scene = args.select.apply(Scene::load(&args.scene)?)?;
+    let scene = args.select.load(&args.scene)?;
     args.memory.check(&scene)?;
     // Before anything is printed: a GPU asked for and missing ends the command here.
     let gpu = args.device.open()?;
@@ -579,15 +579,19 @@ pub fn run_scene(
         }
     }
     result.map_err(|e| {
-        let interrupted = matches!(e, modelflow::Error::Interrupted { .. });
-        let e = anyhow::Error::new(e);
-        if interrupted {
-            e.context(format!(
+        match &e {
+            modelflow::Error::Interrupted { .. } => anyhow::Error::new(e).context(format!(
                 "{} can be continued: run the same command with --resume",
                 out.display()
-            ))
-        } else {
-            e
+            )),
+            // What went wrong first, then what stands and how to go on.
+            modelflow::Error::AtFrame { frame, .. } if *frame > scene.first => anyhow::anyhow!(
+                "{e}\nframes {first}..={done} are tracked in {}: once the file is repaired, the same command with --resume goes on from there (or leave the camera out with --cameras, or stop before it with --frames {first}..{done})",
+                out.display(),
+                first = scene.first,
+                done = frame - 1,
+            ),
+            _ => anyhow::Error::new(e),
         }
     })
 }

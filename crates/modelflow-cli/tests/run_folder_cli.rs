@@ -189,3 +189,58 @@ fn a_rerun_and_a_folder_of_other_files_are_refused_and_unchanged() {
         "--force and --resume exclude each other"
     );
 }
+
+fn copy_dir(from: &Path, to: &Path) {
+    std::fs::create_dir_all(to).unwrap();
+    for e in std::fs::read_dir(from).unwrap() {
+        let e = e.unwrap();
+        let dest = to.join(e.file_name());
+        if e.file_type().unwrap().is_dir() {
+            copy_dir(&e.path(), &dest);
+        } else {
+            std::fs::copy(e.path(), dest).unwrap();
+        }
+    }
+}
+
+#[test]
+fn a_frame_that_does_not_read_stops_the_run_and_resume_goes_on_once_it_is_repaired() {
+    let (tmp, scene, reference) = shot();
+    // A copy of the footage whose camera 1 frame 20 was cut short in a transfer.
+    let footage = tmp.path().join("footage-cut");
+    copy_dir(scene.parent().unwrap(), &footage);
+    let scene = footage.join(scene.file_name().unwrap());
+    let cut = footage.join("images/cam1/0020.png");
+    let good = std::fs::read(&cut).unwrap();
+    std::fs::write(&cut, &good[..good.len() / 2]).unwrap();
+    let out = tmp.path().join("cut");
+    let o = track(&scene, &out, &[]).output().unwrap();
+    let err = text(&o.stderr);
+    assert!(!o.status.success(), "{err}");
+    assert!(
+        err.contains("frame 20") && err.contains("0020.png") && err.contains("0..=19"),
+        "{err}"
+    );
+    assert!(err.contains("--resume"), "{err}");
+    let manifest: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(out.join("run.json")).unwrap()).unwrap();
+    assert_eq!(manifest["status"], "failed");
+    assert_eq!(manifest["last_complete"], 19);
+    // An image of a frame already tracked changed too: not a continuation of the same inputs.
+    let early = footage.join("images/cam0/0005.png");
+    let early_good = std::fs::read(&early).unwrap();
+    std::fs::write(&cut, &good).unwrap();
+    std::fs::write(&early, &early_good[..early_good.len() - 1]).unwrap();
+    let o = track(&scene, &out, &["--resume"]).output().unwrap();
+    let err = text(&o.stderr);
+    assert!(
+        !o.status.success() && err.contains("other inputs"),
+        "{err}"
+    );
+    // Only the frame that stopped it repaired: it goes on, to the uninterrupted run's meshes.
+    std::fs::write(&early, &early_good).unwrap();
+    let o = track(&scene, &out, &["--resume"]).output().unwrap();
+    assert!(o.status.success(), "{}", text(&o.stderr));
+    assert!(text(&o.stderr).contains("resumed after frame 19"));
+    assert_eq!(meshes(&out), meshes(reference), "byte-identical meshes");
+}

@@ -118,3 +118,58 @@ fn bad_selections_name_the_option_and_what_is_allowed() {
         assert!(!run.exists(), "{args:?}: nothing is written");
     }
 }
+
+#[test]
+fn a_camera_or_frames_with_broken_footage_can_be_left_out() {
+    let dir = tempfile::tempdir().unwrap();
+    let opts = SynthOptions {
+        preset: modelflow::synth::Preset::Blob,
+        width: 160,
+        height: 120,
+        frames: 5,
+        ..SynthOptions::default()
+    };
+    let footage = dir.path().join("footage");
+    let scene = write_dataset(&opts, &footage, &|_, _| {}).unwrap();
+    // Camera 3's frame 1 is not an image, and camera 0 lacks frame 4.
+    let bad = footage.join("images/cam3/0001.png");
+    std::fs::write(&bad, b"not a png").unwrap();
+    std::fs::remove_file(footage.join("images/cam0/0004.png")).unwrap();
+    let run = dir.path().join("run");
+    // The whole scene is refused, naming the first problem.
+    let out = modelflow(&["track"], &[("--scene", &scene), ("--out", &run)]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success(), "{err}");
+    assert!(err.contains("cameras[") && err.contains("images"), "{err}");
+    assert!(!run.exists());
+    // Leaving out camera 3 and frame 4, the rest is tracked and scored.
+    let out = modelflow(
+        &["track", "--frames", "0..3", "--cameras", "cam0,cam1,cam2"],
+        &[("--scene", &scene), ("--out", &run)],
+    );
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let out = modelflow(
+        &["eval", "--json"],
+        &[("--scene", &scene), ("--track", &run)],
+    );
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{err}");
+    let report: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(report["frames"], 4);
+    let mean = report["rms_mean_pct"].as_f64().unwrap();
+    assert!(mean < 0.5, "mean error {mean} % over frames 0..3");
+    // A camera left in with a broken frame is named by its place in the scene file.
+    let out = modelflow(
+        &["track", "--frames", "0..3", "--cameras", "cam3,cam1"],
+        &[("--scene", &scene), ("--out", &dir.path().join("run2"))],
+    );
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        !out.status.success() && err.contains("cameras[3].images") && err.contains("frame 1"),
+        "{err}"
+    );
+}

@@ -53,6 +53,10 @@ pub enum Error {
         dir: PathBuf,
         error: Box<Error>,
     },
+    /// A frame's images could not be read in the middle of a run; every frame before it is
+    /// complete (a run folder holding them can be resumed once the file is repaired).
+    #[error("frame {frame}: {error}")]
+    AtFrame { frame: u32, error: Box<Error> },
     /// The run was stopped on request (e.g. Ctrl-C); every frame up to `last_complete` is
     /// complete (a run folder holding them can be resumed).
     #[error("interrupted on request; every frame up to {last_complete} is complete")]

@@ -257,21 +257,7 @@ impl Scene {
     /// runs on. Every name must be a camera of the scene, none twice, and at least two of them
     /// must see the mesh at the first frame.
     pub fn with_cameras(&self, names: &[String]) -> Result<Scene> {
-        let all: Vec<&str> = self.cameras.iter().map(|c| c.name.as_str()).collect();
-        let mut picked: Vec<usize> = Vec::with_capacity(names.len());
-        for n in names {
-            let i = all.iter().position(|c| c == n).ok_or_else(|| {
-                Error::option(
-                    "--cameras",
-                    n,
-                    format!("names of the scene's cameras: {}", all.join(", ")),
-                )
-            })?;
-            if picked.contains(&i) {
-                return Err(Error::option("--cameras", n, "each camera named once"));
-            }
-            picked.push(i);
-        }
+        let picked = pick_cameras(&self.cameras, names)?;
         let cameras: Vec<Camera> = picked.iter().map(|&i| self.cameras[i].clone()).collect();
         check_seen(&self.path, &cameras, self.first, &self.mesh)?;
         Ok(Scene {
@@ -282,6 +268,37 @@ impl Scene {
             ..self.clone()
         })
     }
+}
+
+/// What part of a scene file to load ([`Scene::load_selected`]): `None` is all of it.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Selection {
+    /// Only these cameras, by name, in this order (`--cameras`).
+    pub cameras: Option<Vec<String>>,
+    /// Only frames `A..=B`, within the scene's; the mesh is taken as lined up with `A`
+    /// (`--frames`).
+    pub frames: Option<(u32, u32)>,
+}
+
+/// The places in `cameras` of the `names` (`--cameras`), in the order named: each must be a
+/// camera's name, and named once.
+fn pick_cameras(cameras: &[Camera], names: &[String]) -> Result<Vec<usize>> {
+    let all: Vec<&str> = cameras.iter().map(|c| c.name.as_str()).collect();
+    let mut picked: Vec<usize> = Vec::with_capacity(names.len());
+    for n in names {
+        let i = all.iter().position(|c| c == n).ok_or_else(|| {
+            Error::option(
+                "--cameras",
+                n,
+                format!("names of the scene's cameras: {}", all.join(", ")),
+            )
+        })?;
+        if picked.contains(&i) {
+            return Err(Error::option("--cameras", n, "each camera named once"));
+        }
+        picked.push(i);
+    }
+    Ok(picked)
 }
 
 impl FramePattern {
@@ -498,6 +515,14 @@ impl SceneFile {
             .map_err(|e| Error::invalid(path, "scene", format!("cannot be serialised: {e}")))?;
         text.push('\n');
         write_atomic(path, text.as_bytes())
+    }
+
+    /// Reads and parses the scene file at `path` (nothing beyond its JSON is checked: see
+    /// [`Scene::load`]).
+    pub fn read(path: &Path) -> Result<SceneFile> {
+        require_file(path, "scene file")?;
+        let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
+        SceneFile::parse(path, &text)
     }
 
     /// Parses scene JSON straight into the typed structures (no intermediate JSON tree, so
@@ -900,15 +925,32 @@ impl Scene {
     /// Reads and validates a scene file: everything a run will need is checked here, so that a
     /// run cannot fail half-way on bad input. Errors name the file and the field at fault.
     pub fn load(path: &Path) -> Result<Scene> {
-        require_file(path, "scene file")?;
-        let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
-        let file = SceneFile::parse(path, &text)?;
-        Scene::from_file(path, &file)
+        Scene::load_selected(path, &Selection::default())
+    }
+
+    /// Reads a scene file and validates the part of it that `selection` names (`track
+    /// --cameras`, `--frames`): the calibration of every camera, but the images only of the
+    /// chosen cameras over the chosen frames. So a camera whose footage is broken can be left
+    /// out, and a shot tracked over the frames that exist. The same as [`Scene::load`]
+    /// followed by [`Scene::with_cameras`] and [`Scene::with_frames`] where those succeed.
+    pub fn load_selected(path: &Path, selection: &Selection) -> Result<Scene> {
+        let file = SceneFile::read(path)?;
+        Scene::from_file_selected(path, &file, selection)
     }
 
     /// Validates a scene file already in memory as if it had been read from `path` (relative
     /// paths are resolved against `path`'s folder; errors name `path`).
     pub fn from_file(path: &Path, file: &SceneFile) -> Result<Scene> {
+        Scene::from_file_selected(path, file, &Selection::default())
+    }
+
+    /// [`Scene::from_file`] for the part of the scene that `selection` names (see
+    /// [`Scene::load_selected`]).
+    pub fn from_file_selected(
+        path: &Path,
+        file: &SceneFile,
+        selection: &Selection,
+    ) -> Result<Scene> {
         if file.format != FORMAT {
             return Err(Error::invalid(
                 path,
@@ -918,6 +960,20 @@ impl Scene {
         }
         let base = path.parent().unwrap_or(Path::new("")).to_path_buf();
         let (first, last) = file.frame_range(path)?;
+        let (first, last) = match selection.frames {
+            None => (first, last),
+            Some((a, b)) if first <= a && a <= b && b <= last => (a, b),
+            Some((a, b)) => {
+                return Err(Error::option(
+                    "--frames",
+                    format!("{a}..{b}"),
+                    format!(
+                        "A..B with {first} <= A <= B <= {last} (the frames of {})",
+                        path.display()
+                    ),
+                ));
+            }
+        };
         // Mesh.
         let mesh_path = base.join(&file.mesh);
         if let Some(kind) = crate::fsutil::not_a_file(&mesh_path) {
@@ -939,10 +995,21 @@ impl Scene {
         if file.cameras.is_empty() {
             return Err(Error::invalid(path, "cameras", "no camera"));
         }
-        let mut cameras = Vec::with_capacity(file.cameras.len());
-        let mut images = Vec::with_capacity(file.cameras.len());
-        for (i, c) in file.cameras.iter().enumerate() {
-            cameras.push(file.camera(path, i)?);
+        // Every camera's calibration is checked; the chosen ones (`index`: their places in the
+        // file, which the messages name) are kept.
+        let mut all = Vec::with_capacity(file.cameras.len());
+        for i in 0..file.cameras.len() {
+            all.push(file.camera(path, i)?);
+        }
+        let index: Vec<usize> = match &selection.cameras {
+            None => (0..all.len()).collect(),
+            Some(names) => pick_cameras(&all, names)?,
+        };
+        let mut cameras = Vec::with_capacity(index.len());
+        let mut images = Vec::with_capacity(index.len());
+        for &i in &index {
+            let c = &file.cameras[i];
+            cameras.push(all[i].clone());
             // Within what a frame number can be: an offset beyond it would wrap around.
             if c.frame_offset.unsigned_abs() > u64::from(u32::MAX) {
                 return Err(Error::invalid(
@@ -984,7 +1051,7 @@ impl Scene {
         // reported is the first in (block, camera, frame) order, whatever the thread count.
         // Video cameras: the file is probed once for its size and length.
         let mut videos = Vec::with_capacity(cameras.len());
-        for (i, (pat, cam)) in images.iter().zip(&cameras).enumerate() {
+        for ((pat, cam), &i) in images.iter().zip(&cameras).zip(&index) {
             if !pat.video {
                 videos.push(None);
                 continue;
@@ -1035,7 +1102,7 @@ impl Scene {
                 return Ok(());
             }
             let p = images[i].path(f);
-            let field = format!("cameras[{i}].images");
+            let field = format!("cameras[{}].images", index[i]);
             if !p.is_file() {
                 let what = match not_a_file(&p) {
                     Some(kind) => format!("{} is {kind}, not an image file", p.display()),
@@ -1043,7 +1110,8 @@ impl Scene {
                 };
                 return Err(Error::invalid(path, field, format!("frame {f}: {what}")));
             }
-            let (w, h) = image_size(&p)?;
+            let (w, h) = image_size(&p)
+                .map_err(|e| Error::invalid(path, field.clone(), format!("frame {f}: {e}")))?;
             let cam = &cameras[i];
             if (w, h) != (cam.width, cam.height) {
                 return Err(Error::invalid(

@@ -13,7 +13,10 @@
 
 use super::layout::{self, confidence_file, frame_file, LOG, MANIFEST};
 use super::log::{read_log, FrameLog, LogWriter};
-use super::manifest::{now, LastFrameCheck, Manifest, Method, Options, Resumption, Status};
+use super::manifest::{
+    inputs_checksum_upto, now, LastFrameCheck, Manifest, Method, Options, Resumption, SceneRecord,
+    Status,
+};
 use crate::base::mesh::Mesh;
 use crate::error::{Error, Result};
 use crate::input::meshio::{read_mesh_with, Checks};
@@ -137,13 +140,18 @@ pub fn write_run<T>(
     let Opened {
         mut folder,
         resumed,
-    } = RunFolder::open(dir, manifest, run.mode)?;
+    } = RunFolder::open(dir, manifest, run.mode, scene)?;
     let result = body(&mut folder, resumed);
     let status = match &result {
         Ok(_) => Status::Complete,
         Err(Error::Interrupted { .. }) => Status::Interrupted,
         Err(_) => Status::Failed,
     };
+    // What the frames written were made from (an image that cannot be read now is not among
+    // them: the run stops before the frame that needs it).
+    folder.manifest.scene.tracked_checksum = folder
+        .last_complete
+        .and_then(|l| inputs_checksum_upto(scene, l).ok());
     let finished = folder.finish(status);
     match result {
         Ok(value) => finished.map(|()| value),
@@ -164,7 +172,7 @@ pub struct Opened {
 impl RunFolder {
     /// Opens `dir` for the run `manifest` describes, by the rules of `mode` (see the module
     /// documentation). Refusals are `Error::RunFolder` with the reason and what to do.
-    pub fn open(dir: &Path, manifest: Manifest, mode: OpenMode) -> Result<Opened> {
+    pub fn open(dir: &Path, manifest: Manifest, mode: OpenMode, scene: &Scene) -> Result<Opened> {
         let mut manifest = manifest;
         if dir.exists() && !dir.is_dir() {
             return Err(Error::run_folder(dir, "exists and is not a folder"));
@@ -176,8 +184,20 @@ impl RunFolder {
         } else {
             None
         };
+        // The same inputs, or (a run that stopped part-way) the same inputs for the frames it
+        // tracked: an image of a later frame repaired or replaced since is what it needs.
         let same_scene = existing.as_ref().is_some_and(|m| {
-            m.method == manifest.method && m.scene.checksum == manifest.scene.checksum
+            m.method == manifest.method
+                && (m.scene.checksum == manifest.scene.checksum
+                    || (m.scene.first, m.scene.last) == (scene.first, scene.last)
+                        && m.status != Status::Complete
+                        && m.scene
+                            .tracked_checksum
+                            .as_ref()
+                            .zip(m.last_complete)
+                            .is_some_and(|(c, l)| {
+                                inputs_checksum_upto(scene, l).is_ok_and(|now| &now == c)
+                            }))
         });
         let mut resumed = None;
         match mode {
@@ -222,9 +242,16 @@ impl RunFolder {
                 let last = truncate_to_complete(dir, &old)?;
                 listing.remove_temporaries(dir)?;
                 let command = std::mem::take(&mut manifest.command);
+                // From here on the run is made from the inputs as they are now.
+                let scene_record = SceneRecord {
+                    checksum: manifest.scene.checksum.clone(),
+                    tracked_checksum: None,
+                    ..old.scene.clone()
+                };
                 manifest = Manifest {
                     status: Status::Running,
                     ended: None,
+                    scene: scene_record,
                     ..old
                 };
                 manifest.resumed.push(Resumption {
@@ -415,11 +442,11 @@ fn refusal_reason(listing: &Listing, existing: &Option<Manifest>, new: &Manifest
         if crate::fsutil::same_file(&m.scene.path, &new.scene.path) {
             return if (m.scene.first, m.scene.last) != (new.scene.first, new.scene.last) {
                 format!(
-                    "holds a run of this scene for frames {}..{}, not {}..{} (repeat the run's                      --frames to continue it)",
+                    "holds a run of this scene for frames {}..{}, not {}..{} (repeat the run's --frames to continue it)",
                     m.scene.first, m.scene.last, new.scene.first, new.scene.last
                 )
             } else {
-                "holds a run of this scene made from other inputs: the mesh, a camera or an                  image file's size has changed since it started (a repaired or replaced image                  counts), so its frames would not match a continuation"
+                "holds a run of this scene made from other inputs: the mesh, a camera, or the size of an image file of a frame it tracked has changed since it started, so its frames would not match a continuation"
                     .to_string()
             };
         }

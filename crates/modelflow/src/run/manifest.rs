@@ -55,6 +55,11 @@ pub struct SceneRecord {
     pub last: u32,
     /// `sha256:` of everything tracking depends on (see [`inputs_checksum`]).
     pub checksum: String,
+    /// The same over the image files of the frames up to `last_complete` only, as of `ended`
+    /// ([`inputs_checksum_upto`]): a run stopped by an image that did not read can be resumed
+    /// once that image is repaired, since the frames tracked came from files unchanged.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub tracked_checksum: Option<String>,
 }
 
 /// A resumption of the run.
@@ -135,6 +140,7 @@ impl Manifest {
                 first: scene.first,
                 last: scene.last,
                 checksum: inputs_checksum(scene)?,
+                tracked_checksum: None,
             },
             started: now(),
             ended: None,
@@ -198,6 +204,12 @@ pub fn made_from_another_scene(run: &Path, scene: &Path) -> Option<PathBuf> {
 /// scene and its size in bytes. Image contents are not read (that would cost as much as a run);
 /// an image replaced by one of exactly the same size goes unnoticed.
 pub fn inputs_checksum(scene: &Scene) -> Result<String> {
+    inputs_checksum_upto(scene, scene.last)
+}
+
+/// [`inputs_checksum`] with the image files of frames `scene.first..=upto` only (the frame
+/// range, the mesh and the cameras in full): what a run that got that far depended on.
+pub fn inputs_checksum_upto(scene: &Scene, upto: u32) -> Result<String> {
     let mut h = Sha256::new();
     h.update(b"modelflow-inputs/1\0");
     h.update(scene.first.to_le_bytes());
@@ -223,6 +235,9 @@ pub fn inputs_checksum(scene: &Scene) -> Result<String> {
         for frame in scene.frames() {
             for v in cam.at(frame).matrix().iter() {
                 h.update(v.to_bits().to_le_bytes());
+            }
+            if frame > upto {
+                continue;
             }
             let path = pattern.path(frame);
             let size = std::fs::metadata(&path)

@@ -21,6 +21,6 @@ pub use layout::{
 };
 pub use log::{read_frame_log, FrameDetail, FrameLog};
 pub use manifest::{
-    inputs_checksum, made_from_another_scene, LastFrameCheck, Manifest, Method, Options,
-    Resumption, SceneRecord, Status, RUN_FORMAT,
+    inputs_checksum, inputs_checksum_upto, made_from_another_scene, LastFrameCheck, Manifest,
+    Method, Options, Resumption, SceneRecord, Status, RUN_FORMAT,
 };

@@ -147,7 +147,10 @@ fn track_into(
         let Some(loaded) = pending.take() else {
             break;
         };
-        let (prepared, load_seconds) = loaded?;
+        let (prepared, load_seconds) = loaded.map_err(|e| Error::AtFrame {
+            frame,
+            error: Box::new(e),
+        })?;
         let has_next = frame < scene.last;
         let (stepped, next) = rayon::join(
             || {
