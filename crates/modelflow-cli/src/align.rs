@@ -258,6 +258,11 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                 );
             }
         }
+        if a.outline.is_none() && a.loose.iter().any(|m| m.stiffness < opts.gauge_floor) {
+            eprintln!(
+                "hint: if the mesh's border is the object's visible edge against the background (a cloth, a sheet, a flag), --outline sets the motions the images leave free from it (docs/tracker.md, \"--outline\")"
+            );
+        }
         if let Some((b, after, sb, sa)) = errors {
             let pct = |v: Option<f64>| v.map_or("n/a".to_string(), |v| format!("{v:.3}"));
             let (sb, sa) = (pct(sb), pct(sa));

@@ -42,6 +42,7 @@ fn align_writes_the_lined_up_mesh_and_says_what_the_images_cannot_fix() {
     assert_eq!(mesh.positions.len(), 41 * 41);
     // The sheet is flat at frame 0: its place within its plane is the user's.
     assert_eq!(err.matches("not fixed by the images").count(), 3, "{err}");
+    assert!(err.contains("--outline sets the motions"), "{err}");
     let line = err
         .lines()
         .find(|l| l.starts_with("error against the ground truth"))

@@ -233,10 +233,7 @@ fn a_frame_that_does_not_read_stops_the_run_and_resume_goes_on_once_it_is_repair
     std::fs::write(&early, &early_good[..early_good.len() - 1]).unwrap();
     let o = track(&scene, &out, &["--resume"]).output().unwrap();
     let err = text(&o.stderr);
-    assert!(
-        !o.status.success() && err.contains("other inputs"),
-        "{err}"
-    );
+    assert!(!o.status.success() && err.contains("other inputs"), "{err}");
     // Only the frame that stopped it repaired: it goes on, to the uninterrupted run's meshes.
     std::fs::write(&early, &early_good).unwrap();
     let o = track(&scene, &out, &["--resume"]).output().unwrap();

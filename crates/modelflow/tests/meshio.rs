@@ -477,4 +477,10 @@ fn a_polygon_with_three_corners_in_a_row_is_triangulated_without_a_flat_triangle
         1,
         "{back}"
     );
+    // The same face in a PLY file: the same triangles.
+    let ply = "ply\nformat ascii 1.0\nelement vertex 6\nproperty float x\nproperty float y\n\
+               property float z\nelement face 1\nproperty list uchar int vertex_indices\n\
+               end_header\n0 0 0\n1 0 0\n2 0 0\n2 1 0\n1 2 0\n0 1 0\n6 0 1 2 3 4 5\n";
+    let p = read_mesh(&write(dir.path(), "hex.ply", ply.as_bytes())).unwrap();
+    assert_eq!(p.triangles, m.triangles);
 }

@@ -834,6 +834,9 @@ fn read_ply_body(
                                 ));
                             }
                             face_sizes.push(poly.len() as u32);
+                            // As for OBJ: the fan from a corner that gives no flat triangle.
+                            let r = fan_start(&poly, &positions);
+                            poly.rotate_left(r);
                             for k in 1..poly.len() - 1 {
                                 triangles.push([poly[0], poly[k], poly[k + 1]]);
                                 tri_faces.push(i);
