@@ -355,7 +355,10 @@ fn run_into(
             });
         }
         let start = Instant::now();
-        let images = scene.load_images(frame)?;
+        let images = scene.load_images(frame).map_err(|e| Error::AtFrame {
+            frame,
+            error: Box::new(e),
+        })?;
         let load_seconds = start.elapsed().as_secs_f64();
         let step = Instant::now();
         let stats = tracker.step(&images)?;
