@@ -14,9 +14,8 @@ fn modelflow(args: &[&str], paths: &[(&str, &Path)]) -> Output {
     c.output().unwrap()
 }
 
-#[test]
-fn part_of_a_shot_with_some_cameras_goes_on_from_an_earlier_runs_mesh() {
-    let dir = tempfile::tempdir().unwrap();
+/// The blob's four cameras at 160×120 over frames 0..4, written into `dir`; its scene file.
+fn blob(dir: &Path) -> std::path::PathBuf {
     let opts = SynthOptions {
         preset: modelflow::synth::Preset::Blob,
         width: 160,
@@ -24,7 +23,13 @@ fn part_of_a_shot_with_some_cameras_goes_on_from_an_earlier_runs_mesh() {
         frames: 5,
         ..SynthOptions::default()
     };
-    let scene = write_dataset(&opts, &dir.path().join("footage"), &|_, _| {}).unwrap();
+    write_dataset(&opts, dir, &|_, _| {}).unwrap()
+}
+
+#[test]
+fn part_of_a_shot_with_some_cameras_goes_on_from_an_earlier_runs_mesh() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = blob(&dir.path().join("footage"));
     let (first, second) = (dir.path().join("a"), dir.path().join("b"));
     // Frames 0..2 with three of the four cameras, then 2..4 from that run's last mesh.
     let out = modelflow(
@@ -122,15 +127,8 @@ fn bad_selections_name_the_option_and_what_is_allowed() {
 #[test]
 fn a_camera_or_frames_with_broken_footage_can_be_left_out() {
     let dir = tempfile::tempdir().unwrap();
-    let opts = SynthOptions {
-        preset: modelflow::synth::Preset::Blob,
-        width: 160,
-        height: 120,
-        frames: 5,
-        ..SynthOptions::default()
-    };
     let footage = dir.path().join("footage");
-    let scene = write_dataset(&opts, &footage, &|_, _| {}).unwrap();
+    let scene = blob(&footage);
     // Camera 3's frame 1 is not an image, and camera 0 lacks frame 4.
     let bad = footage.join("images/cam3/0001.png");
     std::fs::write(&bad, b"not a png").unwrap();

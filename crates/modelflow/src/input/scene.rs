@@ -922,8 +922,9 @@ pub fn visible_share(cam: &Camera, frame: u32, mesh: &Mesh) -> f64 {
 }
 
 impl Scene {
-    /// Reads and validates a scene file: everything a run will need is checked here, so that a
-    /// run cannot fail half-way on bad input. Errors name the file and the field at fault.
+    /// Reads and validates a scene file: everything a run will need is checked here (images by
+    /// their headers: one whose data is cut short is found when its frame is read), so that a
+    /// run does not fail half-way on bad input. Errors name the file and the field at fault.
     pub fn load(path: &Path) -> Result<Scene> {
         Scene::load_selected(path, &Selection::default())
     }
