@@ -148,10 +148,13 @@ pub fn write_run<T>(
         Err(_) => Status::Failed,
     };
     // What the frames written were made from (an image that cannot be read now is not among
-    // them: the run stops before the frame that needs it).
-    folder.manifest.scene.tracked_checksum = folder
-        .last_complete
-        .and_then(|l| inputs_checksum_upto(scene, l).ok());
+    // them: the run stops before the frame that needs it). Only a run that can be resumed
+    // needs it; a complete one's is its `checksum`.
+    if status != Status::Complete {
+        folder.manifest.scene.tracked_checksum = folder
+            .last_complete
+            .and_then(|l| inputs_checksum_upto(scene, l).ok());
+    }
     let finished = folder.finish(status);
     match result {
         Ok(value) => finished.map(|()| value),
