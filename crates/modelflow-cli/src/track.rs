@@ -313,6 +313,28 @@ fn first_mesh_checks(
     keep_shape: bool,
 ) -> anyhow::Result<()> {
     let shown = scene.load_images(scene.first)?;
+    // A blank first image gives its camera no first-frame template: the shot's first frame
+    // is where the mesh is held to, so say so (later blank frames are warned as they come).
+    let blank = modelflow::base::blank_images(&shown);
+    if blank.iter().any(|&b| b) {
+        let names: Vec<&str> = scene
+            .cameras
+            .iter()
+            .zip(&blank)
+            .filter(|(_, b)| **b)
+            .map(|(c, _)| c.name.as_str())
+            .collect();
+        eprintln!(
+            "warning: at frame {}, the image of camera{} {} {} blank (next to one colour over the whole frame: a dropped frame written black, a lens cap): {} left out until {} something, and {} no first-frame template to hold the mesh to (docs/tracker.md, \"Blank frames\"). If the shot starts later, track from there with --frames.",
+            scene.first,
+            if names.len() > 1 { "s" } else { "" },
+            names.join(", "),
+            if names.len() > 1 { "are" } else { "is" },
+            if names.len() > 1 { "they are" } else { "it is" },
+            if names.len() > 1 { "they show" } else { "it shows" },
+            if names.len() > 1 { "they have" } else { "it has" },
+        );
+    }
     // As the tracker compares them: in luminance when colour and monochrome cameras mix.
     let images = modelflow::base::comparable(&shown);
     if let std::borrow::Cow::Owned(_) = images {
@@ -320,8 +342,9 @@ fn first_mesh_checks(
             .cameras
             .iter()
             .zip(shown.iter())
-            .filter(|(_, i)| i.is_grey())
-            .map(|(c, _)| c.name.as_str())
+            .zip(&blank)
+            .filter(|((_, i), b)| !**b && i.is_grey())
+            .map(|((c, _), _)| c.name.as_str())
             .collect();
         eprintln!(
             "note: camera{} {} record{} no colour: every camera is compared in luminance",
@@ -480,7 +503,7 @@ pub fn run(args: Args, invocation: &Invocation) -> anyhow::Result<()> {
     let suspect = match summary.suspect_frames.len() {
         0 => String::new(),
         n => format!(
-            ", {n} SUSPECT (the cameras disagreed about the surface, it showed next to no texture, or the mesh folded over itself): frames {}",
+            ", {n} SUSPECT (the cameras disagreed about the surface, it showed next to no texture, the mesh folded over itself, or a camera's image was blank): frames {}",
             list_frames(&summary.suspect_frames)
         ),
     };
@@ -524,6 +547,16 @@ pub fn run(args: Args, invocation: &Invocation) -> anyhow::Result<()> {
     Ok(())
 }
 
+/// The scene's cameras at `indices`, by name, for a message.
+fn camera_names(scene: &Scene, indices: &[u16]) -> String {
+    let names: Vec<&str> = indices
+        .iter()
+        .filter_map(|&c| scene.cameras.get(c as usize))
+        .map(|c| c.name.as_str())
+        .collect();
+    names.join(", ")
+}
+
 /// Frame numbers for a message: all of them up to ten, then a count.
 fn list_frames(frames: &[u32]) -> String {
     let shown: Vec<String> = frames.iter().take(10).map(|f| f.to_string()).collect();
@@ -551,8 +584,15 @@ pub fn run_scene(
         // goes without saying after the warning about that solution.
         if let Some(r) = r {
             for (frame, c) in checks.add(f.frame, scene.first, r) {
-                if !matches!(c, modelflow::tracker::Concern::StartedContradicted { .. }) {
-                    progress.println(&format!("warning: frame {frame}: {}", c.describe()));
+                match c {
+                    modelflow::tracker::Concern::StartedContradicted { .. } => {}
+                    // Which cameras: a dead one shows frame after frame under its name.
+                    modelflow::tracker::Concern::Blank { .. } => progress.println(&format!(
+                        "warning: frame {frame}: {} ({})",
+                        c.describe(),
+                        camera_names(scene, &r.blank_cameras)
+                    )),
+                    _ => progress.println(&format!("warning: frame {frame}: {}", c.describe())),
                 }
             }
         }

@@ -34,9 +34,40 @@ fn catmull_rom(t: f32) -> ([f32; 4], [f32; 4]) {
 /// on each camera's `images`): comparing a colour camera's pixels with a grey one's colours would
 /// find no match where the surface's hues differ and a false one on any grey background, so such
 /// a rig is compared in luminance throughout ([`RgbImage::to_luminance`]).
+/// Cameras whose images are blank ([`blank_images`]) do not count: a black frame records no
+/// colour, and neither does a lens cap.
 pub fn mixes_grey_and_colour(images: &[RgbImage]) -> bool {
-    let grey = images.iter().filter(|i| i.is_grey()).count();
-    grey > 0 && grey < images.len()
+    let blank = blank_images(images);
+    let seen = images.iter().zip(&blank).filter(|(_, b)| !**b);
+    let (grey, all) = seen.fold((0, 0), |(g, n), (i, _)| (g + i.is_grey() as usize, n + 1));
+    grey > 0 && grey < all
+}
+
+/// A [`RgbImage::texture`] below this is blank whatever the other cameras show: less than a
+/// twentieth of a code value of an 8-bit file over the whole frame.
+pub const BLANK_TEXTURE: f32 = 2e-4;
+/// A camera whose [`RgbImage::texture`] is below this share of the most textured camera's at the
+/// same frame is blank: a black frame with sensor noise, a lens cap, a frame blown out to white.
+/// A frame a fifth as bright as the others (an exposure flicker) keeps a fifth of their texture.
+pub const BLANK_SHARE: f32 = 0.05;
+
+/// Which of one frame's images (one per camera) are blank: they show nothing to compare (a
+/// dropped frame written black, a lens cap, a flash that blew the frame out). The tracker leaves
+/// a blank image out of that frame, as template and as target (docs/tracker.md, "Blank
+/// frames"); an image is blank when its [`RgbImage::texture`] is below [`BLANK_TEXTURE`], or
+/// below [`BLANK_SHARE`] of the most textured camera's.
+pub fn blank_images(images: &[RgbImage]) -> Vec<bool> {
+    let texture: Vec<f32> = images.iter().map(RgbImage::texture).collect();
+    blank_of(&texture)
+}
+
+/// [`blank_images`] from the images' textures.
+pub(crate) fn blank_of(texture: &[f32]) -> Vec<bool> {
+    let most = texture.iter().copied().fold(0.0f32, f32::max);
+    texture
+        .iter()
+        .map(|&t| !(t >= BLANK_TEXTURE && t >= BLANK_SHARE * most))
+        .collect()
 }
 
 /// One frame's images (one per camera) as the cameras are compared with each other: in
@@ -134,6 +165,49 @@ impl RgbImage {
         let spread = |p: &[f32; 3]| p[0].max(p[1]).max(p[2]) - p[0].min(p[1]).min(p[2]);
         let coloured = self.data.iter().filter(|p| spread(p) > 2.0 / 255.0).count();
         coloured * 1000 < self.data.len()
+    }
+
+    /// How much the image shows: the standard deviation of its luminance (Rec. 709) over
+    /// blocks of 8×8 pixels (their means, so that sensor noise counts for an eighth of what it
+    /// does per pixel), over the whole frame. 0 for a frame of one colour; about 0.1 to 0.3 for
+    /// footage of a scene. Blocks cut by the right and bottom edges are left out (a frame
+    /// smaller than a block is measured per pixel), and so are non-finite pixels.
+    pub fn texture(&self) -> f32 {
+        let b = if self.width >= 8 && self.height >= 8 {
+            8
+        } else {
+            1
+        };
+        let (bw, bh) = (self.width / b, self.height / b);
+        // Per block of the current row: the sum of its finite luminances and their count (a
+        // non-finite pixel, which the file readers refuse, is not "one colour": it is left out).
+        let mut row = vec![(0.0f64, 0u32); bw];
+        let (mut sum, mut sum2, mut n) = (0.0f64, 0.0f64, 0u64);
+        for by in 0..bh {
+            row.iter_mut().for_each(|r| *r = (0.0, 0));
+            for y in by * b..(by + 1) * b {
+                let line = &self.data[y * self.width..y * self.width + bw * b];
+                for (x, p) in line.iter().enumerate() {
+                    let l = (0.2126 * p[0] + 0.7152 * p[1] + 0.0722 * p[2]) as f64;
+                    if l.is_finite() {
+                        let r = &mut row[x / b];
+                        r.0 += l;
+                        r.1 += 1;
+                    }
+                }
+            }
+            for &(s, k) in row.iter().filter(|r| r.1 > 0) {
+                let m = s / k as f64;
+                sum += m;
+                sum2 += m * m;
+                n += 1;
+            }
+        }
+        if n == 0 {
+            return 0.0;
+        }
+        let mean = sum / n as f64;
+        (sum2 / n as f64 - mean * mean).max(0.0).sqrt() as f32
     }
 
     /// Every pixel replaced by its luminance (Rec. 709 weights) in all three channels: what a
@@ -522,6 +596,42 @@ mod tests {
             }
         }
         Some(out)
+    }
+
+    #[test]
+    fn texture_is_the_spread_of_8x8_block_means_and_a_blank_image_is_told_apart() {
+        // One colour: nothing. Blocks of 8×8 alternately black and white: luminance 0 and 1
+        // half each, a standard deviation of exactly 0.5; pixel noise inside a block is averaged.
+        let flat = RgbImage::from_fn(64, 48, |_, _| [0.3, 0.6, 0.1]);
+        assert_eq!(flat.texture(), 0.0);
+        let blocks = RgbImage::from_fn(64, 48, |x, y| [((x / 8 + y / 8) % 2) as f32; 3]);
+        assert!(
+            (blocks.texture() - 0.5).abs() < 1e-6,
+            "{}",
+            blocks.texture()
+        );
+        let noise = RgbImage::from_fn(64, 48, |x, y| [0.02 * ((x + y) % 2) as f32; 3]);
+        assert!(noise.texture() < 1e-6, "{}", noise.texture());
+        // Blocks cut by the right edge are left out: a 70-pixel-wide frame measures 8 blocks.
+        let cut = RgbImage::from_fn(70, 48, |x, y| [((x / 8 + y / 8) % 2) as f32; 3]);
+        assert!((cut.texture() - 0.5).abs() < 1e-6);
+        // Blank: below 2e-4 whatever the others show, or below 5 % of the most textured.
+        assert_eq!(
+            super::blank_of(&[0.0, 0.2, 0.009, 0.011, 1e-4]),
+            [true, false, true, false, true]
+        );
+        assert_eq!(super::blank_of(&[1e-4]), [true]);
+        assert_eq!(super::blank_of(&[3e-4]), [false]);
+        // A black frame records no colour, but does not make a colour rig a mixed one.
+        let black = RgbImage::new(64, 48);
+        let colour = RgbImage::from_fn(64, 48, |x, y| [((x / 8 + y / 8) % 2) as f32, 0.2, 0.7]);
+        assert!(black.is_grey() && !colour.is_grey());
+        assert!(!super::mixes_grey_and_colour(&[
+            black.clone(),
+            colour.clone()
+        ]));
+        assert!(super::mixes_grey_and_colour(&[blocks, colour]));
+        assert_eq!(super::blank_images(&[black, flat]), [true, true]);
     }
 
     #[test]

@@ -219,9 +219,7 @@ pub fn placement(
     let halvings = (0..8)
         .find(|&l| widest >> l <= PLACEMENT_WIDTH)
         .unwrap_or(8);
-    let a = if halvings == 0 {
-        align(mesh, cameras, frame, images, &AlignOptions::default()).ok()?
-    } else {
+    let small: Option<(Vec<RgbImage>, Vec<Camera>)> = (halvings > 0).then(|| {
         let small: Vec<RgbImage> = images
             .par_iter()
             .map(|img| {
@@ -244,8 +242,36 @@ pub fn placement(
                 )
             })
             .collect();
-        align(mesh, &cams, 0, &small, &AlignOptions::default()).ok()?
+        (small, cams)
+    });
+    let aligned = |opts: &AlignOptions| match &small {
+        None => align(mesh, cameras, frame, images, opts).ok(),
+        Some((small, cams)) => align(mesh, cams, 0, small, opts).ok(),
     };
+    let a = aligned(&AlignOptions::default())?;
+    let found = placement_of(mesh, &a);
+    // A pose the coarsest level alone draws away is not one the images hold: on a body with an
+    // arm crossing in front of it at 480×360, the coarsest level compared 114 pixels of thin
+    // limbs, moved the mesh 10 % of its size off its true place, and the finer levels stayed
+    // there (with one level fewer, 0.014 %). A move worth a warning is asked again without that
+    // level, and the smaller of the two is reported: a real misplacement is found both ways.
+    if found.is_off() && a.levels.len() > 1 {
+        let fewer = AlignOptions {
+            levels: a.levels.len() - 1,
+            ..AlignOptions::default()
+        };
+        if let Some(b) = aligned(&fewer) {
+            let again = placement_of(mesh, &b);
+            if again.fraction < found.fraction {
+                return Some(again);
+            }
+        }
+    }
+    Some(found)
+}
+
+/// How far alignment `a` moved `mesh` ([`Placement`]), the motions it holds loosely undone.
+fn placement_of(mesh: &Mesh, a: &Alignment) -> Placement {
     // Along the motions the images hold loosely (a capsule's or a squashed sphere's spin about
     // its axis), noisy footage moves `align` by many degrees from a correct placement, and a
     // warning would send the user to apply that noise: the move is measured with them undone.
@@ -267,13 +293,13 @@ pub fn placement(
     let moved_centroid = centroid(&held) - centroid(&mesh.positions);
     let (rotation, _, _) = similarity(&mesh.positions, &held);
     let cos = ((rotation.trace() - 1.0) / 2.0).clamp(-1.0, 1.0);
-    Some(Placement {
+    Placement {
         rms,
         fraction: if size > 0.0 { rms / size } else { 0.0 },
         degrees: cos.acos().to_degrees(),
         translation: moved_centroid.norm(),
         loose_left_out: a.loose_twists.len(),
-    })
+    }
 }
 
 /// What `track` checks about the first mesh before tracking ([`first_mesh_check`]).
@@ -659,6 +685,27 @@ pub fn align(
                 format!("{}×{}", img.width(), img.height()),
             ));
         }
+    }
+    // A blank image (a black frame, a lens cap: `image::blank_images`) compares alike with
+    // nothing: the cameras that show something are aligned with each other.
+    let blank = crate::base::image::blank_images(images);
+    if blank.iter().any(|&b| b) && cameras.len() >= 2 {
+        let shown = blank.iter().filter(|b| !**b).count();
+        if shown < 2 {
+            return Err(Error::mismatch(
+                "cameras",
+                "at least 2 whose image of the frame shows something (alignment compares cameras with each other)",
+                format!("{shown} (the other images are blank: one colour over the whole frame)"),
+            ));
+        }
+        let (cams, imgs): (Vec<Camera>, Vec<RgbImage>) = cameras
+            .iter()
+            .zip(images)
+            .zip(&blank)
+            .filter(|(_, b)| !**b)
+            .map(|((c, i), _)| (c.clone(), i.clone()))
+            .unzip();
+        return align(mesh, &cams, frame, &imgs, opts);
     }
     if cameras.len() < 2 {
         return Err(Error::mismatch(

@@ -55,6 +55,10 @@ pub enum Concern {
     /// frame's mesh face opposite ways at this frame's solution (`tracker::fold`): the mesh has
     /// folded over itself there.
     Folded { edges: usize },
+    /// `cameras` cameras' images of this frame are blank (`image::blank_images`: one colour over
+    /// the whole frame, as a dropped frame written black, a lens cap or a flash that blew it
+    /// out): they were left out of this frame, and the mesh is held by the others only.
+    Blank { cameras: usize },
 }
 
 impl Concern {
@@ -83,6 +87,14 @@ impl Concern {
                 "the images constrain the mesh {:.0} % as much as the first frame's own images do (below {:.0} %): it sees next to none of the surface's texture, so it may have slipped off onto the background (motion beyond the capture range), or the surface left the views, turned away or blurred out",
                 100.0 * share,
                 100.0 * INFORMATION_FLOOR
+            ),
+            Concern::Blank { cameras } => format!(
+                "{} blank (next to one colour over the whole frame: a dropped frame written black, a lens cap, a flash that blew it out), left out of this frame: the mesh is held by the other cameras only",
+                if cameras == 1 {
+                    "1 camera's image is".to_string()
+                } else {
+                    format!("{cameras} cameras' images are")
+                }
             ),
             Concern::Folded { edges } => format!(
                 "the mesh has folded over itself: {edges} pair{} of neighbouring triangles that faced within {:.0}° of each other at the first frame face more than {:.0}° apart here (usually where part of the surface turned out of every view and came back, or a tight crease collapsed); the vertices there are likely off the surface",
@@ -147,6 +159,11 @@ pub fn own_concerns(r: &FrameReport) -> Vec<Concern> {
     }
     if r.folded > 0 {
         c.push(Concern::Folded { edges: r.folded });
+    }
+    if !r.blank_cameras.is_empty() {
+        c.push(Concern::Blank {
+            cameras: r.blank_cameras.len(),
+        });
     }
     c
 }

@@ -75,7 +75,7 @@ impl Frame<'_> {
         triangles: &[[u32; 3]],
         edges: &[[u32; 2]],
         closed: bool,
-        center: i32,
+        offsets: std::ops::RangeInclusive<i32>,
     ) -> Vec<Scanned> {
         let popts = PatchOptions {
             margin: 1,
@@ -84,7 +84,7 @@ impl Frame<'_> {
             checkerboard: false,
             stride: 1,
         };
-        (center - RANGE..=center + RANGE)
+        offsets
             .map(|k| {
                 let d = k as f64 / self.per_unit;
                 let xk: Vec<Point3<f64>> = x.iter().zip(normals).map(|(p, n)| p + n * d).collect();
@@ -174,24 +174,31 @@ fn clearest_valley(costs: &[f64]) -> Option<(f64, f64)> {
 /// How much deeper than its sides a valley of the offset scan must be to be followed.
 const VALLEY: f64 = 2.0;
 
-/// The comparison at pyramid `level` (of `pyramids`, blurred as the tracker's).
+/// The comparison at pyramid `level` (of `pyramids`, blurred as the tracker's), between the
+/// cameras whose image is not `blank` (`image::blank_images`: a black frame or a lens cap
+/// compares alike with nothing, so any offset that moves the mesh out of view would look better).
 fn frame_of<'a>(
     cameras: &[Camera],
     frame: u32,
     pyramids: &'a [Pyramid],
     level: usize,
     x: &[Point3<f64>],
+    blank: &[bool],
 ) -> Option<Frame<'a>> {
     let per_unit =
         crate::tracker::outline::pixels_per_unit(cameras, frame, x) / (1u32 << level) as f64;
     if !(per_unit.is_finite() && per_unit > 0.0) {
         return None;
     }
+    let seen = |c: &usize| !blank.get(*c).copied().unwrap_or(false);
     Some(Frame {
-        targets: pyramids.iter().map(|p| &p.levels[level]).collect(),
-        projections: cameras
-            .iter()
-            .map(|c| level_projection(c.at(frame), level))
+        targets: (0..pyramids.len())
+            .filter(seen)
+            .map(|c| &pyramids[c].levels[level])
+            .collect(),
+        projections: (0..cameras.len())
+            .filter(seen)
+            .map(|c| level_projection(cameras[c].at(frame), level))
             .collect(),
         per_unit,
         // The convex loss: a highlight or an occluder differs between viewpoints at any offset.
@@ -220,6 +227,10 @@ pub fn surface_offset(
     if cameras.len() < 2 || images.len() != cameras.len() {
         return None;
     }
+    let blank = crate::base::image::blank_images(images);
+    if blank.iter().filter(|b| !**b).count() < 2 {
+        return None;
+    }
     let (m, _) = tracked_mesh(mesh);
     let closed = m.is_closed();
     let normals = m.vertex_normals();
@@ -230,13 +241,20 @@ pub fn surface_offset(
     let widest = cameras.iter().map(|c| c.width).max().unwrap_or(0);
     let level = (0..4).find(|&l| widest >> l <= CHECK_WIDTH).unwrap_or(4);
     let pyramids_here = pyramids(images, level + 1);
-    let f = frame_of(cameras, frame, &pyramids_here, level, &m.positions)?;
+    let f = frame_of(cameras, frame, &pyramids_here, level, &m.positions, &blank)?;
     let scale = (1u32 << level) as f64;
     let costs_of = |f: &Frame<'_>, center: i32| -> Vec<f64> {
-        f.scan(&m.positions, &normals, &m.triangles, &edges, closed, center)
-            .into_iter()
-            .map(|s| s.map_or(f64::INFINITY, |(c, _)| c))
-            .collect()
+        f.scan(
+            &m.positions,
+            &normals,
+            &m.triangles,
+            &edges,
+            closed,
+            center - RANGE..=center + RANGE,
+        )
+        .into_iter()
+        .map(|s| s.map_or(f64::INFINITY, |(c, _)| c))
+        .collect()
     };
     let costs = costs_of(&f, 0);
     let at_zero = costs[RANGE as usize];
@@ -253,13 +271,13 @@ pub fn surface_offset(
     if at_limit {
         let pyramids = pyramids(images, MAX_LEVEL + 1);
         let valley = (level + 1..=MAX_LEVEL).find_map(|coarse| {
-            let fc = frame_of(cameras, frame, &pyramids, coarse, &m.positions)?;
+            let fc = frame_of(cameras, frame, &pyramids, coarse, &m.positions, &blank)?;
             let (p, _) = clearest_valley(&costs_of(&fc, 0))?;
             Some((coarse, p * (1u32 << coarse) as f64))
         });
         if let Some((coarse, mut found)) = valley {
             for l in (level..coarse).rev() {
-                let Some(fl) = frame_of(cameras, frame, &pyramids, l, &m.positions) else {
+                let Some(fl) = frame_of(cameras, frame, &pyramids, l, &m.positions, &blank) else {
                     continue;
                 };
                 let s = (1u32 << l) as f64;
@@ -309,6 +327,11 @@ pub struct SurfaceMove {
     pub max: f64,
 }
 
+/// The farthest [`moved_onto_surface`] moves a mesh, as a share of its bounding box's diagonal
+/// (the test `track_cli::a_mesh_off_the_surface_is_moved_onto_it_before_tracking_and_named`
+/// moves one 10 % of it out and back).
+pub const MAX_MOVE: f64 = 0.25;
+
 /// Rounds of [`onto_surface`] for a mesh moved before tracking (as `align --surface` does first).
 const ROUNDS: usize = 3;
 /// The offset (pixels of the level scanned) that [`onto_surface`]'s first round finds well
@@ -348,7 +371,10 @@ pub fn moved_onto_surface(
     images: &[RgbImage],
 ) -> Option<(Vec<Point3<f64>>, SurfaceMove)> {
     let found = surface_offset(mesh, cameras, frame, images)?;
-    if !found.is_off() {
+    // Farther off than a quarter of its size, the mesh is not a visual hull outside the
+    // surface: it is misplaced (`align`), or what the cameras agree on there is not the object
+    // (a black card over half of one camera's first frame drew a limb 61 % of its size inward).
+    if !found.is_off() || found.length.abs() > MAX_MOVE * mesh.bbox_diagonal() {
         return None;
     }
     let moved = onto_surface(mesh, cameras, frame, images, ROUNDS, Some(&found));
@@ -385,6 +411,7 @@ pub fn onto_surface(
     rounds: usize,
     found: Option<&SurfaceOffset>,
 ) -> Vec<Point3<f64>> {
+    let blank = crate::base::image::blank_images(images);
     let (m, of_vertex) = tracked_mesh(mesh);
     let closed = m.is_closed();
     let widest = cameras.iter().map(|c| c.width).max().unwrap_or(0);
@@ -406,11 +433,11 @@ pub fn onto_surface(
         neighbours[b as usize].push(a);
     }
     for &level in &levels {
-        let Some(f) = frame_of(cameras, frame, &pyramids, level, &x) else {
+        let Some(f) = frame_of(cameras, frame, &pyramids, level, &x, &blank) else {
             break;
         };
         let normals = m.with_positions(x.clone()).vertex_normals();
-        let scans = f.scan(&x, &normals, &m.triangles, &edges, closed, 0);
+        let scans = f.scan(&x, &normals, &m.triangles, &edges, closed, -RANGE..=RANGE);
         // Per vertex and offset: its triangles' cost and pixels.
         let n = scans.len();
         let mut cost = vec![0.0; nv * n];

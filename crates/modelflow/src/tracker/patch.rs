@@ -167,6 +167,15 @@ impl<'a> CameraPatches<'a> {
         }
     }
 
+    /// Marks `covered[t · cameras + camera]` for every triangle `t` this camera has a patch of.
+    pub(crate) fn mark_covered(&self, covered: &mut [bool], cameras: usize) {
+        for (t, s) in self.s_inv.iter().enumerate() {
+            if s.is_some() {
+                covered[t * cameras + self.camera as usize] = true;
+            }
+        }
+    }
+
     /// Writes the patches (pixel ranges from `offset`) and their pixels into `pixels`, which
     /// holds exactly [`CameraPatches::pixels`] of them.
     fn write(&self, offset: u32, pixels: &mut [PixelSample], patches: &mut Vec<Patch>) {

@@ -93,6 +93,10 @@ pub struct FrameReport {
     /// rejected as unexplained (0 to 1; 0 with `--loss huber`).
     #[serde(default)]
     pub rejected_share: f64,
+    /// The cameras (indices) whose image of this frame is blank (`image::blank_images`: black,
+    /// capped, blown out): left out of the frame, as target and as the next frame's template.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub blank_cameras: Vec<u16>,
     /// Why the finest level stopped.
     pub stop: StopReason,
     /// Whether the constant-velocity prediction was used as the start.
@@ -117,6 +121,16 @@ fn one() -> f64 {
     1.0
 }
 
+/// A template's patches at one level ([`Tracker::template_patches`]).
+struct TemplatePatches {
+    set: PatchSet,
+    /// Pixels the other cameras contradicted, left out.
+    contradicted: usize,
+    /// `seen[triangle · cameras + camera]`: whether the template sees that triangle in that
+    /// camera, whatever was left out for what the pixels show (a blank image, contradiction).
+    seen: Vec<bool>,
+}
+
 /// Time split of one frame's step, seconds.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
 pub struct StepTiming {
@@ -137,6 +151,9 @@ struct Template {
     positions: Vec<Point3<f64>>,
     pyramids: Vec<Pyramid>,
     frame: u32,
+    /// Per camera, whether its image of this frame is blank (`image::blank_images`): it gives
+    /// no patches.
+    blank: Vec<bool>,
 }
 
 /// Frame-by-frame tracker state, in memory.
@@ -174,6 +191,8 @@ pub struct Tracker {
     /// Some cameras record colour and some do not (`image::mixes_grey_and_colour`, judged on
     /// the first frame): every image is compared in luminance.
     luminance: bool,
+    /// The cameras whose image of the first frame is blank ([`Tracker::blank_at_first`]).
+    first_blank: Vec<u16>,
     /// The first frame's neighbouring triangles that face the same way (`FrameReport::folded`).
     folds: FoldWatch,
     /// Each vertex's photometric information in the last frame solved (the bending term's yield
@@ -253,6 +272,9 @@ impl Tracker {
         let compared = crate::base::image::comparable(images);
         let luminance = matches!(compared, std::borrow::Cow::Owned(_));
         let images = &compared[..];
+        // A camera whose first image is blank (black, capped) shows nothing to compare: it
+        // gives no template or anchor (nor does the check below ask it).
+        let blank = crate::base::image::blank_images(images);
         // A mesh off the surface the cameras agree on is moved onto it first: everything below
         // (rest lengths, templates, the anchor) starts from the moved mesh.
         let moved = if opts.onto_surface {
@@ -301,12 +323,14 @@ impl Tracker {
                 positions: mesh.positions.clone(),
                 pyramids,
                 frame,
+                blank: blank.clone(),
             },
             before_prev: None,
             before_frame: frame,
             weld,
             first_mesh_moved,
             luminance,
+            first_blank: blank_list(&blank),
             folds: FoldWatch::new(&mesh.positions, &mesh.triangles),
             information: None,
         };
@@ -321,8 +345,9 @@ impl Tracker {
     fn information_at_first(&self) -> f64 {
         let level = self.opts.finest_level;
         let cb = level == 0 && self.opts.checkerboard;
-        let (mut set, _) =
-            self.template_patches(&self.prev, None, level, if cb { 2.0 } else { 1.0 }, cb);
+        let mut set = self
+            .template_patches(&self.prev, None, level, if cb { 2.0 } else { 1.0 }, cb)
+            .set;
         if let Some(anchor) = self.anchor.get(level) {
             merge_into(&mut set, anchor.clone());
         }
@@ -433,10 +458,12 @@ impl Tracker {
                     self.anchor_patches(&self.prev, Some((n, 1.0)));
             }
         }
+        let blank = prepared.blank.clone();
         self.prev = Template {
             positions,
             pyramids: self.in_luminance(prepared).pyramids,
             frame,
+            blank,
         };
         self.before_prev = before;
         self.before_frame = frame.saturating_sub(1);
@@ -516,6 +543,13 @@ impl Tracker {
         self.first_mesh_moved.as_ref()
     }
 
+    /// The cameras (indices) whose image of the first frame is blank (black, capped, blown out:
+    /// `image::blank_images`): they have no anchor, and the check that the mesh lies on the
+    /// surface did not ask them.
+    pub fn blank_at_first(&self) -> &[u16] {
+        &self.first_blank
+    }
+
     /// Whether the rig mixes cameras that record colour with ones that do not, so that every
     /// image is compared in luminance (judged on the first frame's images).
     pub fn compares_luminance(&self) -> bool {
@@ -577,7 +611,7 @@ impl Tracker {
         level: usize,
         weight: f32,
         checkerboard: bool,
-    ) -> (PatchSet, usize) {
+    ) -> TemplatePatches {
         let popts = PatchOptions {
             checkerboard,
             ..self.patch_options()
@@ -610,6 +644,21 @@ impl Tracker {
                 )
             })
             .collect();
+        // Which (triangle, camera) pairs the template sees, before any pixel is left out for
+        // what it shows (a blank image, the other cameras' contradiction): where the anchor is
+        // compared (`level_patches`).
+        let ncam = self.cameras.len();
+        let mut seen = vec![false; self.triangles.len() * ncam];
+        for c in &per_cam {
+            c.mark_covered(&mut seen, ncam);
+        }
+        // A blank image gives no patches.
+        let per_cam: Vec<CameraPatches> = per_cam
+            .into_iter()
+            .zip(&tpl.blank)
+            .filter(|(_, b)| !**b)
+            .map(|(c, _)| c)
+            .collect();
         // Written into one allocation (a merge of the cameras' sets copied every pixel again:
         // 0.65 s of eight 4K cameras' finest template).
         let mut set = PatchSet::from_cameras(&per_cam);
@@ -633,7 +682,11 @@ impl Tracker {
             )
             .dropped;
         }
-        (set, contradicted)
+        TemplatePatches {
+            set,
+            contradicted,
+            seen,
+        }
     }
 
     /// The cameras' pixels at `level` of the frame being solved (`next`'s pyramids), each
@@ -728,7 +781,11 @@ impl Tracker {
                     // Not solved: nothing to compare there.
                     return PatchSet::default();
                 }
-                let (set, dropped) = self.template_patches(
+                let TemplatePatches {
+                    set,
+                    contradicted: dropped,
+                    ..
+                } = self.template_patches(
                     first,
                     before,
                     l,
@@ -756,6 +813,7 @@ impl Tracker {
         self.check_prepared(&prepared)?;
         let levels = self.opts.levels;
         let pyramid_seconds = prepared.seconds;
+        let next_blank = prepared.blank.clone();
         let next = self.in_luminance(prepared).pyramids;
         let mut out = Outcome {
             summaries: Vec::with_capacity(levels),
@@ -810,17 +868,22 @@ impl Tracker {
         };
         let mut ahead = None;
         for level in (finest..levels).rev() {
-            let ((template, dropped), built_seconds) = match ahead.take() {
+            let (template, built_seconds) = match ahead.take() {
                 Some(b) => b,
                 None => build(level),
             };
             out.timing.patches += built_seconds;
             let tp = Instant::now();
             if level == finest {
-                out.contradicted = dropped;
-                out.contradicted_share = share_of(dropped, template.pixels.len());
+                out.contradicted = template.contradicted;
+                out.contradicted_share = share_of(template.contradicted, template.set.pixels.len());
             }
             let (mut set, stereo_x0) = self.level_patches(frame, level, template, &x, &next);
+            if next_blank.iter().any(|&b| b) {
+                // A camera whose image of this frame is blank is compared with nothing.
+                set.patches
+                    .retain(|p| !next_blank[p.camera as usize] && !next_blank[p.source as usize]);
+            }
             if self.opts.hidden_ahead {
                 // At the coarsest level the mesh has not moved yet: judged at the
                 // constant-velocity prediction (the previous shape when none is known).
@@ -867,6 +930,7 @@ impl Tracker {
         // No pixel compared at full resolution (the mesh left every camera's view, or every
         // template pixel was lost): whatever the steps did, only the regularisers moved the
         // mesh, so the frame counts as stalled and keeps the previous frame's shape.
+        let blank_cameras = blank_list(&next_blank);
         let stalled = out.pixels == 0
             || (!summaries
                 .iter()
@@ -887,6 +951,7 @@ impl Tracker {
                     positions: x,
                     pyramids: next,
                     frame,
+                    blank: next_blank,
                 },
             );
             if first_motion && lagged {
@@ -924,6 +989,7 @@ impl Tracker {
             information_share,
             suspect: false,
             rejected_share: out.rejected_share,
+            blank_cameras,
             stop: out.stop,
             predicted: out.predicted,
             stalled,
@@ -986,7 +1052,7 @@ impl Tracker {
     /// The previous frame's template at `level` (the checkerboard at full resolution, at twice
     /// the weight, when the options say so), and how many of its pixels the other cameras
     /// contradicted (left out).
-    fn previous_template(&self, level: usize) -> (PatchSet, usize) {
+    fn previous_template(&self, level: usize) -> TemplatePatches {
         let cb = level == 0 && self.opts.checkerboard;
         let weight = if cb { 2.0 } else { 1.0 };
         let before = self.before_prev.as_deref().map(|b| {
@@ -1003,7 +1069,11 @@ impl Tracker {
     /// share at the first frame. This is what judges a shot's last frame, which no next frame's
     /// report does (`health`); one template's building, no solve.
     pub fn contradicted_now(&self) -> (f64, f64) {
-        let (set, dropped) = self.previous_template(self.opts.finest_level);
+        let TemplatePatches {
+            set,
+            contradicted: dropped,
+            ..
+        } = self.previous_template(self.opts.finest_level);
         (
             share_of(dropped, set.pixels.len()),
             self.contradicted_at_first,
@@ -1018,16 +1088,22 @@ impl Tracker {
         &self,
         frame: u32,
         level: usize,
-        template: PatchSet,
+        template: TemplatePatches,
         x: &[Point3<f64>],
         next: &[Pyramid],
     ) -> (PatchSet, Option<Vec<Point3<f64>>>) {
-        let mut set = template;
+        let TemplatePatches {
+            mut set,
+            seen: cover,
+            ..
+        } = template;
         let ncam = self.cameras.len();
         if let Some(anchor) = self.anchor.get(level) {
             // Anchor patches only where the triangle is seen in the previous frame too
-            // (otherwise it has turned away or been covered since the first frame).
-            let cover = set.coverage(self.triangles.len(), ncam);
+            // (otherwise it has turned away or been covered by another part of the mesh since
+            // the first frame); seen, whatever its pixels showed: where an occluder covered it
+            // in the previous frame, or its image was blank, the first frame's view is what is
+            // left to hold it (the robust loss rejects an occluder still there).
             set.pixels.reserve(anchor.pixels.len());
             set.patches.reserve(anchor.patches.len());
             for p in &anchor.patches {
@@ -1268,6 +1344,8 @@ struct Outcome {
 /// One frame's images made ready for [`Tracker::step_prepared`]: each camera's smoothed pyramid.
 pub struct Prepared {
     pyramids: Vec<Pyramid>,
+    /// Per camera, whether its image is blank (`image::blank_images`).
+    blank: Vec<bool>,
     /// The smoothing they were built with (must be the tracker's).
     blur: f64,
     /// Time it took, seconds (reported as the step's `timing.pyramids`).
@@ -1307,6 +1385,13 @@ pub(crate) fn stereo_levels(levels: usize, finest: usize) -> std::ops::Range<usi
     finest..end
 }
 
+/// The indices of the cameras `blank` marks.
+fn blank_list(blank: &[bool]) -> Vec<u16> {
+    (0..blank.len() as u16)
+        .filter(|&c| blank[c as usize])
+        .collect()
+}
+
 /// `extra`'s patches and pixels appended to `set`'s.
 fn merge_into(set: &mut PatchSet, extra: PatchSet) {
     let off = set.pixels.len() as u32;
@@ -1329,8 +1414,10 @@ pub fn prepare(images: &[RgbImage], opts: &TrackOptions) -> Prepared {
     let opts = opts.resolved_for(images.iter().map(|i| (i.width() as u32, i.height() as u32)));
     let pyramids = build_pyramids(images, opts.levels.max(1), opts.blur);
     // (`levels.max(1)` is `TrackOptions::used`'s resolution of the level count.)
+    let texture: Vec<f32> = images.par_iter().map(RgbImage::texture).collect();
     Prepared {
         pyramids,
+        blank: crate::base::image::blank_of(&texture),
         blur: opts.blur,
         seconds: t.elapsed().as_secs_f64(),
     }
