@@ -572,20 +572,31 @@ fn a_triangle_soup_is_tracked_as_the_surface_it_makes_and_written_as_given() {
     );
 }
 
+/// Two frames of `preset` at 480×360 (shaken by `shake` px per frame) in `dir/footage`; the
+/// scene file's path.
+fn two_frames_480(
+    dir: &std::path::Path,
+    preset: modelflow::synth::Preset,
+    shake: f64,
+) -> std::path::PathBuf {
+    let opts = SynthOptions {
+        preset,
+        width: 480,
+        height: 360,
+        frames: 2,
+        shake,
+        ..SynthOptions::default()
+    };
+    write_dataset(&opts, &dir.join("footage"), &|_, _| {}).unwrap()
+}
+
 #[test]
 fn an_arm_crossing_a_body_where_the_images_put_it_draws_no_misplacement_warning() {
     // At 480×360 the crossing's coarsest alignment level compares about a hundred pixels of
     // thin limbs and drew the mesh 10 % of its size off its true place: `track` warned that the
     // given (exact) mesh was misplaced, and following the warning (`align`) ruined the track.
     let dir = tempfile::tempdir().unwrap();
-    let opts = SynthOptions {
-        preset: modelflow::synth::Preset::Crossing,
-        width: 480,
-        height: 360,
-        frames: 2,
-        ..SynthOptions::default()
-    };
-    let scene = write_dataset(&opts, &dir.path().join("footage"), &|_, _| {}).unwrap();
+    let scene = two_frames_480(dir.path(), modelflow::synth::Preset::Crossing, 0.0);
     let o = Command::new(env!("CARGO_BIN_EXE_modelflow"))
         .args(["track", "--frames", "0..1", "--scene"])
         .arg(&scene)
@@ -609,15 +620,7 @@ fn a_plain_card_over_half_of_one_cameras_first_frame_does_not_pull_the_mesh_off(
     // warning (before that, the first-mesh check had moved it 61 % of its size inward).
     use modelflow::input::{read_mesh, read_rgb, write_png};
     let dir = tempfile::tempdir().unwrap();
-    let opts = SynthOptions {
-        preset: modelflow::synth::Preset::Limb,
-        width: 480,
-        height: 360,
-        frames: 2,
-        shake: 3.0,
-        ..SynthOptions::default()
-    };
-    let scene = write_dataset(&opts, &dir.path().join("footage"), &|_, _| {}).unwrap();
+    let scene = two_frames_480(dir.path(), modelflow::synth::Preset::Limb, 3.0);
     let footage = scene.parent().unwrap();
     let first = footage.join("images/cam0/0000.png");
     let mut img = read_rgb(&first).unwrap();
