@@ -597,15 +597,7 @@ fn an_arm_crossing_a_body_where_the_images_put_it_draws_no_misplacement_warning(
     // given (exact) mesh was misplaced, and following the warning (`align`) ruined the track.
     let dir = tempfile::tempdir().unwrap();
     let scene = two_frames_480(dir.path(), modelflow::synth::Preset::Crossing, 0.0);
-    let o = Command::new(env!("CARGO_BIN_EXE_modelflow"))
-        .args(["track", "--frames", "0..1", "--scene"])
-        .arg(&scene)
-        .arg("--out")
-        .arg(dir.path().join("run"))
-        .output()
-        .unwrap();
-    let err = String::from_utf8_lossy(&o.stderr);
-    assert!(o.status.success(), "{err}");
+    let err = track_ok(&scene, &dir.path().join("run"));
     assert!(
         !err.contains("it is not placed where the images put it"),
         "{err}"
