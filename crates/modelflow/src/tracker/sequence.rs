@@ -1275,7 +1275,9 @@ impl Tracker {
                 ..sopts
             };
             let judge = problem.solve_options(&sol, &tukey);
-            if problem.cost(&sol, &judge) <= problem.cost(x, &judge) {
+            // Each judged once: a cost evaluation at this level is a pass over its pixels.
+            let (at_convex, at_start) = (problem.cost(&sol, &judge), problem.cost(x, &judge));
+            if at_convex <= at_start {
                 *x = sol;
                 linearised = Some(lin);
                 out.summaries.push(summary);
@@ -1283,9 +1285,7 @@ impl Tracker {
                 let (robust_sol, robust_summary, _) = solve(x, None, &tukey, Motion::Rigid, false)?;
                 out.summaries.push(summary);
                 let at_robust = problem.cost(&robust_sol, &judge);
-                if at_robust < problem.cost(&sol, &judge)
-                    && at_robust < ROBUST_GAIN * problem.cost(x, &judge)
-                {
+                if at_robust < at_convex && at_robust < ROBUST_GAIN * at_start {
                     // The robust stage found a motion the convex one was pulled away from (a
                     // clear gain over the start): the free stage below would be pulled the same
                     // way, so it runs with the robust loss too (its threshold from where it
