@@ -311,16 +311,16 @@ fn first_mesh_checks(
     scene: &Scene,
     scene_path: &std::path::Path,
     keep_shape: bool,
+    shown: &[modelflow::base::RgbImage],
+    blank: &[bool],
 ) -> anyhow::Result<()> {
-    let shown = scene.load_images(scene.first)?;
     // A blank first image gives its camera no first-frame template: the shot's first frame
     // is where the mesh is held to, so say so (later blank frames are warned as they come).
-    let blank = modelflow::base::blank_images(&shown);
     if blank.iter().any(|&b| b) {
         let names: Vec<&str> = scene
             .cameras
             .iter()
-            .zip(&blank)
+            .zip(blank)
             .filter(|(_, b)| **b)
             .map(|(c, _)| c.name.as_str())
             .collect();
@@ -336,13 +336,13 @@ fn first_mesh_checks(
         );
     }
     // As the tracker compares them: in luminance when colour and monochrome cameras mix.
-    let images = modelflow::base::comparable(&shown);
+    let images = modelflow::base::comparable(shown);
     if let std::borrow::Cow::Owned(_) = images {
         let grey: Vec<&str> = scene
             .cameras
             .iter()
             .zip(shown.iter())
-            .zip(&blank)
+            .zip(blank)
             .filter(|((_, i), b)| !**b && i.is_grey())
             .map(|((c, _), _)| c.name.as_str())
             .collect();
@@ -446,22 +446,44 @@ pub fn run(args: Args, invocation: &Invocation) -> anyhow::Result<()> {
         );
     }
     let opts = args.track.options();
-    let cover = modelflow::tracker::coverage(&scene.mesh, &scene.cameras, scene.first, &opts);
+    // The first frame's images: a blank one sees nothing (the tracker leaves it out), so the
+    // coverage is counted without its camera.
+    let shown = scene.load_images(scene.first)?;
+    let blank = modelflow::base::blank_images(&shown);
+    let seeing: Vec<_> = scene
+        .cameras
+        .iter()
+        .zip(&blank)
+        .filter(|(_, b)| !**b)
+        .map(|(c, _)| c.clone())
+        .collect();
+    let cover = modelflow::tracker::coverage(&scene.mesh, &seeing, scene.first, &opts);
+    let left_out = match scene.cameras.len() - seeing.len() {
+        0 => String::new(),
+        1 => " (the camera whose image is blank left out)".to_string(),
+        n => format!(" (the {n} cameras whose images are blank left out)"),
+    };
     eprintln!(
-        "at frame {}: {:.0} % of the mesh's surface is seen by two or more cameras, {:.0} % by one only, {:.0} % by none",
+        "at frame {}: {:.0} % of the mesh's surface is seen by two or more cameras, {:.0} % by one only, {:.0} % by none{left_out}",
         scene.first,
         100.0 * cover.two_or_more,
         100.0 * cover.one,
         100.0 * cover.none
     );
     if cover.one_camera_share() > ONE_CAMERA_WARN {
+        // With a blank camera left out the cause is the image, not the rig.
+        let advice = if left_out.is_empty() {
+            "Add a camera whose view overlaps, or check the cameras' calibration."
+        } else {
+            "Counted without the blank image: the rig may see it from more cameras once that image shows something."
+        };
         eprintln!(
-            "warning: most of the surface the cameras see ({:.0} %) is seen by one camera only; there its depth comes from the regularisers alone and drifts over the shot (docs/tracker.md, \"Where depth comes from\"). Add a camera whose view overlaps, or check the cameras' calibration.",
+            "warning: most of the surface the cameras see ({:.0} %) is seen by one camera only; there its depth comes from the regularisers alone and drifts over the shot (docs/tracker.md, \"Where depth comes from\"). {advice}",
             100.0 * cover.one_camera_share()
         );
     }
     if !args.resume {
-        first_mesh_checks(&scene, &args.scene, !opts.onto_surface)?;
+        first_mesh_checks(&scene, &args.scene, !opts.onto_surface, &shown, &blank)?;
     }
     let mut run = run_options(args.out.mode(args.resume), invocation);
     run.gpu = gpu;

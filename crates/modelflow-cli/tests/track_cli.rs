@@ -605,6 +605,42 @@ fn an_arm_crossing_a_body_where_the_images_put_it_draws_no_misplacement_warning(
 }
 
 #[test]
+fn a_camera_blank_at_the_first_frame_is_not_counted_as_seeing_the_surface() {
+    // The cloth's two cameras see all of it together; with cam0's first image black, only
+    // cam1 sees it there, and the coverage line must say so (it counted cam0 from geometry).
+    use modelflow::input::{read_rgb, write_png};
+    let dir = tempfile::tempdir().unwrap();
+    let scene = write_dataset(
+        &SynthOptions {
+            cameras: Some(2),
+            width: 320,
+            height: 240,
+            frames: 2,
+            supersample: 1,
+            ..SynthOptions::default()
+        },
+        &dir.path().join("footage"),
+        &|_, _| {},
+    )
+    .unwrap();
+    let first = scene.parent().unwrap().join("images/cam0/0000.png");
+    let mut img = read_rgb(&first).unwrap();
+    for y in 0..240 {
+        for x in 0..320 {
+            img.set(x, y, [0.0; 3]);
+        }
+    }
+    write_png(&first, &img).unwrap();
+    let err = track_ok(&scene, &dir.path().join("run"));
+    assert!(
+        err.contains("at frame 0: 0 % of the mesh's surface is seen by two or more cameras, 100 % by one only, 0 % by none (the camera whose image is blank left out)"),
+        "{err}"
+    );
+    assert!(err.contains("the image of camera cam0 is blank"), "{err}");
+    assert!(err.contains("Counted without the blank image"), "{err}");
+}
+
+#[test]
 fn a_plain_card_over_half_of_one_cameras_first_frame_does_not_pull_the_mesh_off() {
     // A black card over the middle of one of four cameras' first frame, gone from the next.
     // The card's edges are in that camera's templates; the coarsest level's rigid stage, with
