@@ -89,8 +89,8 @@ def track_scene(
     summary: "frames", "solved", "resumed_from", "total_seconds", "median_frame_seconds",
     "median_iterations", "stalled_frames" (the mesh could not move), "suspect_frames" (the
     cameras contradicted where the frame left the surface, the frame started from such a
-    solution, the mesh saw next to none of its texture, folded over itself, or a camera's image
-    was blank) and "checks": every frame to look at, as {"frame": N, "concerns": [{"kind":
+    solution, the mesh saw next to none of its texture, folded over itself or leapt away, or a
+    camera's image was blank) and "checks": every frame to look at, as {"frame": N, "concerns": [{"kind":
     "stalled" | "contradicted" | "started_contradicted" | "little_texture" | "folded" |
     "blank", ...their figures}]}."""
 
@@ -100,7 +100,7 @@ def evaluate(scene: Scene, run: _Path) -> Dict[str, Any]:
 def frames_to_check(scene: Scene, run: _Path) -> Optional[List[Dict[str, Any]]]:
     """The frames of the scene's range that the tracker's own checks flag in the run folder, and
     why: [{"frame": N, "concerns": [{"kind": "stalled" | "contradicted" |
-    "started_contradicted" | "little_texture" | "folded" | "blank", ...their figures}]}], as
+    "started_contradicted" | "little_texture" | "folded" | "blank" | "jumped", ...their figures}]}], as
     `track` warned and the
     report lists them; [] when none is; None when the folder has no tracker log (the
     baseline's)."""

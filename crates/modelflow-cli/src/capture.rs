@@ -36,6 +36,12 @@ pub struct CaptureRow {
     pub error_max_pct: f64,
     /// Frames whose solve could not lower the cost.
     pub stalled: usize,
+    /// Frames the tracker's own checks flagged as suspect (`FrameReport::suspect`): a lost
+    /// speed should be flagged, a tracked one not.
+    pub suspect: usize,
+    /// The largest change of velocity in one frame the tracker measured (`FrameReport::jump`),
+    /// % of the size: how close the speed comes to the leap that flags a frame.
+    pub jump_max_pct: f64,
     pub tracked: bool,
     pub seconds_per_frame: f64,
 }
@@ -79,12 +85,15 @@ pub fn measure(o: &CaptureOptions) -> anyhow::Result<CaptureReport> {
         let mut tracker = Tracker::new(&syn.mesh, syn.cameras.clone(), 0, &images(0), o.track)?;
         let diag = syn.mesh.bbox_diagonal();
         let (mut sum, mut worst, mut stalled, mut secs) = (0.0, 0.0f64, 0, 0.0);
+        let (mut suspect, mut jump) = (0, 0.0f64);
         for f in 1..o.frames {
             let imgs = images(f);
             let t0 = std::time::Instant::now();
             let report = tracker.step(f, &imgs)?;
             secs += t0.elapsed().as_secs_f64();
             stalled += report.stalled as usize;
+            suspect += report.suspect as usize;
+            jump = jump.max(report.jump);
             let err = 100.0 * rms_distance(tracker.positions(), &syn.truth[f as usize]) / diag;
             sum += err;
             worst = worst.max(err);
@@ -98,6 +107,8 @@ pub fn measure(o: &CaptureOptions) -> anyhow::Result<CaptureReport> {
             error_mean_pct: sum / n,
             error_max_pct: worst,
             stalled,
+            suspect,
+            jump_max_pct: 100.0 * jump,
             tracked: worst <= BOUND_PCT && stalled == 0,
             seconds_per_frame: secs / n,
         });
@@ -123,17 +134,19 @@ pub fn print(r: &CaptureReport) {
         r.preset, r.cameras, r.width, r.height, r.frames, r.bound_pct
     );
     println!(
-        "  shake px/frame   motion median/max px   error mean/max %   stalled   s/frame   tracked"
+        "  shake px/frame   motion median/max px   error mean/max %   stalled   suspect   leap max %   s/frame   tracked"
     );
     for row in &r.rows {
         println!(
-            "  {:>14.0}   {:>9.1} / {:<9.1}   {:>7.3} / {:<7.3}   {:>7}   {:>7.2}   {}",
+            "  {:>14.0}   {:>9.1} / {:<9.1}   {:>7.3} / {:<7.3}   {:>7}   {:>7}   {:>10.1}   {:>7.2}   {}",
             row.shake_px,
             row.motion_median_px,
             row.motion_max_px,
             row.error_mean_pct,
             row.error_max_pct,
             row.stalled,
+            row.suspect,
+            row.jump_max_pct,
             row.seconds_per_frame,
             if row.tracked { "yes" } else { "no" }
         );

@@ -525,7 +525,7 @@ pub fn run(args: Args, invocation: &Invocation) -> anyhow::Result<()> {
     let suspect = match summary.suspect_frames.len() {
         0 => String::new(),
         n => format!(
-            ", {n} SUSPECT (the cameras disagreed about the surface, it showed next to no texture, the mesh folded over itself, or a camera's image was blank): frames {}",
+            ", {n} SUSPECT (the cameras disagreed about the surface, it showed next to no texture, the mesh folded over itself or leapt away, or a camera's image was blank): frames {}",
             list_frames(&summary.suspect_frames)
         ),
     };

@@ -33,6 +33,13 @@ pub const SUSPECT_RISE: f64 = 0.1;
 /// the surface (docs/tracker.md, "Suspect frames").
 pub const INFORMATION_FLOOR: f64 = 0.1;
 
+/// The change of velocity in one frame (RMS over the vertices, as a share of the mesh's
+/// bounding-box diagonal) above which a frame is suspect ([`Concern::Jumped`]). The capture
+/// range's fastest shake (80 px per frame at 1280×720, the direction random every frame) and
+/// every clip tracked stay far below; a cloth pulled off by an occluder's edges in the template
+/// leapt 0.82 (docs/tracker.md, "Suspect frames").
+pub const JUMP_SHARE: f64 = 0.5;
+
 /// One reason to look at a frame.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(tag = "kind", rename_all = "snake_case")]
@@ -59,6 +66,11 @@ pub enum Concern {
     /// the whole frame, as a dropped frame written black, a lens cap or a flash that blew it
     /// out): they were left out of this frame, and the mesh is held by the others only.
     Blank { cameras: usize },
+    /// The solution is `share` of the mesh's size (RMS over the vertices, above [`JUMP_SHARE`])
+    /// from where the previous frame's motion carried on would have put it
+    /// ([`FrameReport::jump`]): a leap no motion the tracker follows makes in one frame; it
+    /// slipped onto something else (after an occluder left, a camera's images came back...).
+    Jumped { share: f64 },
 }
 
 impl Concern {
@@ -95,6 +107,11 @@ impl Concern {
                 } else {
                     format!("{cameras} cameras' images are")
                 }
+            ),
+            Concern::Jumped { share } => format!(
+                "the mesh leapt {:.0} % of its size away from where the previous frame's motion would have put it (more than {:.0} %, past anything the tracker follows in one frame): it has likely slipped off the surface onto something else",
+                100.0 * share,
+                100.0 * JUMP_SHARE
             ),
             Concern::Folded { edges } => format!(
                 "the mesh has folded over itself: {edges} pair{} of neighbouring triangles that faced within {:.0}° of each other at the first frame face more than {:.0}° apart here (usually where part of the surface turned out of every view and came back, or a tight crease collapsed); the vertices there are likely off the surface",
@@ -159,6 +176,9 @@ pub fn own_concerns(r: &FrameReport) -> Vec<Concern> {
     }
     if r.folded > 0 {
         c.push(Concern::Folded { edges: r.folded });
+    }
+    if r.jump > JUMP_SHARE {
+        c.push(Concern::Jumped { share: r.jump });
     }
     if !r.blank_cameras.is_empty() {
         c.push(Concern::Blank {
@@ -322,6 +342,26 @@ mod tests {
         assert!(checks[0].concerns[0].describe().starts_with(
             "the other cameras contradict 30 % of where this frame left the surface, against 5 %"
         ));
+    }
+
+    #[test]
+    fn a_leap_past_half_the_mesh_size_in_one_frame_is_suspect_and_a_fast_move_is_not() {
+        let mut leapt = report(0.05, 1.0, false);
+        leapt.jump = 0.81;
+        let checks = check_reports(0, [(1, &report(0.05, 1.0, false)), (2, &leapt)]);
+        assert_eq!(checks.len(), 1, "{checks:?}");
+        assert_eq!(checks[0].frame, 2);
+        assert_eq!(checks[0].concerns, [Concern::Jumped { share: 0.81 }]);
+        assert!(checks[0].suspect());
+        assert!(checks[0].concerns[0]
+            .describe()
+            .contains("leapt 81 % of its size"));
+        // The capture range's fastest tracked shake changes velocity by about a tenth.
+        let mut fast = report(0.05, 1.0, false);
+        fast.jump = 0.1;
+        assert!(check_reports(0, [(1, &fast)]).is_empty());
+        // Logs written before the field existed read as no leap.
+        assert_eq!(report(0.05, 1.0, false).jump, 0.0);
     }
 
     #[test]
