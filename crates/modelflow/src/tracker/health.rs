@@ -37,7 +37,7 @@ pub const INFORMATION_FLOOR: f64 = 0.1;
 /// bounding-box diagonal) above which a frame is suspect ([`Concern::Jumped`]). The capture
 /// range's fastest shake (80 px per frame at 1280×720, the direction random every frame) and
 /// every clip tracked stay far below; a cloth pulled off by an occluder's edges in the template
-/// leapt 0.82 (docs/tracker.md, "Suspect frames").
+/// leapt 0.81 (docs/tracker.md, "A leap in one frame").
 pub const JUMP_SHARE: f64 = 0.5;
 
 /// One reason to look at a frame.

@@ -98,8 +98,9 @@ pub struct FrameReport {
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub blank_cameras: Vec<u16>,
     /// How far the solution is from where the previous frames' motion would have put it: the
-    /// RMS over the vertices of the change in velocity (the previous frame's motion carried on;
-    /// from rest when there is none), as a share of the mesh's bounding-box diagonal. Above
+    /// RMS over the vertices of its distance from the constant-velocity prediction (the
+    /// previous frame's motion carried on, from rest after the given mesh), that is of the
+    /// change in velocity, as a share of the previous shape's bounding-box diagonal. Above
     /// [`health::JUMP_SHARE`] the mesh leapt farther in one frame than anything the tracker can
     /// follow does: it slipped onto something else. 0 for a stalled frame and in logs written
     /// before it existed.
@@ -947,7 +948,18 @@ impl Tracker {
                     .iter()
                     .any(|s| matches!(s.stop, StopReason::CostRose | StopReason::NonFinite)));
         let folded = self.folds.folded(&x, &self.triangles);
-        let jump = if stalled { 0.0 } else { self.jump(&x, frame) };
+        // How far the solution is from the constant-velocity prediction (the membrane's
+        // reference above), over the previous shape's size.
+        let jump = if stalled {
+            0.0
+        } else {
+            let size = crate::base::mesh::bbox_diagonal(&self.prev.positions);
+            if size > 0.0 {
+                crate::base::mesh::rms_distance(&x, &predicted_shape) / size
+            } else {
+                0.0
+            }
+        };
         // What `--resume` reads back from the frame's confidence file (`Tracker::restore`): the
         // frame's, stalled or not, and none when it has no file (no pixel was compared).
         self.information = (!out.confidence.is_empty())
@@ -1011,38 +1023,6 @@ impl Tracker {
             .iter()
             .any(health::Concern::is_suspect);
         Ok(report)
-    }
-
-    /// [`FrameReport::jump`] of `x`, solved for `frame`: its distance from the previous solved
-    /// frame carried on at that frame's velocity (per frame, from the one solved before it; none
-    /// after the given mesh), RMS over the vertices, over the previous frame's bounding-box
-    /// diagonal.
-    fn jump(&self, x: &[Point3<f64>], frame: u32) -> f64 {
-        let prev = &self.prev.positions;
-        let size = crate::base::mesh::bbox_diagonal(prev);
-        if x.len() != prev.len() || x.is_empty() || size.is_nan() || size <= 0.0 {
-            return 0.0;
-        }
-        let ahead = frame.saturating_sub(self.prev.frame) as f64;
-        let rate = match &self.before_prev {
-            Some(b) if b.len() == prev.len() => {
-                ahead / self.prev.frame.saturating_sub(self.before_frame).max(1) as f64
-            }
-            _ => 0.0,
-        };
-        let sum: f64 = x
-            .iter()
-            .zip(prev)
-            .enumerate()
-            .map(|(i, (p, q))| {
-                let v = match &self.before_prev {
-                    Some(b) if rate > 0.0 => (q - b[i]) * rate,
-                    _ => nalgebra::Vector3::zeros(),
-                };
-                (p - q - v).norm_squared()
-            })
-            .sum();
-        (sum / x.len() as f64).sqrt() / size
     }
 
     /// The first frame's view lent to the cameras that see a triangle now but did not then
