@@ -525,7 +525,7 @@ pub fn run(args: Args, invocation: &Invocation) -> anyhow::Result<()> {
     let suspect = match summary.suspect_frames.len() {
         0 => String::new(),
         n => format!(
-            ", {n} SUSPECT (the cameras disagreed about the surface, it showed next to no texture, the mesh folded over itself or leapt away, or a camera's image was blank): frames {}",
+            ", {n} SUSPECT (the cameras disagreed about the surface, it showed next to no texture, the mesh folded over itself or leapt away, or a camera's image was blank or a repeat): frames {}",
             list_frames(&summary.suspect_frames)
         ),
     };
@@ -613,6 +613,11 @@ pub fn run_scene(
                         "warning: frame {frame}: {} ({})",
                         c.describe(),
                         camera_names(scene, &r.blank_cameras)
+                    )),
+                    modelflow::tracker::Concern::Repeated { .. } => progress.println(&format!(
+                        "warning: frame {frame}: {} ({})",
+                        c.describe(),
+                        camera_names(scene, &r.repeated_cameras)
                     )),
                     _ => progress.println(&format!("warning: frame {frame}: {}", c.describe())),
                 }

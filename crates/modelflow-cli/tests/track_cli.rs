@@ -336,7 +336,7 @@ fn a_frame_the_cameras_disagree_about_is_named_and_counted() {
     // next frame judges, by its own information share.
     assert!(
         err.contains(
-            "3 SUSPECT (the cameras disagreed about the surface, it showed next to no texture, the mesh folded over itself or leapt away, or a camera's image was blank): frames 1, 2, 3"
+            "3 SUSPECT (the cameras disagreed about the surface, it showed next to no texture, the mesh folded over itself or leapt away, or a camera's image was blank or a repeat): frames 1, 2, 3"
         ),
         "{err}"
     );
@@ -361,7 +361,7 @@ fn a_slip_in_the_last_frame_is_named_too() {
     let err = track_ok(&scene, &run);
     assert!(contradicted_in_frame_1(&err) >= 30, "{err}");
     assert!(
-        err.contains("1 SUSPECT (the cameras disagreed about the surface, it showed next to no texture, the mesh folded over itself or leapt away, or a camera's image was blank): frames 1)"),
+        err.contains("1 SUSPECT (the cameras disagreed about the surface, it showed next to no texture, the mesh folded over itself or leapt away, or a camera's image was blank or a repeat): frames 1)"),
         "{err}"
     );
     let manifest: serde_json::Value =
@@ -600,6 +600,20 @@ fn error_share(footage: &std::path::Path, run: &std::path::Path, f: u32) -> f64 
         / truth.bbox_diagonal()
 }
 
+/// `frames` frames of the cloth seen by two cameras at 480×360 (shaken by `shake` px per frame)
+/// in `dir/footage`; the scene file's path.
+fn two_camera_cloth_480(dir: &std::path::Path, frames: u32, shake: f64) -> std::path::PathBuf {
+    let opts = SynthOptions {
+        cameras: Some(2),
+        width: 480,
+        height: 360,
+        frames,
+        shake,
+        ..SynthOptions::default()
+    };
+    write_dataset(&opts, &dir.join("footage"), &|_, _| {}).unwrap()
+}
+
 /// Two frames of `preset` at 480×360 (shaken by `shake` px per frame) in `dir/footage`; the
 /// scene file's path.
 fn two_frames_480(
@@ -672,14 +686,7 @@ fn every_frame_the_mesh_is_lost_in_after_an_occluder_leaves_is_warned_about() {
     // stayed; frame 9 drew no warning at all. Whatever the tracker does with such footage, a
     // frame it ends far off in must be named.
     let dir = tempfile::tempdir().unwrap();
-    let opts = SynthOptions {
-        cameras: Some(2),
-        width: 480,
-        height: 360,
-        frames: 10,
-        ..SynthOptions::default()
-    };
-    let scene = write_dataset(&opts, &dir.path().join("footage"), &|_, _| {}).unwrap();
+    let scene = two_camera_cloth_480(dir.path(), 10, 0.0);
     let footage = scene.parent().unwrap();
     for f in 4..8 {
         black_box(
@@ -877,4 +884,48 @@ fn a_mesh_off_the_surface_is_moved_onto_it_before_tracking_and_named() {
             "{name}: RMS {rms} of the size from the surface"
         );
     }
+}
+
+#[test]
+fn a_frame_one_camera_repeats_is_left_out_and_named() {
+    // Camera 0 of the shaken cloth's two writes its frame 4 again as frame 5 (a dropped frame
+    // filled in by the recorder) and is in step again from frame 6. Compared as if it showed
+    // frame 5, the repeat held the mesh where it was, and frame 5 ended about 4.5 % of its size
+    // off, silently. Left out, frame 5 is held by camera 1 alone and named.
+    let dir = tempfile::tempdir().unwrap();
+    let scene = two_camera_cloth_480(dir.path(), 8, 3.0);
+    let footage = scene.parent().unwrap();
+    let img = |f: u32| footage.join(format!("images/cam0/{f:04}.png"));
+    std::fs::copy(img(4), img(5)).unwrap();
+    let run = dir.path().join("run");
+    let err = track_ok(&scene, &run);
+    assert!(
+        err.contains("warning: frame 5: 1 camera's image repeats the previous frame's"),
+        "{err}"
+    );
+    assert!(err.contains("frame_offset raised by 1"), "{err}");
+    assert!(err.contains("(cam0)"), "{err}");
+    assert_eq!(
+        err.matches("repeats the previous frame's").count(),
+        1,
+        "{err}"
+    );
+    // No second, misleading reason for the same frame: one camera of two gives no depth, so
+    // the texture measure against the first frame (both cameras) falls to nothing.
+    assert!(
+        !err.contains("next to none of the surface's texture"),
+        "{err}"
+    );
+    assert!(err.contains("1 SUSPECT"), "{err}");
+    for f in 1..8 {
+        let rms = error_share(footage, &run, f);
+        assert!(rms < 0.003, "frame {f} is {:.2} % off: {err}", 100.0 * rms);
+    }
+    let log = std::fs::read_to_string(run.join("log.jsonl")).unwrap();
+    let line = log
+        .lines()
+        .find(|l| l.starts_with("{\"frame\":5,"))
+        .unwrap();
+    assert!(line.contains("\"repeated_cameras\":[0]"), "{line}");
+    assert_eq!(log.matches("repeated_cameras").count(), 1, "{log}");
 }

@@ -146,6 +146,41 @@ fn an_interrupted_run_resumes_to_the_files_of_an_uninterrupted_one() {
 }
 
 #[test]
+fn a_run_stopped_at_a_frame_one_camera_repeated_resumes_to_the_same_files() {
+    // Camera 0's frame 4 is its frame 3 again (a dropped frame filled in): the tracker leaves
+    // it out of frame 4 and out of the template frame 5 is compared with. Stopped right after
+    // frame 4, the resumed run must leave it out of that template too.
+    let dir = tempfile::tempdir().unwrap();
+    let opts = SynthOptions {
+        width: 160,
+        height: 120,
+        frames: 7,
+        ..SynthOptions::default()
+    };
+    let scene = write_dataset(&opts, &dir.path().join("footage"), &|_, _| {}).unwrap();
+    let images = scene.parent().unwrap().join("images/cam0");
+    std::fs::copy(images.join("0003.png"), images.join("0004.png")).unwrap();
+    let reference = dir.path().join("reference");
+    track(&scene, &reference, &RunOptions::default()).unwrap();
+    let repeated: Vec<(u32, Vec<u16>)> = read_frame_log(&reference)
+        .unwrap()
+        .iter()
+        .filter_map(|l| match &l.detail {
+            FrameDetail::ModelFlow(r) if !r.repeated_cameras.is_empty() => {
+                Some((l.frame, r.repeated_cameras.clone()))
+            }
+            _ => None,
+        })
+        .collect();
+    assert_eq!(repeated, [(4, vec![0])]);
+    let out = dir.path().join("interrupted");
+    interrupted_after(&scene, &out, 4);
+    assert_eq!(track(&scene, &out, &resume()).unwrap(), 2, "frames 5..=6");
+    assert_eq!(meshes(&out), meshes(&reference), "byte-identical meshes");
+    assert_eq!(logs_without_times(&out), logs_without_times(&reference));
+}
+
+#[test]
 fn a_mesh_split_along_seams_resumes_to_the_files_of_an_uninterrupted_run() {
     // The tracker works on the split vertices merged; the bending term's yield depends on the
     // last frame's per-vertex information, which a resumed run reads back from a confidence

@@ -51,6 +51,71 @@ pub const BLANK_TEXTURE: f32 = 2e-4;
 /// A frame a fifth as bright as the others (an exposure flicker) keeps a fifth of their texture.
 pub const BLANK_SHARE: f32 = 0.05;
 
+/// An image's luminance at an eighth of its resolution ([`RgbImage::block_means`]): what a
+/// frame shows at all ([`BlockMeans::spread`]) and whether it changed since another frame of the
+/// same camera ([`BlockMeans::change_within`]), read without the sensor noise of single pixels.
+#[derive(Clone, Debug, PartialEq)]
+pub struct BlockMeans {
+    /// Pixels per block side (8; 1 for a frame smaller than a block).
+    block: usize,
+    /// Blocks per row and per column.
+    width: usize,
+    height: usize,
+    /// Row-major, NaN for a block without a finite pixel.
+    means: Vec<f64>,
+}
+
+impl BlockMeans {
+    /// The standard deviation of the block means over the frame ([`RgbImage::texture`]): 0 for
+    /// a frame of one colour, about 0.1 to 0.3 for footage of a scene.
+    pub fn spread(&self) -> f32 {
+        let (mut sum, mut sum2, mut n) = (0.0f64, 0.0f64, 0u64);
+        for &m in self.means.iter().filter(|m| !m.is_nan()) {
+            sum += m;
+            sum2 += m * m;
+            n += 1;
+        }
+        if n == 0 {
+            return 0.0;
+        }
+        let mean = sum / n as f64;
+        (sum2 / n as f64 - mean * mean).max(0.0).sqrt() as f32
+    }
+
+    /// The RMS change of the block means from `earlier` (the same camera's image of another
+    /// frame) over the blocks that meet the pixel window `[x0, x1] × [y0, y1]`; `None` when the
+    /// two differ in size or no block with a finite mean meets the window.
+    pub fn change_within(&self, earlier: &BlockMeans, window: [f64; 4]) -> Option<f64> {
+        if (self.block, self.width, self.height) != (earlier.block, earlier.width, earlier.height) {
+            return None;
+        }
+        let [x0, y0, x1, y1] = window;
+        if !(x0 <= x1 && y0 <= y1) {
+            return None;
+        }
+        let b = self.block as f64;
+        // Blocks whose pixels (centres at integer coordinates) reach into the window.
+        let range = |lo: f64, hi: f64, n: usize| {
+            let a = (lo / b).floor().max(0.0) as usize;
+            let z = ((hi / b).floor() + 1.0).clamp(0.0, n as f64) as usize;
+            a..z.max(a)
+        };
+        let (xs, ys) = (range(x0, x1, self.width), range(y0, y1, self.height));
+        let (mut sum, mut n) = (0.0f64, 0usize);
+        for y in ys {
+            let row = y * self.width;
+            for x in xs.clone() {
+                let d = self.means[row + x] - earlier.means[row + x];
+                if d.is_finite() {
+                    sum += d * d;
+                    n += 1;
+                }
+            }
+        }
+        (n > 0).then(|| (sum / n as f64).sqrt())
+    }
+}
+
 /// Which of one frame's images (one per camera) are blank: they show nothing to compare (a
 /// dropped frame written black, a lens cap, a flash that blew the frame out). The tracker leaves
 /// a blank image out of that frame, as template and as target (docs/tracker.md, "Blank
@@ -173,16 +238,24 @@ impl RgbImage {
     /// footage of a scene. Blocks cut by the right and bottom edges are left out (a frame
     /// smaller than a block is measured per pixel), and so are non-finite pixels.
     pub fn texture(&self) -> f32 {
+        self.block_means().spread()
+    }
+
+    /// The image's luminance (Rec. 709) at an eighth of its resolution: the mean of each block
+    /// of 8×8 pixels (of each pixel when the frame is smaller than a block), so that sensor
+    /// noise counts for an eighth of what it does per pixel. Blocks cut by the right and bottom
+    /// edges are left out; a block without a finite pixel is NaN.
+    pub fn block_means(&self) -> BlockMeans {
         let b = if self.width >= 8 && self.height >= 8 {
             8
         } else {
             1
         };
         let (bw, bh) = (self.width / b, self.height / b);
+        let mut means = Vec::with_capacity(bw * bh);
         // Per block of the current row: the sum of its finite luminances and their count (a
         // non-finite pixel, which the file readers refuse, is not "one colour": it is left out).
         let mut row = vec![(0.0f64, 0u32); bw];
-        let (mut sum, mut sum2, mut n) = (0.0f64, 0.0f64, 0u64);
         for by in 0..bh {
             row.iter_mut().for_each(|r| *r = (0.0, 0));
             for y in by * b..(by + 1) * b {
@@ -196,18 +269,17 @@ impl RgbImage {
                     }
                 }
             }
-            for &(s, k) in row.iter().filter(|r| r.1 > 0) {
-                let m = s / k as f64;
-                sum += m;
-                sum2 += m * m;
-                n += 1;
-            }
+            means.extend(
+                row.iter()
+                    .map(|&(s, k)| if k > 0 { s / k as f64 } else { f64::NAN }),
+            );
         }
-        if n == 0 {
-            return 0.0;
+        BlockMeans {
+            block: b,
+            width: bw,
+            height: bh,
+            means,
         }
-        let mean = sum / n as f64;
-        (sum2 / n as f64 - mean * mean).max(0.0).sqrt() as f32
     }
 
     /// Every pixel replaced by its luminance (Rec. 709 weights) in all three channels: what a
@@ -632,6 +704,48 @@ mod tests {
         ]));
         assert!(super::mixes_grey_and_colour(&[blocks, colour]));
         assert_eq!(super::blank_images(&[black, flat]), [true, true]);
+    }
+
+    #[test]
+    fn a_frames_change_is_read_from_its_block_means_within_a_window() {
+        // 32×24 pixels: 4×3 blocks. Grey pixels' luminance is their value (the weights sum to 1).
+        let before = RgbImage::from_fn(32, 24, |_, _| [0.5; 3]).block_means();
+        let after = RgbImage::from_fn(32, 24, |x, y| {
+            // Block (1, 1) brighter by 0.4; one pixel of block (3, 2) brighter by 0.64 (its
+            // block's mean by 0.01): pixel noise counts for a sixty-fourth.
+            if (8..16).contains(&x) && (8..16).contains(&y) {
+                [0.9; 3]
+            } else if (x, y) == (30, 20) {
+                [1.14; 3]
+            } else {
+                [0.5; 3]
+            }
+        })
+        .block_means();
+        let whole = after
+            .change_within(&before, [0.0, 0.0, 31.0, 23.0])
+            .unwrap();
+        let expected = ((0.4f64.powi(2) + 0.01f64.powi(2)) / 12.0).sqrt();
+        assert!(
+            (whole - expected).abs() < 1e-6,
+            "{whole} against {expected}"
+        );
+        // A window inside block (0, 0) sees no change; one reaching pixel 8 takes block (1, 1).
+        assert_eq!(
+            after.change_within(&before, [0.0, 0.0, 7.9, 7.9]),
+            Some(0.0)
+        );
+        let reach = after.change_within(&before, [0.0, 0.0, 8.0, 8.0]).unwrap();
+        assert!((reach - (0.16f64 / 4.0).sqrt()).abs() < 1e-6, "{reach}");
+        // The same frame again: exactly nothing.
+        assert_eq!(
+            before.change_within(&before, [0.0, 0.0, 31.0, 23.0]),
+            Some(0.0)
+        );
+        // Another size, or a window off the image: not measured.
+        let other = RgbImage::from_fn(40, 24, |_, _| [0.5; 3]).block_means();
+        assert_eq!(other.change_within(&before, [0.0, 0.0, 31.0, 23.0]), None);
+        assert_eq!(after.change_within(&before, [40.0, 0.0, 50.0, 23.0]), None);
     }
 
     #[test]

@@ -33,6 +33,9 @@ pub struct FrameLog {
 /// The method-specific part of a log line.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(tag = "method", rename_all = "snake_case")]
+// One line per frame, read or written once: the tracker's report kept inline rather than boxed
+// (the variants are matched by value across the API and the Python bindings).
+#[allow(clippy::large_enum_variant)]
 pub enum FrameDetail {
     /// The Model Flow tracker's report of the frame: iterations, costs, stop reason, per-level
     /// solver summaries.

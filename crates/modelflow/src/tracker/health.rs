@@ -66,6 +66,11 @@ pub enum Concern {
     /// the whole frame, as a dropped frame written black, a lens cap or a flash that blew it
     /// out): they were left out of this frame, and the mesh is held by the others only.
     Blank { cameras: usize },
+    /// `cameras` cameras' images of this frame repeat their previous frame's over the mesh's
+    /// window while another camera saw the mesh move (`repeated_of`: a dropped frame the
+    /// recorder filled with the one before, a stream that froze): they show where the surface
+    /// was, not where it is, and were left out of this frame.
+    Repeated { cameras: usize },
     /// The solution is `share` of the mesh's size (RMS over the vertices, above [`JUMP_SHARE`])
     /// from where the previous frame's motion carried on would have put it
     /// ([`FrameReport::jump`]): a leap no motion the tracker follows makes in one frame; it
@@ -108,6 +113,14 @@ impl Concern {
                     format!("{cameras} cameras' images are")
                 }
             ),
+            Concern::Repeated { cameras } => format!(
+                "{} the previous frame's over the mesh while another camera saw it move (a dropped frame filled in with the one before, or a stream that froze), left out of this frame: the mesh is held by the other cameras only. If that camera's frames from here on show what the others showed a frame earlier (it lost a frame and the recorder filled the gap), track from here on with its frame_offset raised by 1 (docs/scene-format.md); two cameras cannot tell it",
+                if cameras == 1 {
+                    "1 camera's image repeats".to_string()
+                } else {
+                    format!("{cameras} cameras' images repeat")
+                }
+            ),
             Concern::Jumped { share } => format!(
                 "the mesh leapt {:.0} % of its size away from where the previous frame's motion would have put it (more than {:.0} %, past anything the tracker follows in one frame): it has likely slipped off the surface onto something else",
                 100.0 * share,
@@ -121,6 +134,37 @@ impl Concern {
             ),
         }
     }
+}
+
+/// A camera's image repeats the previous frame's when its block means
+/// (`image::BlockMeans`, 8×8-pixel luminance means) over the mesh's window changed by less than
+/// this, RMS: a twentieth of an 8-bit code value. The same frame written twice (a recorder that
+/// fills a dropped frame with the one before, a stream that froze) changes by 0; sensor noise
+/// alone changes a real camera's block means by about 10⁻³, so a still camera is not a repeat.
+pub const REPEAT_CHANGE: f64 = 2.5e-4;
+/// ... and another camera's view of the mesh changed by at least this (ten times as much, and
+/// more than sensor noise): the surface moved, and the repeating camera did not see it.
+pub const REPEAT_MOVED: f64 = 2.5e-3;
+
+/// Which cameras' images of a frame repeat their previous frame's, from each camera's change
+/// of its block means over the mesh's window since then (`None`: not measured, e.g. a blank
+/// image or a mesh out of view): a change below [`REPEAT_CHANGE`] while another camera's is at
+/// least [`REPEAT_MOVED`]. When no camera saw the mesh move (it stood still, or a rig of one),
+/// nothing is a repeat: the frame is the same as the last, and comparing it does no harm.
+pub fn repeated_of(changes: &[Option<f64>]) -> Vec<bool> {
+    changes
+        .iter()
+        .enumerate()
+        .map(|(c, d)| {
+            d.is_some_and(|d| {
+                d < REPEAT_CHANGE
+                    && changes
+                        .iter()
+                        .enumerate()
+                        .any(|(o, e)| o != c && e.is_some_and(|e| e >= REPEAT_MOVED))
+            })
+        })
+        .collect()
 }
 
 /// A frame to look at and every reason found.
@@ -169,7 +213,10 @@ pub fn own_concerns(r: &FrameReport) -> Vec<Concern> {
             at_first: r.contradicted_at_first,
         });
     }
-    if r.information_share < INFORMATION_FLOOR {
+    // Measured against the first frame seen by every camera: a frame that left a camera out
+    // (blank, repeated) has less to go on by that alone, and says so below.
+    let left_out = !r.blank_cameras.is_empty() || !r.repeated_cameras.is_empty();
+    if r.information_share < INFORMATION_FLOOR && !left_out {
         c.push(Concern::LittleTexture {
             share: r.information_share,
         });
@@ -183,6 +230,11 @@ pub fn own_concerns(r: &FrameReport) -> Vec<Concern> {
     if !r.blank_cameras.is_empty() {
         c.push(Concern::Blank {
             cameras: r.blank_cameras.len(),
+        });
+    }
+    if !r.repeated_cameras.is_empty() {
+        c.push(Concern::Repeated {
+            cameras: r.repeated_cameras.len(),
         });
     }
     c
@@ -362,6 +414,44 @@ mod tests {
         assert!(check_reports(0, [(1, &fast)]).is_empty());
         // Logs written before the field existed read as no leap.
         assert_eq!(report(0.05, 1.0, false).jump, 0.0);
+    }
+
+    #[test]
+    fn a_camera_that_saw_nothing_change_while_another_saw_the_mesh_move_repeats_its_frame() {
+        // The same frame written twice changes by 0; a still real camera's sensor noise by
+        // about 1e-3; a moving surface by far more.
+        assert_eq!(repeated_of(&[Some(0.0), Some(0.02)]), [true, false]);
+        assert_eq!(repeated_of(&[Some(2.4e-4), Some(2.5e-3)]), [true, false]);
+        assert_eq!(repeated_of(&[Some(2.5e-4), Some(0.02)]), [false, false]);
+        assert_eq!(repeated_of(&[Some(0.0), Some(2.4e-3)]), [false, false]);
+        // Nothing moved anywhere (a surface at rest, a static render): no repeat.
+        assert_eq!(repeated_of(&[Some(0.0), Some(0.0), Some(1e-4)]), [false; 3]);
+        // Not measured (blank, mesh out of view) is neither a repeat nor a witness of motion.
+        assert_eq!(repeated_of(&[Some(0.0), None]), [false, false]);
+        assert_eq!(
+            repeated_of(&[None, Some(0.0), Some(0.05)]),
+            [false, true, false]
+        );
+        // A rig of one has nothing to tell a still surface from a repeat by.
+        assert_eq!(repeated_of(&[Some(0.0)]), [false]);
+        // Each camera's verdict needs motion seen by another: two frozen of four are both named.
+        assert_eq!(
+            repeated_of(&[Some(0.0), Some(1e-5), Some(0.03), Some(0.01)]),
+            [true, true, false, false]
+        );
+        // In the frame's report: a suspect frame, named, and the texture test (measured against
+        // the first frame with every camera) left to the camera's own concern.
+        let mut r = report(0.05, 0.004, false);
+        r.repeated_cameras = vec![0];
+        let checks = check_reports(0, [(1, &r)]);
+        assert_eq!(checks.len(), 1, "{checks:?}");
+        assert_eq!(checks[0].concerns, [Concern::Repeated { cameras: 1 }]);
+        assert!(checks[0].suspect());
+        assert!(checks[0].concerns[0]
+            .describe()
+            .starts_with("1 camera's image repeats the previous frame's over the mesh"));
+        let json = serde_json::to_value(checks[0].concerns[0]).unwrap();
+        assert_eq!(json, serde_json::json!({"kind": "repeated", "cameras": 1}));
     }
 
     #[test]

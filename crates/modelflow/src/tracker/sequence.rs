@@ -12,7 +12,7 @@
 //! scene on disk into a run folder.
 
 use crate::base::camera::{Camera, Projection};
-use crate::base::image::RgbImage;
+use crate::base::image::{BlockMeans, RgbImage};
 use crate::base::mesh::Mesh;
 use crate::error::{Error, Result};
 use crate::tracker::align;
@@ -97,6 +97,12 @@ pub struct FrameReport {
     /// capped, blown out): left out of the frame, as target and as the next frame's template.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub blank_cameras: Vec<u16>,
+    /// The cameras (indices) whose image of this frame repeats their image of the previous frame
+    /// solved, over the mesh's window, while another camera's view of the mesh changed
+    /// ([`health::REPEAT_CHANGE`]; a dropped frame filled in by the recorder, a stream that
+    /// froze): left out of the frame as a blank one is (docs/tracker.md, "Repeated frames").
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub repeated_cameras: Vec<u16>,
     /// How far the solution is from where the previous frames' motion would have put it: the
     /// RMS over the vertices of its distance from the constant-velocity prediction (the
     /// previous frame's motion carried on, from rest after the given mesh), that is of the
@@ -160,9 +166,11 @@ struct Template {
     positions: Vec<Point3<f64>>,
     pyramids: Vec<Pyramid>,
     frame: u32,
-    /// Per camera, whether its image of this frame is blank (`image::blank_images`): it gives
-    /// no patches.
-    blank: Vec<bool>,
+    /// Per camera, whether its image of this frame is left out (blank, `image::blank_images`,
+    /// or a repeat of the frame before, [`Tracker::repeated`]): it gives no patches.
+    left_out: Vec<bool>,
+    /// Per camera, its image's block means (whether the next frame's image repeats it).
+    thumbs: Vec<BlockMeans>,
 }
 
 /// Frame-by-frame tracker state, in memory.
@@ -283,7 +291,10 @@ impl Tracker {
         let images = &compared[..];
         // A camera whose first image is blank (black, capped) shows nothing to compare: it
         // gives no template or anchor (nor does the check below ask it).
-        let blank = crate::base::image::blank_images(images);
+        let thumbs: Vec<BlockMeans> = images.par_iter().map(RgbImage::block_means).collect();
+        let blank = crate::base::image::blank_of(
+            &thumbs.iter().map(BlockMeans::spread).collect::<Vec<_>>(),
+        );
         // A mesh off the surface the cameras agree on is moved onto it first: everything below
         // (rest lengths, templates, the anchor) starts from the moved mesh.
         let moved = if opts.onto_surface {
@@ -332,7 +343,8 @@ impl Tracker {
                 positions: mesh.positions.clone(),
                 pyramids,
                 frame,
-                blank: blank.clone(),
+                left_out: blank.clone(),
+                thumbs,
             },
             before_prev: None,
             before_frame: frame,
@@ -467,12 +479,20 @@ impl Tracker {
                     self.anchor_patches(&self.prev, Some((n, 1.0)));
             }
         }
-        let blank = prepared.blank.clone();
+        // Left out as the run left them: blank, or (`Prepared::with_repeated`) a repeat.
+        let left_out = prepared
+            .blank
+            .iter()
+            .zip(&prepared.repeated)
+            .map(|(b, r)| b | r)
+            .collect();
+        let prepared = self.in_luminance(prepared);
         self.prev = Template {
             positions,
-            pyramids: self.in_luminance(prepared).pyramids,
+            pyramids: prepared.pyramids,
             frame,
-            blank,
+            left_out,
+            thumbs: prepared.thumbs,
         };
         self.before_prev = before;
         self.before_frame = frame.saturating_sub(1);
@@ -581,6 +601,26 @@ impl Tracker {
         prepared
     }
 
+    /// Per camera, whether its image of the frame being `prepared` repeats its image of the
+    /// previous frame solved (`health::repeated_of` over the change of each camera's block
+    /// means within the window the mesh covered there): the recorder filled a dropped frame
+    /// with the one before, or the camera's stream froze. A blank image is not a repeat.
+    fn repeated(&self, prepared: &Prepared) -> Vec<bool> {
+        let changes: Vec<Option<f64>> = self
+            .cameras
+            .iter()
+            .enumerate()
+            .map(|(c, cam)| {
+                if prepared.blank[c] {
+                    return None;
+                }
+                let window = mesh_window(cam, self.prev.frame, &self.prev.positions)?;
+                prepared.thumbs[c].change_within(&self.prev.thumbs[c], window)
+            })
+            .collect();
+        health::repeated_of(&changes)
+    }
+
     /// Current vertex positions (the last solved frame), one per vertex of the mesh given to
     /// [`Tracker::new`].
     pub fn positions(&self) -> &[Point3<f64>] {
@@ -664,7 +704,7 @@ impl Tracker {
         // A blank image gives no patches.
         let per_cam: Vec<CameraPatches> = per_cam
             .into_iter()
-            .zip(&tpl.blank)
+            .zip(&tpl.left_out)
             .filter(|(_, b)| !**b)
             .map(|(c, _)| c)
             .collect();
@@ -823,7 +863,17 @@ impl Tracker {
         let levels = self.opts.levels;
         let pyramid_seconds = prepared.seconds;
         let next_blank = prepared.blank.clone();
-        let next = self.in_luminance(prepared).pyramids;
+        // A camera whose image repeats the previous frame's shows where the surface was, not
+        // where it is: left out of this frame as a blank one is.
+        let next_repeated = self.repeated(&prepared);
+        let next_left_out: Vec<bool> = next_blank
+            .iter()
+            .zip(&next_repeated)
+            .map(|(b, r)| b | r)
+            .collect();
+        let prepared = self.in_luminance(prepared);
+        let next = prepared.pyramids;
+        let next_thumbs = prepared.thumbs;
         let mut out = Outcome {
             summaries: Vec::with_capacity(levels),
             predicted: false,
@@ -888,10 +938,12 @@ impl Tracker {
                 out.contradicted_share = share_of(template.contradicted, template.set.pixels.len());
             }
             let (mut set, stereo_x0) = self.level_patches(frame, level, template, &x, &next);
-            if next_blank.iter().any(|&b| b) {
-                // A camera whose image of this frame is blank is compared with nothing.
-                set.patches
-                    .retain(|p| !next_blank[p.camera as usize] && !next_blank[p.source as usize]);
+            if next_left_out.iter().any(|&b| b) {
+                // A camera whose image of this frame is blank or repeated is compared with
+                // nothing.
+                set.patches.retain(|p| {
+                    !next_left_out[p.camera as usize] && !next_left_out[p.source as usize]
+                });
             }
             if self.opts.hidden_ahead {
                 // At the coarsest level the mesh has not moved yet: judged at the
@@ -940,6 +992,7 @@ impl Tracker {
         // template pixel was lost): whatever the steps did, only the regularisers moved the
         // mesh, so the frame counts as stalled and keeps the previous frame's shape.
         let blank_cameras = blank_list(&next_blank);
+        let repeated_cameras = blank_list(&next_repeated);
         let stalled = out.pixels == 0
             || (!summaries
                 .iter()
@@ -972,7 +1025,8 @@ impl Tracker {
                     positions: x,
                     pyramids: next,
                     frame,
-                    blank: next_blank,
+                    left_out: next_left_out,
+                    thumbs: next_thumbs,
                 },
             );
             if first_motion && lagged {
@@ -1011,6 +1065,7 @@ impl Tracker {
             suspect: false,
             rejected_share: out.rejected_share,
             blank_cameras,
+            repeated_cameras,
             jump,
             stop: out.stop,
             predicted: out.predicted,
@@ -1124,7 +1179,7 @@ impl Tracker {
             // Anchor patches only where the triangle is seen in the previous frame too
             // (otherwise it has turned away or been covered by another part of the mesh since
             // the first frame); seen, whatever its pixels showed: where an occluder covered it
-            // in the previous frame, or its image was blank, the first frame's view is what is
+            // in the previous frame, or its image was blank or a repeat, the first frame's view is what is
             // left to hold it (the robust loss rejects an occluder still there).
             set.pixels.reserve(anchor.pixels.len());
             set.patches.reserve(anchor.patches.len());
@@ -1411,6 +1466,11 @@ pub struct Prepared {
     pyramids: Vec<Pyramid>,
     /// Per camera, whether its image is blank (`image::blank_images`).
     blank: Vec<bool>,
+    /// Per camera, its image's block means (whether it repeats the frame before).
+    thumbs: Vec<BlockMeans>,
+    /// Per camera, whether the tracker left its image out as a repeat when this frame was
+    /// solved ([`Prepared::with_repeated`]; only read by [`Tracker::restore`]).
+    repeated: Vec<bool>,
     /// The smoothing they were built with (must be the tracker's).
     blur: f64,
     /// Time it took, seconds (reported as the step's `timing.pyramids`).
@@ -1421,6 +1481,19 @@ impl Prepared {
     /// Time it took to build the pyramids, seconds.
     pub fn seconds(&self) -> f64 {
         self.seconds
+    }
+
+    /// The same frame, marked with the cameras (indices) that the tracker left out of it as
+    /// repeats of the frame before when it solved it ([`FrameReport::repeated_cameras`]): what
+    /// [`Tracker::restore`] needs to continue exactly where a run stopped. Indices past the
+    /// rig are ignored.
+    pub fn with_repeated(mut self, cameras: &[u16]) -> Self {
+        for &c in cameras {
+            if let Some(r) = self.repeated.get_mut(c as usize) {
+                *r = true;
+            }
+        }
+        self
     }
 }
 
@@ -1448,6 +1521,30 @@ pub(crate) fn anchored_levels(levels: usize, finest: usize) -> usize {
 pub(crate) fn stereo_levels(levels: usize, finest: usize) -> std::ops::Range<usize> {
     let end = (finest + 2).min(levels.saturating_sub(1)).max(finest + 1);
     finest..end
+}
+
+/// The pixel window `[x0, y0, x1, y1]` that `positions` project into in `camera`'s image at
+/// `frame`, widened by 4 pixels and cut to the image; `None` when no vertex lies in front of the
+/// camera or the window misses the image.
+fn mesh_window(camera: &Camera, frame: u32, positions: &[Point3<f64>]) -> Option<[f64; 4]> {
+    let p = camera.at(frame);
+    let mut w = [
+        f64::INFINITY,
+        f64::INFINITY,
+        f64::NEG_INFINITY,
+        f64::NEG_INFINITY,
+    ];
+    for q in positions.iter().filter_map(|x| p.project(x)) {
+        w = [w[0].min(q.x), w[1].min(q.y), w[2].max(q.x), w[3].max(q.y)];
+    }
+    let pad = 4.0;
+    let w = [
+        (w[0] - pad).max(0.0),
+        (w[1] - pad).max(0.0),
+        (w[2] + pad).min(camera.width as f64 - 1.0),
+        (w[3] + pad).min(camera.height as f64 - 1.0),
+    ];
+    (w[0] <= w[2] && w[1] <= w[3]).then_some(w)
 }
 
 /// The indices of the cameras `blank` marks.
@@ -1479,10 +1576,13 @@ pub fn prepare(images: &[RgbImage], opts: &TrackOptions) -> Prepared {
     let opts = opts.resolved_for(images.iter().map(|i| (i.width() as u32, i.height() as u32)));
     let pyramids = build_pyramids(images, opts.levels.max(1), opts.blur);
     // (`levels.max(1)` is `TrackOptions::used`'s resolution of the level count.)
-    let texture: Vec<f32> = images.par_iter().map(RgbImage::texture).collect();
+    let thumbs: Vec<BlockMeans> = images.par_iter().map(RgbImage::block_means).collect();
+    let texture: Vec<f32> = thumbs.iter().map(BlockMeans::spread).collect();
     Prepared {
         pyramids,
         blank: crate::base::image::blank_of(&texture),
+        repeated: vec![false; thumbs.len()],
+        thumbs,
         blur: opts.blur,
         seconds: t.elapsed().as_secs_f64(),
     }

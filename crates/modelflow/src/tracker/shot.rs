@@ -101,7 +101,13 @@ fn track_into(
         Some(last) => {
             // The state right after `last` was solved: its images, its positions and those of
             // the frame before (the velocity), read back exactly from the meshes written.
-            let prepared = prepare(&scene.load_images(last)?, opts);
+            // The cameras left out of it as repeats of the frame before stay left out.
+            let repeated = crate::run::read_frame_log(folder.dir())?
+                .into_iter()
+                .find(|l| l.frame == last)
+                .and_then(|l| l.model_flow().map(|r| r.repeated_cameras.clone()))
+                .unwrap_or_default();
+            let prepared = prepare(&scene.load_images(last)?, opts).with_repeated(&repeated);
             let positions = folder.read_positions(last)?;
             let before = folder.read_positions(last - 1)?;
             // Cameras that record late or early took their anchor where the surface had moved
