@@ -149,7 +149,9 @@ fn an_interrupted_run_resumes_to_the_files_of_an_uninterrupted_one() {
 fn a_run_stopped_at_a_frame_one_camera_repeated_resumes_to_the_same_files() {
     // Camera 0's frame 4 is its frame 3 again (a dropped frame filled in): the tracker leaves
     // it out of frame 4 and out of the template frame 5 is compared with. Stopped right after
-    // frame 4, the resumed run must leave it out of that template too.
+    // frame 4, the resumed run must leave it out of that template too. Camera 0's colours also
+    // drift (red up, blue down 5 % a frame), so the resumed run must go on with the colour
+    // balance the tracker had read.
     let dir = tempfile::tempdir().unwrap();
     let opts = SynthOptions {
         width: 160,
@@ -159,6 +161,15 @@ fn a_run_stopped_at_a_frame_one_camera_repeated_resumes_to_the_same_files() {
     };
     let scene = write_dataset(&opts, &dir.path().join("footage"), &|_, _| {}).unwrap();
     let images = scene.parent().unwrap().join("images/cam0");
+    for f in 1..7 {
+        let path = images.join(format!("{f:04}.png"));
+        let mut img = modelflow::input::read_rgb(&path).unwrap();
+        let (r, b) = (1.0 + 0.05 * f as f32, 1.0 - 0.05 * f as f32);
+        for p in img.pixels_mut() {
+            *p = [(p[0] * r).min(1.0), p[1], p[2] * b];
+        }
+        modelflow::input::write_png(&path, &img).unwrap();
+    }
     std::fs::copy(images.join("0003.png"), images.join("0004.png")).unwrap();
     let reference = dir.path().join("reference");
     track(&scene, &reference, &RunOptions::default()).unwrap();
@@ -173,6 +184,9 @@ fn a_run_stopped_at_a_frame_one_camera_repeated_resumes_to_the_same_files() {
         })
         .collect();
     assert_eq!(repeated, [(4, vec![0])]);
+    let log = read_frame_log(&reference).unwrap();
+    let balance = &log[3].model_flow().unwrap().colour_balance;
+    assert!(balance[0][0] > 1.05, "{balance:?}");
     let out = dir.path().join("interrupted");
     interrupted_after(&scene, &out, 4);
     assert_eq!(track(&scene, &out, &resume()).unwrap(), 2, "frames 5..=6");

@@ -8,6 +8,7 @@
 //! files, through `run`; everything else takes and returns memory.
 
 pub(crate) mod align;
+mod balance;
 pub(crate) mod consensus;
 mod coverage;
 pub(crate) mod fold;

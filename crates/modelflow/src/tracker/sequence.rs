@@ -16,6 +16,7 @@ use crate::base::image::{BlockMeans, RgbImage};
 use crate::base::mesh::Mesh;
 use crate::error::{Error, Result};
 use crate::tracker::align;
+use crate::tracker::balance;
 use crate::tracker::consensus::{drop_contradicted, ConsensusOptions};
 use crate::tracker::fold::FoldWatch;
 use crate::tracker::gpu::Gpu;
@@ -103,6 +104,18 @@ pub struct FrameReport {
     /// froze): left out of the frame as a blank one is (docs/tracker.md, "Repeated frames").
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub repeated_cameras: Vec<u16>,
+    /// Per camera, its colour balance against the first frame after this frame (red, green,
+    /// blue; luminance 1): what the next frame's images are divided by, so that every
+    /// comparison is made in the colours the camera had at the first frame (docs/tracker.md,
+    /// "Colour balance"). Absent before the first frame is read, and in logs written before
+    /// 2026-11-29 (read as no change).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub colour_balance: Vec<[f64; 3]>,
+    /// Per camera, the last readings of its colour balance (up to three, oldest first: what
+    /// each of the last frames' images showed) whose median is `colour_balance`; what
+    /// `--resume` continues from.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub colour_readings: Vec<Vec<[f64; 3]>>,
     /// How far the solution is from where the previous frames' motion would have put it: the
     /// RMS over the vertices of its distance from the constant-velocity prediction (the
     /// previous frame's motion carried on, from rest after the given mesh), that is of the
@@ -215,6 +228,11 @@ pub struct Tracker {
     /// Each vertex's photometric information in the last frame solved (the bending term's yield
     /// depends on it); `None` before the first, and after a frame in which no pixel was compared.
     information: Option<Vec<f64>>,
+    /// Per camera, its colour balance against the first frame (`balance`): the next frame's
+    /// images are divided by it.
+    balance: Vec<[f64; 3]>,
+    /// Per camera, its last [`balance::READINGS`] readings of that balance, oldest first.
+    readings: Vec<Vec<[f64; 3]>>,
 }
 
 /// The mesh as the tracker works on it: vertices at the same place merged
@@ -354,6 +372,8 @@ impl Tracker {
             first_blank: blank_list(&blank),
             folds: FoldWatch::new(&mesh.positions, &mesh.triangles),
             information: None,
+            balance: Vec::new(),
+            readings: Vec::new(),
         };
         (t.anchor, t.contradicted_at_first) = t.anchor_patches(&t.prev, None);
         t.information_at_first = t.information_at_first();
@@ -621,6 +641,51 @@ impl Tracker {
         health::repeated_of(&changes)
     }
 
+    /// After `frame` is solved (its images and solution are the template now): each camera's
+    /// change of colour balance since the first frame, read from the first frame's pixels
+    /// carried into this frame's images (`balance::change`), taken into its balance.
+    fn update_balance(&mut self, frame: u32) {
+        let Some(anchor) = self.anchor.first() else {
+            return;
+        };
+        let projections: Vec<Projection> =
+            self.cameras.iter().map(|c| c.at(frame).clone()).collect();
+        let images: Vec<&RgbImage> = self.prev.pyramids.iter().map(|p| &p.levels[0]).collect();
+        let change = balance::change(
+            anchor,
+            &self.triangles,
+            &self.prev.positions,
+            &projections,
+            &images,
+            &self.prev.left_out,
+            self.two_sided,
+        );
+        if self.balance.is_empty() {
+            self.balance = vec![[1.0; 3]; self.cameras.len()];
+            self.readings = vec![Vec::new(); self.cameras.len()];
+        }
+        for ((b, r), d) in self.balance.iter_mut().zip(&mut self.readings).zip(change) {
+            if let Some(d) = d {
+                // What this frame's images showed: the balance they were divided by, times
+                // what was left.
+                balance::record(r, std::array::from_fn(|k| b[k] * d[k]));
+                *b = balance::applied(balance::of_readings(r));
+            }
+        }
+    }
+
+    /// Sets each camera's colour balance against the first frame and the readings it comes
+    /// from, as the frame a run stopped at left them ([`FrameReport::colour_balance`],
+    /// [`FrameReport::colour_readings`]): with [`Tracker::restore`], what `--resume` needs to
+    /// continue exactly. Ignored unless both have one entry per camera.
+    pub fn restore_colour_balance(&mut self, balance: &[[f64; 3]], readings: &[Vec<[f64; 3]>]) {
+        let n = self.cameras.len();
+        if balance.len() == n && readings.len() == n {
+            self.balance = balance.to_vec();
+            self.readings = readings.to_vec();
+        }
+    }
+
     /// Current vertex positions (the last solved frame), one per vertex of the mesh given to
     /// [`Tracker::new`].
     pub fn positions(&self) -> &[Point3<f64>] {
@@ -872,8 +937,12 @@ impl Tracker {
             .map(|(b, r)| b | r)
             .collect();
         let prepared = self.in_luminance(prepared);
-        let next = prepared.pyramids;
+        let mut next = prepared.pyramids;
         let next_thumbs = prepared.thumbs;
+        // In the colours each camera had at the first frame (`balance`).
+        for (p, b) in next.iter_mut().zip(&self.balance) {
+            balance::divide(p, *b);
+        }
         let mut out = Outcome {
             summaries: Vec::with_capacity(levels),
             predicted: false,
@@ -1040,6 +1109,7 @@ impl Tracker {
             self.before_prev = Some(old.positions);
             self.before_frame = old.frame;
             self.sync_given();
+            self.update_balance(frame);
         }
         let confidence = match &self.weld {
             Some(w) if !out.confidence.is_empty() => w
@@ -1066,6 +1136,8 @@ impl Tracker {
             rejected_share: out.rejected_share,
             blank_cameras,
             repeated_cameras,
+            colour_balance: self.balance.clone(),
+            colour_readings: self.readings.clone(),
             jump,
             stop: out.stop,
             predicted: out.predicted,

@@ -101,12 +101,22 @@ fn track_into(
         Some(last) => {
             // The state right after `last` was solved: its images, its positions and those of
             // the frame before (the velocity), read back exactly from the meshes written.
-            // The cameras left out of it as repeats of the frame before stay left out.
-            let repeated = crate::run::read_frame_log(folder.dir())?
+            // The cameras left out of it as repeats of the frame before stay left out, and the
+            // colour balance it left goes on.
+            let (repeated, balance, readings) = crate::run::read_frame_log(folder.dir())?
                 .into_iter()
                 .find(|l| l.frame == last)
-                .and_then(|l| l.model_flow().map(|r| r.repeated_cameras.clone()))
+                .and_then(|l| {
+                    l.model_flow().map(|r| {
+                        (
+                            r.repeated_cameras.clone(),
+                            r.colour_balance.clone(),
+                            r.colour_readings.clone(),
+                        )
+                    })
+                })
                 .unwrap_or_default();
+            tracker.restore_colour_balance(&balance, &readings);
             let prepared = prepare(&scene.load_images(last)?, opts).with_repeated(&repeated);
             let positions = folder.read_positions(last)?;
             let before = folder.read_positions(last - 1)?;
