@@ -606,21 +606,18 @@ pub fn run_scene(
         // goes without saying after the warning about that solution.
         if let Some(r) = r {
             for (frame, c) in checks.add(f.frame, scene.first, r) {
-                match c {
-                    modelflow::tracker::Concern::StartedContradicted { .. } => {}
-                    // Which cameras: a dead one shows frame after frame under its name.
-                    modelflow::tracker::Concern::Blank { .. } => progress.println(&format!(
-                        "warning: frame {frame}: {} ({})",
-                        c.describe(),
-                        camera_names(scene, &r.blank_cameras)
-                    )),
-                    modelflow::tracker::Concern::Repeated { .. } => progress.println(&format!(
-                        "warning: frame {frame}: {} ({})",
-                        c.describe(),
-                        camera_names(scene, &r.repeated_cameras)
-                    )),
-                    _ => progress.println(&format!("warning: frame {frame}: {}", c.describe())),
-                }
+                use modelflow::tracker::Concern;
+                // Which cameras: a dead one shows frame after frame under its name.
+                let cameras = match c {
+                    Concern::StartedContradicted { .. } => continue,
+                    Concern::Blank { .. } => Some(&r.blank_cameras),
+                    Concern::Repeated { .. } => Some(&r.repeated_cameras),
+                    Concern::Late { .. } => Some(&r.late_cameras),
+                    _ => None,
+                };
+                let named =
+                    cameras.map_or(String::new(), |c| format!(" ({})", camera_names(scene, c)));
+                progress.println(&format!("warning: frame {frame}: {}{named}", c.describe()));
             }
         }
         progress.at(

@@ -146,17 +146,19 @@ fn an_interrupted_run_resumes_to_the_files_of_an_uninterrupted_one() {
 }
 
 #[test]
-fn a_run_stopped_at_a_frame_one_camera_repeated_resumes_to_the_same_files() {
-    // Camera 0's frame 4 is its frame 3 again (a dropped frame filled in): the tracker leaves
-    // it out of frame 4 and out of the template frame 5 is compared with. Stopped right after
-    // frame 4, the resumed run must leave it out of that template too. Camera 0's colours also
+fn a_run_stopped_where_a_camera_repeated_or_was_found_late_resumes_to_the_same_files() {
+    // Camera 0's frame 4 is its frame 3 again, and it runs a frame late from then on: the
+    // tracker leaves it out of frame 4 and of the template frame 5 is compared with, watches
+    // it, finds it late at frame 5 and leaves it out from then on. Stopped at either frame, the
+    // resumed run must do the same. Camera 0's colours also
     // drift (red up, blue down 5 % a frame), so the resumed run must go on with the colour
     // balance the tracker had read.
     let dir = tempfile::tempdir().unwrap();
     let opts = SynthOptions {
-        width: 160,
-        height: 120,
+        width: 320,
+        height: 240,
         frames: 7,
+        shake: 3.0,
         ..SynthOptions::default()
     };
     let scene = write_dataset(&opts, &dir.path().join("footage"), &|_, _| {}).unwrap();
@@ -170,7 +172,14 @@ fn a_run_stopped_at_a_frame_one_camera_repeated_resumes_to_the_same_files() {
         }
         modelflow::input::write_png(&path, &img).unwrap();
     }
-    std::fs::copy(images.join("0003.png"), images.join("0004.png")).unwrap();
+    // Frame 3 written twice, and a frame late from then on.
+    for f in (4..7).rev() {
+        std::fs::copy(
+            images.join(format!("{:04}.png", f - 1)),
+            images.join(format!("{f:04}.png")),
+        )
+        .unwrap();
+    }
     let reference = dir.path().join("reference");
     track(&scene, &reference, &RunOptions::default()).unwrap();
     let repeated: Vec<(u32, Vec<u16>)> = read_frame_log(&reference)
@@ -187,11 +196,20 @@ fn a_run_stopped_at_a_frame_one_camera_repeated_resumes_to_the_same_files() {
     let log = read_frame_log(&reference).unwrap();
     let balance = &log[3].model_flow().unwrap().colour_balance;
     assert!(balance[0][0] > 1.05, "{balance:?}");
-    let out = dir.path().join("interrupted");
-    interrupted_after(&scene, &out, 4);
-    assert_eq!(track(&scene, &out, &resume()).unwrap(), 2, "frames 5..=6");
-    assert_eq!(meshes(&out), meshes(&reference), "byte-identical meshes");
-    assert_eq!(logs_without_times(&out), logs_without_times(&reference));
+    let late: Vec<u32> = log
+        .iter()
+        .filter(|l| !l.model_flow().unwrap().late_cameras.is_empty())
+        .map(|l| l.frame)
+        .collect();
+    assert_eq!(late, [5, 6]);
+    // Stopped at the repeat (the camera watched) and at the frame it was found late (left out).
+    for stop in [4, 5] {
+        let out = dir.path().join(format!("interrupted-{stop}"));
+        interrupted_after(&scene, &out, stop);
+        assert_eq!(track(&scene, &out, &resume()).unwrap(), (6 - stop) as usize);
+        assert_eq!(meshes(&out), meshes(&reference), "byte-identical meshes");
+        assert_eq!(logs_without_times(&out), logs_without_times(&reference));
+    }
 }
 
 #[test]

@@ -71,6 +71,10 @@ pub enum Concern {
     /// recorder filled with the one before, a stream that froze): they show where the surface
     /// was, not where it is, and were left out of this frame.
     Repeated { cameras: usize },
+    /// `cameras` cameras that repeated a frame agree with the other cameras' previous frame
+    /// better than with this one ([`LATE_RATIO`]): they run a frame late since, and the mesh
+    /// is pulled toward where it was.
+    Late { cameras: usize },
     /// The solution is `share` of the mesh's size (RMS over the vertices, above [`JUMP_SHARE`])
     /// from where the previous frame's motion carried on would have put it
     /// ([`FrameReport::jump`]): a leap no motion the tracker follows makes in one frame; it
@@ -114,11 +118,19 @@ impl Concern {
                 }
             ),
             Concern::Repeated { cameras } => format!(
-                "{} the previous frame's over the mesh while another camera saw it move (a dropped frame filled in with the one before, or a stream that froze), left out of this frame: the mesh is held by the other cameras only. If that camera's frames from here on show what the others showed a frame earlier (it lost a frame and the recorder filled the gap), track from here on with its frame_offset raised by 1 (docs/scene-format.md); two cameras cannot tell it",
+                "{} the previous frame's over the mesh while another camera saw it move (a dropped frame filled in with the one before, or a stream that froze), left out of this frame: the mesh is held by the other cameras only (the next frames are checked for the camera running a frame late since)",
                 if cameras == 1 {
                     "1 camera's image repeats".to_string()
                 } else {
                     format!("{cameras} cameras' images repeat")
+                }
+            ),
+            Concern::Late { cameras } => format!(
+                "{} a frame late since repeating a frame (its image agrees with the other cameras' previous frame better than with this one), so the mesh is pulled toward where it was: track from here on with its frame_offset raised by 1 (docs/scene-format.md)",
+                if cameras == 1 {
+                    "1 camera runs".to_string()
+                } else {
+                    format!("{cameras} cameras run")
                 }
             ),
             Concern::Jumped { share } => format!(
@@ -145,6 +157,14 @@ pub const REPEAT_CHANGE: f64 = 2.5e-4;
 /// ... and another camera's view of the mesh changed by at least this (ten times as much, and
 /// more than sensor noise): the surface moved, and the repeating camera did not see it.
 pub const REPEAT_MOVED: f64 = 2.5e-3;
+
+/// A camera that repeated a frame runs a frame late when, at a later frame, its comparison with
+/// the other cameras (the pairs it is in) with its image beside their previous frame, at the
+/// previous solution, is below this share of the same with their frame, at this solution.
+/// Measured at the first frame after the repeat: a camera in step 1/365 (two cameras) of the
+/// late comparison, one a frame late 1/300 (two cameras) and 0.45 (a limb's four cameras,
+/// whose view-dependent shading both comparisons share); docs/tracker.md, "Repeated frames".
+pub const LATE_RATIO: f64 = 2.0 / 3.0;
 
 /// Which cameras' images of a frame repeat their previous frame's, from each camera's change
 /// of its block means over the mesh's window since then (`None`: not measured, e.g. a blank
@@ -214,8 +234,9 @@ pub fn own_concerns(r: &FrameReport) -> Vec<Concern> {
         });
     }
     // Measured against the first frame seen by every camera: a frame that left a camera out
-    // (blank, repeated) has less to go on by that alone, and says so below.
-    let left_out = !r.blank_cameras.is_empty() || !r.repeated_cameras.is_empty();
+    // (blank, repeated, late) has less to go on by that alone, and says so below.
+    let left_out =
+        !r.blank_cameras.is_empty() || !r.repeated_cameras.is_empty() || !r.late_cameras.is_empty();
     if r.information_share < INFORMATION_FLOOR && !left_out {
         c.push(Concern::LittleTexture {
             share: r.information_share,
@@ -235,6 +256,11 @@ pub fn own_concerns(r: &FrameReport) -> Vec<Concern> {
     if !r.repeated_cameras.is_empty() {
         c.push(Concern::Repeated {
             cameras: r.repeated_cameras.len(),
+        });
+    }
+    if !r.late_cameras.is_empty() {
+        c.push(Concern::Late {
+            cameras: r.late_cameras.len(),
         });
     }
     c
@@ -452,6 +478,15 @@ mod tests {
             .starts_with("1 camera's image repeats the previous frame's over the mesh"));
         let json = serde_json::to_value(checks[0].concerns[0]).unwrap();
         assert_eq!(json, serde_json::json!({"kind": "repeated", "cameras": 1}));
+        // A camera found running late since: left out, named, suspect, its fix given.
+        let mut r = report(0.05, 0.004, false);
+        r.late_cameras = vec![0];
+        let checks = check_reports(0, [(1, &r)]);
+        assert_eq!(checks[0].concerns, [Concern::Late { cameras: 1 }]);
+        assert!(checks[0].suspect());
+        assert!(checks[0].concerns[0]
+            .describe()
+            .contains("track from here on with its frame_offset raised by 1"));
     }
 
     #[test]

@@ -59,6 +59,8 @@ struct Frame<'a> {
     projections: Vec<Projection>,
     per_unit: f64,
     opts: SolverOptions,
+    /// Only the comparisons that involve this camera (index into `targets`); all without it.
+    involving: Option<u16>,
 }
 
 /// One offset's comparison: the mean cost per pixel over every triangle, and per triangle its
@@ -90,6 +92,9 @@ impl Frame<'_> {
                 let xk: Vec<Point3<f64>> = x.iter().zip(normals).map(|(p, n)| p + n * d).collect();
                 let mut set =
                     cross_patches(&xk, triangles, &self.projections, &self.targets, &popts, 0);
+                if let Some(c) = self.involving {
+                    set.patches.retain(|p| p.camera == c || p.source == c);
+                }
                 if set.patches.is_empty() {
                     return None;
                 }
@@ -206,7 +211,46 @@ fn frame_of<'a>(
             loss: Loss::Huber,
             ..SolverOptions::default()
         },
+        involving: None,
     })
+}
+
+/// The cameras' comparison with each other (each camera's pixels of `x` warped into every other
+/// camera that sees the triangle, up to the gains, the convex loss) at pyramid `level`: its
+/// mean cost per pixel, each camera `c` seen through `projections[c]` (full resolution) in
+/// `images[c]` (that level's image, from any frame); only the comparisons that involve camera
+/// `involving` (its pixels warped into the others, theirs into it). `None` when it sees no
+/// triangle another camera sees. What [`surface_offset`] scans along the normals, at the mesh as
+/// it is.
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn cross_cost(
+    x: &[Point3<f64>],
+    triangles: &[[u32; 3]],
+    edges: &[[u32; 2]],
+    closed: bool,
+    projections: &[&Projection],
+    images: &[&RgbImage],
+    level: usize,
+    involving: usize,
+) -> Option<f64> {
+    let f = Frame {
+        targets: images.to_vec(),
+        projections: projections
+            .iter()
+            .map(|p| level_projection(p, level))
+            .collect(),
+        per_unit: 1.0,
+        opts: SolverOptions {
+            loss: Loss::Huber,
+            ..SolverOptions::default()
+        },
+        involving: Some(involving as u16),
+    };
+    let still = vec![Vector3::zeros(); x.len()];
+    f.scan(x, &still, triangles, edges, closed, 0..=0)
+        .pop()
+        .flatten()
+        .map(|(cost, _)| cost)
 }
 
 fn pyramids(images: &[RgbImage], levels: usize) -> Vec<Pyramid> {

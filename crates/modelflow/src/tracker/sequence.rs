@@ -104,6 +104,12 @@ pub struct FrameReport {
     /// froze): left out of the frame as a blank one is (docs/tracker.md, "Repeated frames").
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub repeated_cameras: Vec<u16>,
+    /// The cameras (indices) that repeated a frame and, at this one, agree with the other
+    /// cameras' *previous* frame at the previous solution clearly better than with their
+    /// frame at this solution ([`health::LATE_RATIO`]): the camera runs a frame late since the
+    /// repeat, and its images pull the mesh back (docs/tracker.md, "Repeated frames").
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub late_cameras: Vec<u16>,
     /// Per camera, its colour balance against the first frame after this frame (red, green,
     /// blue; luminance 1): what the next frame's images are divided by, so that every
     /// comparison is made in the colours the camera had at the first frame (docs/tracker.md,
@@ -233,6 +239,12 @@ pub struct Tracker {
     balance: Vec<[f64; 3]>,
     /// Per camera, its last [`balance::READINGS`] readings of that balance, oldest first.
     readings: Vec<Vec<[f64; 3]>>,
+    /// Per camera, whether it repeated a frame and has not been seen in step since
+    /// ([`Tracker::late_cameras`] is asked about it after every frame until it is).
+    watch_sync: Vec<bool>,
+    /// Per camera, whether it was found running a frame late ([`Tracker::late_cameras`]): left
+    /// out of every later frame.
+    late: Vec<bool>,
 }
 
 /// The mesh as the tracker works on it: vertices at the same place merged
@@ -374,6 +386,8 @@ impl Tracker {
             information: None,
             balance: Vec::new(),
             readings: Vec::new(),
+            watch_sync: Vec::new(),
+            late: Vec::new(),
         };
         (t.anchor, t.contradicted_at_first) = t.anchor_patches(&t.prev, None);
         t.information_at_first = t.information_at_first();
@@ -641,6 +655,72 @@ impl Tracker {
         health::repeated_of(&changes)
     }
 
+    /// Per camera, whether it runs a frame late: for each camera watched since it repeated a
+    /// frame, the cameras' comparison with each other (`offset::cross_cost`, at full resolution
+    /// up to 1 280 pixels wide) with its image of `frame` beside the others' previous frame at the previous
+    /// solution, against the same with the others' `frame` at its solution `x`; late when the
+    /// first is below [`health::LATE_RATIO`] of the second. Cameras left out of either frame
+    /// take no part.
+    fn late_cameras(
+        &self,
+        frame: u32,
+        x: &[Point3<f64>],
+        next: &[Pyramid],
+        left_out: &[bool],
+    ) -> Vec<bool> {
+        let n = self.cameras.len();
+        let mut late = vec![false; n];
+        let watched = |c: usize| self.watch_sync.get(c).copied().unwrap_or(false);
+        if !(0..n).any(watched) {
+            return late;
+        }
+        // Full resolution up to 1 280 pixels wide, then the level below (watched frames only).
+        let widest = self.cameras.iter().map(|c| c.width).max().unwrap_or(0);
+        let level = usize::from(widest > 1280).min(self.opts.levels.max(1) - 1);
+        let closed = !self.two_sided;
+        for c in (0..n).filter(|&c| watched(c) && !left_out[c]) {
+            // The camera and the others shown in both frames, compared the same way in both.
+            let set: Vec<usize> = (0..n)
+                .filter(|&o| o == c || (!left_out[o] && !self.prev.left_out[o]))
+                .collect();
+            if set.len() < 2 {
+                continue;
+            }
+            let cost = |x: &[Point3<f64>], behind: bool| {
+                crate::tracker::offset::cross_cost(
+                    x,
+                    &self.triangles,
+                    &self.pattern,
+                    closed,
+                    &set.iter()
+                        .map(|&o| {
+                            let f = if behind && o != c {
+                                self.prev.frame
+                            } else {
+                                frame
+                            };
+                            self.cameras[o].at(f)
+                        })
+                        .collect::<Vec<_>>(),
+                    &set.iter()
+                        .map(|&o| {
+                            if behind && o != c {
+                                &self.prev.pyramids[o].levels[level]
+                            } else {
+                                &next[o].levels[level]
+                            }
+                        })
+                        .collect::<Vec<_>>(),
+                    level,
+                    set.iter().position(|&o| o == c).unwrap_or(0),
+                )
+            };
+            let (now, behind) = (cost(x, false), cost(&self.prev.positions, true));
+            late[c] = matches!((now, behind), (Some(a), Some(b)) if b < health::LATE_RATIO * a);
+        }
+        late
+    }
+
     /// After `frame` is solved (its images and solution are the template now): each camera's
     /// change of colour balance since the first frame, read from the first frame's pixels
     /// carried into this frame's images (`balance::change`), taken into its balance.
@@ -672,6 +752,17 @@ impl Tracker {
                 *b = balance::applied(balance::of_readings(r));
             }
         }
+    }
+
+    /// Marks the cameras found running a frame late ([`FrameReport::late_cameras`]) and those
+    /// that repeated the frame a run stopped at ([`FrameReport::repeated_cameras`], watched for
+    /// it), as that frame's report gave them: with [`Tracker::restore`], what `--resume` needs
+    /// to continue exactly. Indices past the rig are ignored.
+    pub fn restore_sync(&mut self, late: &[u16], repeated: &[u16]) {
+        let n = self.cameras.len();
+        let mark = |list: &[u16]| (0..n).map(|c| list.contains(&(c as u16))).collect();
+        self.late = mark(late);
+        self.watch_sync = mark(repeated);
     }
 
     /// Sets each camera's colour balance against the first frame and the readings it comes
@@ -931,10 +1022,16 @@ impl Tracker {
         // A camera whose image repeats the previous frame's shows where the surface was, not
         // where it is: left out of this frame as a blank one is.
         let next_repeated = self.repeated(&prepared);
-        let next_left_out: Vec<bool> = next_blank
-            .iter()
-            .zip(&next_repeated)
-            .map(|(b, r)| b | r)
+        // While a camera is watched for running late, the frame is kept to be solved again
+        // without it if it is found so.
+        let again = self.watch_sync.iter().any(|&w| w).then(|| prepared.clone());
+        // A camera found running a frame late pulls the mesh toward where it was: left out of
+        // every frame after it was found.
+        let known_late: Vec<bool> = (0..self.cameras.len())
+            .map(|c| self.late.get(c).copied().unwrap_or(false))
+            .collect();
+        let next_left_out: Vec<bool> = (0..self.cameras.len())
+            .map(|c| next_blank[c] || next_repeated[c] || known_late[c])
             .collect();
         let prepared = self.in_luminance(prepared);
         let mut next = prepared.pyramids;
@@ -1070,6 +1167,32 @@ impl Tracker {
                     .iter()
                     .any(|s| matches!(s.stop, StopReason::CostRose | StopReason::NonFinite)));
         let folded = self.folds.folded(&x, &self.triangles);
+        let found_late = if stalled {
+            vec![false; self.cameras.len()]
+        } else {
+            self.late_cameras(frame, &x, &next, &next_left_out)
+        };
+        if found_late.iter().any(|&l| l) {
+            if let Some(again) = again {
+                // Solved again without it: what it showed pulled this frame toward the last.
+                let n = self.cameras.len();
+                self.late = (0..n).map(|c| known_late[c] || found_late[c]).collect();
+                self.watch_sync = (0..n)
+                    .map(|c| !found_late[c] && self.watch_sync.get(c).copied().unwrap_or(false))
+                    .collect();
+                return self.step_prepared(frame, again);
+            }
+        }
+        // A camera that repeated a frame is watched until it is seen in step or found late; one
+        // found late stays so (nothing shows it catching up).
+        let watched = |c: usize| self.watch_sync.get(c).copied().unwrap_or(false);
+        self.watch_sync = (0..self.cameras.len())
+            .map(|c| !found_late[c] && (next_repeated[c] || (watched(c) && next_left_out[c])))
+            .collect();
+        self.late = (0..self.cameras.len())
+            .map(|c| known_late[c] || found_late[c])
+            .collect();
+        let late_cameras = blank_list(&self.late);
         // How far the solution is from the constant-velocity prediction (the membrane's
         // reference above), over the previous shape's size.
         let jump = if stalled {
@@ -1136,6 +1259,7 @@ impl Tracker {
             rejected_share: out.rejected_share,
             blank_cameras,
             repeated_cameras,
+            late_cameras,
             colour_balance: self.balance.clone(),
             colour_readings: self.readings.clone(),
             jump,
@@ -1534,6 +1658,7 @@ struct Outcome {
 }
 
 /// One frame's images made ready for [`Tracker::step_prepared`]: each camera's smoothed pyramid.
+#[derive(Clone)]
 pub struct Prepared {
     pyramids: Vec<Pyramid>,
     /// Per camera, whether its image is blank (`image::blank_images`).
@@ -1556,7 +1681,8 @@ impl Prepared {
     }
 
     /// The same frame, marked with the cameras (indices) that the tracker left out of it as
-    /// repeats of the frame before when it solved it ([`FrameReport::repeated_cameras`]): what
+    /// repeats of the frame before or as running late when it solved it
+    /// ([`FrameReport::repeated_cameras`], [`FrameReport::late_cameras`]): what
     /// [`Tracker::restore`] needs to continue exactly where a run stopped. Indices past the
     /// rig are ignored.
     pub fn with_repeated(mut self, cameras: &[u16]) -> Self {

@@ -103,20 +103,20 @@ fn track_into(
             // the frame before (the velocity), read back exactly from the meshes written.
             // The cameras left out of it as repeats of the frame before stay left out, and the
             // colour balance it left goes on.
-            let (repeated, balance, readings) = crate::run::read_frame_log(folder.dir())?
+            let report = crate::run::read_frame_log(folder.dir())?
                 .into_iter()
                 .find(|l| l.frame == last)
-                .and_then(|l| {
-                    l.model_flow().map(|r| {
-                        (
-                            r.repeated_cameras.clone(),
-                            r.colour_balance.clone(),
-                            r.colour_readings.clone(),
-                        )
-                    })
-                })
+                .and_then(|l| l.model_flow().cloned());
+            // Left out of it: the cameras that repeated the frame before, and those found late.
+            let repeated: Vec<u16> = report
+                .as_ref()
+                .map(|r| [&r.repeated_cameras[..], &r.late_cameras[..]].concat())
                 .unwrap_or_default();
-            tracker.restore_colour_balance(&balance, &readings);
+            if let Some(r) = &report {
+                tracker.restore_colour_balance(&r.colour_balance, &r.colour_readings);
+                // A camera found late stays left out; one that repeated this frame is watched.
+                tracker.restore_sync(&r.late_cameras, &r.repeated_cameras);
+            }
             let prepared = prepare(&scene.load_images(last)?, opts).with_repeated(&repeated);
             let positions = folder.read_positions(last)?;
             let before = folder.read_positions(last - 1)?;
