@@ -111,27 +111,15 @@ impl Concern {
             ),
             Concern::Blank { cameras } => format!(
                 "{} blank (next to one colour over the whole frame: a dropped frame written black, a lens cap, a flash that blew it out), left out of this frame: the mesh is held by the other cameras only",
-                if cameras == 1 {
-                    "1 camera's image is".to_string()
-                } else {
-                    format!("{cameras} cameras' images are")
-                }
+                counted(cameras, "1 camera's image is", "cameras' images are")
             ),
             Concern::Repeated { cameras } => format!(
                 "{} the previous frame's over the mesh while another camera saw it move (a dropped frame filled in with the one before, or a stream that froze), left out of this frame: the mesh is held by the other cameras only (the next frames are checked for the camera running a frame late since)",
-                if cameras == 1 {
-                    "1 camera's image repeats".to_string()
-                } else {
-                    format!("{cameras} cameras' images repeat")
-                }
+                counted(cameras, "1 camera's image repeats", "cameras' images repeat")
             ),
             Concern::Late { cameras } => format!(
                 "{} a frame late since repeating a frame (its image agrees with the other cameras' previous frame better than with this one), so the mesh is pulled toward where it was: track from here on with its frame_offset raised by 1 (docs/scene-format.md)",
-                if cameras == 1 {
-                    "1 camera runs".to_string()
-                } else {
-                    format!("{cameras} cameras run")
-                }
+                counted(cameras, "1 camera runs", "cameras run")
             ),
             Concern::Jumped { share } => format!(
                 "the mesh leapt {:.0} % of its size away from where the previous frame's motion would have put it (more than {:.0} %, past anything the tracker follows in one frame): it has likely slipped off the surface onto something else",
@@ -185,6 +173,15 @@ pub fn repeated_of(changes: &[Option<f64>]) -> Vec<bool> {
             })
         })
         .collect()
+}
+
+/// "1 camera's image is" or "N cameras' images are": `one` for one camera, `many` after the count.
+fn counted(cameras: usize, one: &str, many: &str) -> String {
+    if cameras == 1 {
+        one.to_string()
+    } else {
+        format!("{cameras} {many}")
+    }
 }
 
 /// A frame to look at and every reason found.

@@ -381,7 +381,7 @@ impl Tracker {
             weld,
             first_mesh_moved,
             luminance,
-            first_blank: blank_list(&blank),
+            first_blank: marked(&blank),
             folds: FoldWatch::new(&mesh.positions, &mesh.triangles),
             information: None,
             balance: Vec::new(),
@@ -1157,8 +1157,8 @@ impl Tracker {
         // No pixel compared at full resolution (the mesh left every camera's view, or every
         // template pixel was lost): whatever the steps did, only the regularisers moved the
         // mesh, so the frame counts as stalled and keeps the previous frame's shape.
-        let blank_cameras = blank_list(&next_blank);
-        let repeated_cameras = blank_list(&next_repeated);
+        let blank_cameras = marked(&next_blank);
+        let repeated_cameras = marked(&next_repeated);
         let stalled = out.pixels == 0
             || (!summaries
                 .iter()
@@ -1192,7 +1192,7 @@ impl Tracker {
         self.late = (0..self.cameras.len())
             .map(|c| known_late[c] || found_late[c])
             .collect();
-        let late_cameras = blank_list(&self.late);
+        let late_cameras = marked(&self.late);
         // How far the solution is from the constant-velocity prediction (the membrane's
         // reference above), over the previous shape's size.
         let jump = if stalled {
@@ -1745,10 +1745,10 @@ fn mesh_window(camera: &Camera, frame: u32, positions: &[Point3<f64>]) -> Option
     (w[0] <= w[2] && w[1] <= w[3]).then_some(w)
 }
 
-/// The indices of the cameras `blank` marks.
-fn blank_list(blank: &[bool]) -> Vec<u16> {
-    (0..blank.len() as u16)
-        .filter(|&c| blank[c as usize])
+/// The indices of the cameras `flags` marks (blank, repeated, late).
+fn marked(flags: &[bool]) -> Vec<u16> {
+    (0..flags.len() as u16)
+        .filter(|&c| flags[c as usize])
         .collect()
 }
 
