@@ -66,6 +66,15 @@ pub struct Args {
     /// through its centre (0 to 90), on top of the preset's motion and --shake.
     #[arg(long, default_value_t = 0.0)]
     turn: f64,
+    /// A textured wall behind the object in every camera's view (instead of the flat grey), as
+    /// a room stands behind a real rig's subject.
+    #[arg(long)]
+    backdrop: bool,
+    /// A camera knocked off its calibration while filming, as CAMERA:FRAME:DEGREES (e.g.
+    /// 0:5:0.2): its images are rendered turned by that much about its own centre from that
+    /// frame on, while the scene file keeps its calibration.
+    #[arg(long, allow_hyphen_values = true)]
+    bump: Option<String>,
 }
 
 pub fn run(args: Args) -> anyhow::Result<()> {
@@ -91,6 +100,15 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         sync_error: args.sync_error,
         motion_blur: args.motion_blur,
         turn: args.turn,
+        backdrop: args.backdrop,
+        bump: args
+            .bump
+            .as_deref()
+            .map(|b| {
+                b.parse::<modelflow::synth::Bump>()
+                    .map_err(|m| anyhow::anyhow!("--bump: {m}"))
+            })
+            .transpose()?,
         ..SynthOptions::preset(&args.preset)?
     };
     let start = std::time::Instant::now();

@@ -525,7 +525,7 @@ pub fn run(args: Args, invocation: &Invocation) -> anyhow::Result<()> {
     let suspect = match summary.suspect_frames.len() {
         0 => String::new(),
         n => format!(
-            ", {n} SUSPECT (the cameras disagreed about the surface, it showed next to no texture, the mesh folded over itself or leapt away, or a camera's image was blank or a repeat): frames {}",
+            ", {n} SUSPECT (the cameras disagreed about the surface, it showed next to no texture, the mesh folded over itself or leapt away, or a camera's image was blank or a repeat, or a camera turned): frames {}",
             list_frames(&summary.suspect_frames)
         ),
     };
@@ -613,6 +613,7 @@ pub fn run_scene(
                     Concern::Blank { .. } => Some(&r.blank_cameras),
                     Concern::Repeated { .. } => Some(&r.repeated_cameras),
                     Concern::Late { .. } => Some(&r.late_cameras),
+                    Concern::Moved { .. } => Some(&r.moved_cameras),
                     _ => None,
                 };
                 let named =

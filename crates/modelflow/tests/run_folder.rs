@@ -213,6 +213,46 @@ fn a_run_stopped_where_a_camera_repeated_or_was_found_late_resumes_to_the_same_f
 }
 
 #[test]
+fn a_run_stopped_after_a_camera_was_found_turned_resumes_to_the_same_files() {
+    // Camera 1 is knocked 0.3° off its calibration at frame 3 (a textured wall behind the cloth
+    // shows it): the tracker poses it turned from frame 3 on. Stopped at frame 3 or 4, the
+    // resumed run must go on with the turned pose, not find it again from the calibrated one.
+    let dir = tempfile::tempdir().unwrap();
+    let opts = SynthOptions {
+        width: 320,
+        height: 240,
+        frames: 6,
+        shake: 3.0,
+        backdrop: true,
+        bump: Some(modelflow::synth::Bump {
+            camera: 1,
+            frame: 3,
+            degrees: 0.3,
+        }),
+        ..SynthOptions::default()
+    };
+    let scene = write_dataset(&opts, &dir.path().join("footage"), &|_, _| {}).unwrap();
+    let reference = dir.path().join("reference");
+    track(&scene, &reference, &RunOptions::default()).unwrap();
+    let log = read_frame_log(&reference).unwrap();
+    let moved: Vec<(u32, Vec<u16>)> = log
+        .iter()
+        .filter_map(|l| {
+            let r = l.model_flow()?;
+            (!r.moved_cameras.is_empty()).then(|| (l.frame, r.moved_cameras.clone()))
+        })
+        .collect();
+    assert_eq!(moved, [(3, vec![1])]);
+    for stop in [3, 4] {
+        let out = dir.path().join(format!("interrupted-{stop}"));
+        interrupted_after(&scene, &out, stop);
+        assert_eq!(track(&scene, &out, &resume()).unwrap(), (5 - stop) as usize);
+        assert_eq!(meshes(&out), meshes(&reference), "byte-identical meshes");
+        assert_eq!(logs_without_times(&out), logs_without_times(&reference));
+    }
+}
+
+#[test]
 fn a_mesh_split_along_seams_resumes_to_the_files_of_an_uninterrupted_run() {
     // The tracker works on the split vertices merged; the bending term's yield depends on the
     // last frame's per-vertex information, which a resumed run reads back from a confidence

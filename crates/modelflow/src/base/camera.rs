@@ -228,6 +228,21 @@ impl Camera {
         &self.poses[i.min(self.poses.len() - 1)]
     }
 
+    /// The same camera with `pose` from `frame` on (the poses before it as they were): a camera
+    /// found turned since it was calibrated (`tracker::steady`).
+    pub(crate) fn with_pose_from(&self, frame: u32, pose: Projection) -> Camera {
+        let first = self.first_frame.min(frame);
+        let poses = (first..frame)
+            .map(|f| self.at(f).clone())
+            .chain(std::iter::once(pose))
+            .collect();
+        Camera {
+            first_frame: first,
+            poses,
+            ..self.clone()
+        }
+    }
+
     /// All poses (one for a fixed camera).
     pub fn poses(&self) -> &[Projection] {
         &self.poses

@@ -9,6 +9,8 @@ mod remesh;
 pub(crate) mod render;
 pub(crate) mod texture;
 
-pub use presets::{icosphere, write_dataset, MotionStats, Preset, SynthOptions, Synthetic, FPS};
+pub use presets::{
+    icosphere, write_dataset, Bump, MotionStats, Preset, SynthOptions, Synthetic, FPS,
+};
 pub use render::{depth_map, render, vertex_normals, Light, Material, RenderOptions, Surface};
 pub use texture::{CubeTexture, PlaneTexture, Texture};

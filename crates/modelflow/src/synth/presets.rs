@@ -157,6 +157,49 @@ pub struct SynthOptions {
     /// vertical through the object's centre, on top of the preset's motion and `shake` (0:
     /// none); it starts from rest at frame 0. Sides come into view and others leave it.
     pub turn: f64,
+    /// A textured wall behind the object in every camera's view (off: the flat background
+    /// colour). Each camera sees its own wall, square to its optical axis and behind everything
+    /// the object reaches, as a room's walls stand behind a rig's subject; it never moves.
+    pub backdrop: bool,
+    /// A camera knocked off its calibration while filming: rendered turned from a frame on,
+    /// while the scene file keeps its calibration.
+    pub bump: Option<Bump>,
+}
+
+/// A camera turned about its own centre from `frame` on ([`SynthOptions::bump`]), as a knock on
+/// its tripod turns it: by `degrees` about the axis `(1, 2, 0.3)` of its own frame (mostly a
+/// pan, some tilt, a little roll). The images show it; the scene file does not.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Bump {
+    pub camera: usize,
+    pub frame: u32,
+    pub degrees: f64,
+}
+
+impl std::str::FromStr for Bump {
+    type Err = String;
+
+    /// `CAMERA:FRAME:DEGREES`, e.g. `0:5:0.2`.
+    fn from_str(s: &str) -> std::result::Result<Self, String> {
+        let parts: Vec<&str> = s.split(':').collect();
+        let bad = || format!("expected CAMERA:FRAME:DEGREES (e.g. 0:5:0.2), got `{s}`");
+        if parts.len() != 3 {
+            return Err(bad());
+        }
+        Ok(Bump {
+            camera: parts[0].trim().parse().map_err(|_| bad())?,
+            frame: parts[1].trim().parse().map_err(|_| bad())?,
+            degrees: parts[2].trim().parse().map_err(|_| bad())?,
+        })
+    }
+}
+
+impl Bump {
+    /// The turn, in the camera's own frame.
+    pub fn rotation(&self) -> Rotation3<f64> {
+        let axis = Unit::new_normalize(Vector3::new(1.0, 2.0, 0.3));
+        Rotation3::from_axis_angle(&axis, self.degrees.to_radians())
+    }
 }
 
 /// Renders averaged per image for [`SynthOptions::motion_blur`].
@@ -180,6 +223,8 @@ impl Default for SynthOptions {
             sync_error: 0.0,
             motion_blur: 0.0,
             turn: 0.0,
+            backdrop: false,
+            bump: None,
         }
     }
 }
@@ -257,6 +302,29 @@ impl SynthOptions {
                 "3 to 1000 vertices per side",
             ));
         }
+        if let Some(b) = &self.bump {
+            if b.camera >= n {
+                return Err(Error::option(
+                    "--bump",
+                    format!("camera {}", b.camera),
+                    format!("a camera index below {n}"),
+                ));
+            }
+            if b.frame == 0 || b.frame >= self.frames {
+                return Err(Error::option(
+                    "--bump",
+                    format!("frame {}", b.frame),
+                    format!("a frame from 1 to {}", self.frames.saturating_sub(1)),
+                ));
+            }
+            if !(b.degrees.is_finite() && b.degrees.abs() <= 10.0) {
+                return Err(Error::option(
+                    "--bump",
+                    format!("{} degrees", b.degrees),
+                    "a turn of at most 10 degrees either way",
+                ));
+            }
+        }
         Ok(())
     }
 }
@@ -286,6 +354,30 @@ pub struct Synthetic {
     krt: Vec<Krt>,
     /// Per camera, how its raw frame reads the pinhole render (with distortion only).
     distort: Vec<Option<std::sync::Arc<DistortMap>>>,
+    /// Per camera, the wall behind the object ([`SynthOptions::backdrop`]).
+    backdrops: Vec<Backdrop>,
+}
+
+/// One camera's wall ([`SynthOptions::backdrop`]): two triangles and their baked pattern.
+#[derive(Clone, Debug)]
+struct Backdrop {
+    corners: [Point3<f64>; 4],
+    /// The corners' material coordinates (the wall's own metres).
+    material: [[f64; 3]; 4],
+    texture: Muted,
+}
+
+/// A wall's pattern, greyer and of less contrast than the objects' (a room's surfaces are
+/// duller than the painted subject in front of them).
+#[derive(Clone, Debug)]
+struct Muted(PlaneTexture);
+
+impl crate::synth::render::Material for Muted {
+    fn albedo(&self, m: &[f64; 3]) -> [f32; 3] {
+        let c = self.0.sample(m[0], m[1]);
+        let lum = 0.299 * c[0] + 0.587 * c[1] + 0.114 * c[2];
+        c.map(|v| 0.2 + 0.5 * (0.3 * v + 0.7 * lum))
+    }
 }
 
 /// Per-frame image motion of the vertices, in pixels, over all cameras and frame pairs.
@@ -448,6 +540,7 @@ fn cloth(opts: &SynthOptions) -> Synthetic {
         skin,
         krt,
         distort: Vec::new(),
+        backdrops: Vec::new(),
         render_options: render_options(opts, Vector3::new(-0.5, -0.5, 1.0), [0.13, 0.14, 0.17]),
     }
 }
@@ -630,6 +723,7 @@ fn on_ring(
         skin,
         krt,
         distort: Vec::new(),
+        backdrops: Vec::new(),
         render_options: render_options(opts, Vector3::new(0.4, -0.6, 0.8), [0.12, 0.12, 0.12]),
     }
 }
@@ -889,7 +983,72 @@ impl Synthetic {
                 cam.lens = Some(lens);
             }
         }
+        if opts.backdrop {
+            s.backdrops = (0..s.cameras.len()).map(|c| s.backdrop(c)).collect();
+        }
+        if let Some(b) = opts.bump {
+            // Rendered turned from the bump on; the scene file keeps `krt`.
+            let (k, r, t) = &s.krt[b.camera];
+            let turn = b.rotation();
+            let (r2, t2) = (turn.matrix() * r, turn * t);
+            let before = Projection::from_krt(k, r, t).expect("a rig camera is regular");
+            let after = Projection::from_krt(k, &r2, &t2).expect("a turned camera is regular");
+            let poses = (0..=b.frame)
+                .map(|f| {
+                    if f < b.frame {
+                        before.clone()
+                    } else {
+                        after.clone()
+                    }
+                })
+                .collect();
+            let cam = &s.cameras[b.camera];
+            let mut moved = Camera::moving(cam.name.clone(), cam.width, cam.height, 0, poses)
+                .with_lens(cam.lens.clone());
+            moved.time_offset = cam.time_offset;
+            s.cameras[b.camera] = moved;
+        }
         Ok(s)
+    }
+
+    /// Camera `c`'s wall: square to its optical axis, half the object's size behind the
+    /// farthest point the object reaches in any frame, a quarter wider than the image on every
+    /// side, its pattern baked at about a texel per pixel.
+    fn backdrop(&self, c: usize) -> Backdrop {
+        let (k, r, t) = &self.krt[c];
+        let cam = &self.cameras[c];
+        let first = &self.truth[0];
+        let size = crate::base::mesh::bbox_diagonal(first);
+        let far = self
+            .truth
+            .iter()
+            .flatten()
+            .map(|p| (r * p.coords + t).z)
+            .fold(f64::NEG_INFINITY, f64::max);
+        let z = far + 0.5 * size;
+        let kinv = k.try_inverse().expect("intrinsics are regular");
+        let (w, h) = (cam.width as f64, cam.height as f64);
+        let (mx, my) = (0.25 * w, 0.25 * h);
+        let corner = |u: f64, v: f64| kinv * Vector3::new(u, v, 1.0) * z;
+        let ends = [
+            corner(-0.5 - mx, -0.5 - my),
+            corner(w - 0.5 + mx, -0.5 - my),
+            corner(w - 0.5 + mx, h - 0.5 + my),
+            corner(-0.5 - mx, h - 0.5 + my),
+        ];
+        let world = |q: &Vector3<f64>| Point3::from(r.transpose() * (q - t));
+        let texels_per_metre = k[(0, 0)] / z;
+        let (x0, y0) = (ends[0].x, ends[0].y);
+        let extent = [ends[2].x - x0, ends[2].y - y0];
+        let pattern = Texture::new(
+            mix64(self.options.seed ^ 0xBAC0_D809 ^ c as u64),
+            2.5 / texels_per_metre,
+        );
+        Backdrop {
+            corners: ends.each_ref().map(world),
+            material: ends.map(|q| [q.x, q.y, 0.0]),
+            texture: Muted(pattern.bake_plane([x0, y0], extent, texels_per_metre)),
+        }
     }
 
     pub fn frames(&self) -> u32 {
@@ -1055,17 +1214,47 @@ impl Synthetic {
 
     /// The noiseless render of camera `camera` (posed as at `frame`) of the surface at time `t`.
     fn render_at(&self, camera: usize, frame: u32, t: f64) -> RgbImage {
-        let mesh = self.mesh.with_positions(self.positions_at(t));
-        let surface = match &self.skin {
+        let mut mesh = self.mesh.with_positions(self.positions_at(t));
+        let object = match &self.skin {
             Skin::Plane(t) => Surface::Material(t),
             Skin::Cube(t) => Surface::Material(t),
             Skin::Capsule(t) => Surface::Material(t),
         };
+        let mut material = std::borrow::Cow::Borrowed(&self.material[..]);
+        let wall = self
+            .backdrops
+            .get(camera)
+            .map(|b| Surface::Material(&b.texture));
+        let surface = match (&wall, self.backdrops.get(camera)) {
+            (Some(wall), Some(b)) => {
+                // The wall's two triangles after the object's.
+                let at = mesh.triangles.len() as u32;
+                let v = mesh.positions.len() as u32;
+                mesh = Mesh::new(
+                    mesh.positions.iter().copied().chain(b.corners).collect(),
+                    mesh.triangles
+                        .iter()
+                        .copied()
+                        .chain([[v, v + 1, v + 2], [v, v + 2, v + 3]])
+                        .collect(),
+                );
+                material = std::borrow::Cow::Owned(
+                    self.material.iter().copied().chain(b.material).collect(),
+                );
+                Surface::Split {
+                    at,
+                    first: &object,
+                    rest: wall,
+                }
+            }
+            _ => object,
+        };
+        let material = &material[..];
         let cam = &self.cameras[camera];
         match self.distort.get(camera).and_then(|d| d.as_deref()) {
             None => render(
                 &mesh,
-                &self.material,
+                material,
                 &surface,
                 cam.at(frame),
                 cam.width as usize,
@@ -1079,16 +1268,8 @@ impl Synthetic {
                 let shift = Matrix3::new(1.0, 0.0, -u0 as f64, 0.0, 1.0, -v0 as f64, 0.0, 0.0, 1.0);
                 let proj = Projection::from_matrix(&(shift * cam.at(frame).matrix()))
                     .expect("a shifted projection stays regular");
-                render(
-                    &mesh,
-                    &self.material,
-                    &surface,
-                    &proj,
-                    w,
-                    h,
-                    &self.render_options,
-                )
-                .map(|canvas| map.apply(&canvas))
+                render(&mesh, material, &surface, &proj, w, h, &self.render_options)
+                    .map(|canvas| map.apply(&canvas))
             }
         }
         .expect("synthetic meshes and materials are consistent")

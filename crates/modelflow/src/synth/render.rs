@@ -49,6 +49,14 @@ pub enum Surface<'a> {
     Material(&'a dyn Material),
     /// One colour everywhere.
     Uniform([f32; 3]),
+    /// Two surfaces in one mesh: the triangles before index `at` coloured by `first`, the rest
+    /// by `rest` (an object and the wall behind it, rendered together so that the z-buffer and
+    /// the anti-aliasing treat them as one scene).
+    Split {
+        at: u32,
+        first: &'a Surface<'a>,
+        rest: &'a Surface<'a>,
+    },
 }
 
 /// A directional light: colour = albedo · (ambient + diffuse · |n·l|), with `n` the interpolated
@@ -318,17 +326,25 @@ fn check_inputs(
             format!("{t:?}"),
         ));
     }
+    check_surface(surface, nv, material.len())
+}
+
+fn check_surface(surface: &Surface, nv: usize, materials: usize) -> Result<()> {
     match surface {
         Surface::VertexColors(c) if c.len() != nv => Err(Error::mismatch(
             "render: vertex colours",
             format!("{nv} (one per vertex)"),
             c.len(),
         )),
-        Surface::Material(_) if material.len() != nv => Err(Error::mismatch(
+        Surface::Material(_) if materials != nv => Err(Error::mismatch(
             "render: material coordinates",
             format!("{nv} (one per vertex)"),
-            material.len(),
+            materials,
         )),
+        Surface::Split { first, rest, .. } => {
+            check_surface(first, nv, materials)?;
+            check_surface(rest, nv, materials)
+        }
         _ => Ok(()),
     }
 }
@@ -414,26 +430,7 @@ fn shade(
     let (l1, l2) = (bary[0] as f64, bary[1] as f64);
     let l0 = 1.0 - l1 - l2;
     let [i0, i1, i2] = t.map(|i| i as usize);
-    let lerp3 = |a: &[f64; 3], b: &[f64; 3], c: &[f64; 3]| {
-        [
-            l0 * a[0] + l1 * b[0] + l2 * c[0],
-            l0 * a[1] + l1 * b[1] + l2 * c[1],
-            l0 * a[2] + l1 * b[2] + l2 * c[2],
-        ]
-    };
-    let albedo = match surface {
-        Surface::VertexColors(c) => {
-            let (a, b, cc) = (c[i0], c[i1], c[i2]);
-            let (l0, l1, l2) = (l0 as f32, l1 as f32, l2 as f32);
-            [
-                l0 * a[0] + l1 * b[0] + l2 * cc[0],
-                l0 * a[1] + l1 * b[1] + l2 * cc[1],
-                l0 * a[2] + l1 * b[2] + l2 * cc[2],
-            ]
-        }
-        Surface::Uniform(c) => *c,
-        Surface::Material(m) => m.albedo(&lerp3(&material[i0], &material[i1], &material[i2])),
-    };
+    let albedo = albedo_of(surface, material, [i0, i1, i2], ti, [l0, l1, l2]);
     match (normals, light) {
         (Some(ns), Some((dir, ambient, diffuse))) => {
             let nv = ns[i0] * l0 + ns[i1] * l1 + ns[i2] * l2;
@@ -447,6 +444,43 @@ fn shade(
             albedo.map(|a| a * k)
         }
         _ => albedo,
+    }
+}
+
+/// The albedo of triangle `ti` (corners `i`) at barycentrics `l`.
+#[inline]
+fn albedo_of(
+    surface: &Surface,
+    material: &[[f64; 3]],
+    i: [usize; 3],
+    ti: u32,
+    l: [f64; 3],
+) -> [f32; 3] {
+    let [i0, i1, i2] = i;
+    let [l0, l1, l2] = l;
+    match surface {
+        Surface::VertexColors(c) => {
+            let (a, b, cc) = (c[i0], c[i1], c[i2]);
+            let (l0, l1, l2) = (l0 as f32, l1 as f32, l2 as f32);
+            [
+                l0 * a[0] + l1 * b[0] + l2 * cc[0],
+                l0 * a[1] + l1 * b[1] + l2 * cc[1],
+                l0 * a[2] + l1 * b[2] + l2 * cc[2],
+            ]
+        }
+        Surface::Uniform(c) => *c,
+        Surface::Material(m) => {
+            let (a, b, c) = (&material[i0], &material[i1], &material[i2]);
+            m.albedo(&[
+                l0 * a[0] + l1 * b[0] + l2 * c[0],
+                l0 * a[1] + l1 * b[1] + l2 * c[1],
+                l0 * a[2] + l1 * b[2] + l2 * c[2],
+            ])
+        }
+        Surface::Split { at, first, rest } => {
+            let s = if ti < *at { first } else { rest };
+            albedo_of(s, material, i, ti, l)
+        }
     }
 }
 

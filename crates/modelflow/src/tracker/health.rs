@@ -75,6 +75,10 @@ pub enum Concern {
     /// better than with this one ([`LATE_RATIO`]): they run a frame late since, and the mesh
     /// is pulled toward where it was.
     Late { cameras: usize },
+    /// `cameras` cameras' views of their background turned since the first frame, by up to `px`
+    /// pixels from where the tracker had them (`tracker::steady`: a knock on a tripod, a mount
+    /// that slipped): this frame and the later ones are solved with their poses turned to match.
+    Moved { cameras: usize, px: f64 },
     /// The solution is `share` of the mesh's size (RMS over the vertices, above [`JUMP_SHARE`])
     /// from where the previous frame's motion carried on would have put it
     /// ([`FrameReport::jump`]): a leap no motion the tracker follows makes in one frame; it
@@ -120,6 +124,10 @@ impl Concern {
             Concern::Late { cameras } => format!(
                 "{} a frame late since repeating a frame (its image agrees with the other cameras' previous frame better than with this one), so the mesh is pulled toward where it was: track from here on with its frame_offset raised by 1 (docs/scene-format.md)",
                 counted(cameras, "1 camera runs", "cameras run")
+            ),
+            Concern::Moved { cameras, px } => format!(
+                "{} since the first frame (its view of the background moved {px:.1} px against its first frame's: a knock on its tripod, a slipping mount); this frame and the later ones are solved with its pose turned to match (the log's camera_turns): check the overlay, and recalibrate it if it keeps moving",
+                counted(cameras, "1 camera has turned", "cameras have turned")
             ),
             Concern::Jumped { share } => format!(
                 "the mesh leapt {:.0} % of its size away from where the previous frame's motion would have put it (more than {:.0} %, past anything the tracker follows in one frame): it has likely slipped off the surface onto something else",
@@ -258,6 +266,12 @@ pub fn own_concerns(r: &FrameReport) -> Vec<Concern> {
     if !r.late_cameras.is_empty() {
         c.push(Concern::Late {
             cameras: r.late_cameras.len(),
+        });
+    }
+    if !r.moved_cameras.is_empty() {
+        c.push(Concern::Moved {
+            cameras: r.moved_cameras.len(),
+            px: r.moved_px.iter().copied().fold(0.0, f64::max),
         });
     }
     c
@@ -484,6 +498,27 @@ mod tests {
         assert!(checks[0].concerns[0]
             .describe()
             .contains("track from here on with its frame_offset raised by 1"));
+        // A camera found turned: named with how far, its frames solved turned, suspect.
+        let mut r = report(0.05, 0.5, false);
+        r.moved_cameras = vec![1];
+        r.moved_px = vec![3.25];
+        let checks = check_reports(0, [(1, &r)]);
+        assert_eq!(
+            checks[0].concerns,
+            [Concern::Moved {
+                cameras: 1,
+                px: 3.25
+            }]
+        );
+        assert!(checks[0].suspect());
+        assert!(checks[0].concerns[0].describe().starts_with(
+            "1 camera has turned since the first frame (its view of the background moved 3.2 px"
+        ));
+        let json = serde_json::to_value(checks[0].concerns[0]).unwrap();
+        assert_eq!(
+            json,
+            serde_json::json!({"kind": "moved", "cameras": 1, "px": 3.25})
+        );
     }
 
     #[test]

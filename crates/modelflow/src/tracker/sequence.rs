@@ -31,7 +31,8 @@ use crate::tracker::solve::{
     moved_on, Interpolation, Lag, Loss, Motion, Problem, SolveSummary, SolverOptions, StopReason,
     VertexConfidence,
 };
-use nalgebra::Point3;
+use crate::tracker::steady;
+use nalgebra::{Point3, Rotation3, Vector3};
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 use std::sync::atomic::AtomicBool;
@@ -122,6 +123,22 @@ pub struct FrameReport {
     /// `--resume` continues from.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub colour_readings: Vec<Vec<[f64; 3]>>,
+    /// The cameras (indices) found turned at this frame by their view of the background, which
+    /// moved against their first frame's by more than [`steady::MOVED_PX`] from where the
+    /// tracker had them (a knock on a tripod, a slipping mount): the frame is solved with each
+    /// one's pose turned to match, and so is every later frame (docs/tracker.md, "A camera that
+    /// moves").
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub moved_cameras: Vec<u16>,
+    /// For each of `moved_cameras`, how far its turn moved its image (RMS over the image,
+    /// full-resolution pixels).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub moved_px: Vec<f64>,
+    /// Per camera, the turn about its own centre since it was calibrated that the tracker uses
+    /// at this frame (a rotation vector in the camera's own axes, radians: its world-to-camera
+    /// rotation is `exp(turn)·R`); absent while no camera has turned.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub camera_turns: Vec<[f64; 3]>,
     /// How far the solution is from where the previous frames' motion would have put it: the
     /// RMS over the vertices of its distance from the constant-velocity prediction (the
     /// previous frame's motion carried on, from rest after the given mesh), that is of the
@@ -245,6 +262,16 @@ pub struct Tracker {
     /// Per camera, whether it was found running a frame late ([`Tracker::late_cameras`]): left
     /// out of every later frame.
     late: Vec<bool>,
+    /// Per camera, its first frame's view of its background (`None`: a moving camera, or one
+    /// whose first image was blank): whether it has turned since (`steady`).
+    steady: Vec<Option<steady::Reference>>,
+    /// Per camera, its pose at the first frame, as calibrated.
+    calibrated: Vec<Projection>,
+    /// Per camera, the turn since it was calibrated that the tracker uses
+    /// ([`FrameReport::camera_turns`]).
+    turns: Vec<Vector3<f64>>,
+    /// Per camera, the last frame at which its turn changed, and by how many pixels.
+    moved_at: Vec<Option<(u32, f64)>>,
 }
 
 /// The mesh as the tracker works on it: vertices at the same place merged
@@ -388,7 +415,29 @@ impl Tracker {
             readings: Vec::new(),
             watch_sync: Vec::new(),
             late: Vec::new(),
+            steady: Vec::new(),
+            calibrated: Vec::new(),
+            turns: Vec::new(),
+            moved_at: Vec::new(),
         };
+        // What each static camera's background looks like at the first frame.
+        t.steady = t
+            .cameras
+            .iter()
+            .enumerate()
+            .map(|(c, cam)| {
+                (!cam.is_moving() && !blank[c]).then(|| {
+                    steady::Reference::new(
+                        &t.prev.pyramids[c].levels,
+                        cam.at(frame),
+                        mesh_window(cam, frame, &t.prev.positions),
+                    )
+                })
+            })
+            .collect();
+        t.calibrated = t.cameras.iter().map(|c| c.at(frame).clone()).collect();
+        t.turns = vec![Vector3::zeros(); t.cameras.len()];
+        t.moved_at = vec![None; t.cameras.len()];
         (t.anchor, t.contradicted_at_first) = t.anchor_patches(&t.prev, None);
         t.information_at_first = t.information_at_first();
         Ok(t)
@@ -719,6 +768,71 @@ impl Tracker {
             late[c] = matches!((now, behind), (Some(a), Some(b)) if b < health::LATE_RATIO * a);
         }
         late
+    }
+
+    /// Before `frame` is solved: each static camera's turn since the first frame as its
+    /// background in `next` shows it (`steady::read`, the mesh's windows at the previous
+    /// solution and at `predicted` left out); a camera whose turn moves its image by more than
+    /// [`steady::MOVED_PX`] from the one in use is posed with it from this frame on.
+    fn steady_cameras(
+        &mut self,
+        frame: u32,
+        next: &[Pyramid],
+        left_out: &[bool],
+        predicted: &[Point3<f64>],
+    ) {
+        let this = &*self;
+        let readings: Vec<Option<steady::Reading>> = (0..this.cameras.len())
+            .into_par_iter()
+            .map(|c| {
+                let reference = this.steady.get(c)?.as_ref()?;
+                if left_out[c] {
+                    return None;
+                }
+                let cam = &this.cameras[c];
+                let windows: Vec<[f64; 4]> = [&this.prev.positions[..], predicted]
+                    .iter()
+                    .filter_map(|p| mesh_window(cam, this.prev.frame, p))
+                    .collect();
+                steady::read(reference, &next[c].levels, &windows, this.turns[c])
+            })
+            .collect();
+        for (c, reading) in readings.into_iter().enumerate() {
+            let Some(reading) = reading else { continue };
+            let (w, h) = (self.cameras[c].width as f64, self.cameras[c].height as f64);
+            let k = self.calibrated[c].krt().0;
+            let px = steady::motion_px(&k, w, h, &reading.turn, &self.turns[c]);
+            if px > steady::MOVED_PX {
+                self.turn_camera(c, frame, reading.turn);
+                self.moved_at[c] = Some((frame, px));
+            }
+        }
+    }
+
+    /// Poses camera `c` turned by `turn` since its calibration from `frame` on.
+    fn turn_camera(&mut self, c: usize, frame: u32, turn: Vector3<f64>) {
+        let (k, r, t) = self.calibrated[c].krt();
+        let q = Rotation3::new(turn);
+        let Ok(pose) = Projection::from_krt(&k, &(q.matrix() * r), &(q * t)) else {
+            return;
+        };
+        self.cameras[c] = self.cameras[c].with_pose_from(frame, pose);
+        self.turns[c] = turn;
+    }
+
+    /// Poses each camera turned as the frame a run stopped at used it
+    /// ([`FrameReport::camera_turns`]): with [`Tracker::restore`], what `--resume` needs to
+    /// continue exactly. Ignored unless it has one entry per camera.
+    pub fn restore_turns(&mut self, frame: u32, turns: &[[f64; 3]]) {
+        if turns.len() != self.cameras.len() {
+            return;
+        }
+        for (c, t) in turns.iter().enumerate() {
+            let t = Vector3::from(*t);
+            if t != Vector3::zeros() && t.iter().all(|v| v.is_finite()) {
+                self.turn_camera(c, frame, t);
+            }
+        }
     }
 
     /// After `frame` is solved (its images and solution are the template now): each camera's
@@ -1072,6 +1186,8 @@ impl Tracker {
                 .collect(),
             None => self.prev.positions.clone(),
         };
+        // A camera whose background turned since the first frame is solved turned with it.
+        self.steady_cameras(frame, &next, &next_left_out, &predicted_shape);
         let context = FrameContext {
             previous: &self.prev.positions,
             predicted: &predicted_shape,
@@ -1262,6 +1378,19 @@ impl Tracker {
             late_cameras,
             colour_balance: self.balance.clone(),
             colour_readings: self.readings.clone(),
+            moved_cameras: (0..self.cameras.len() as u16)
+                .filter(|&c| matches!(self.moved_at[c as usize], Some((f, _)) if f == frame))
+                .collect(),
+            moved_px: self
+                .moved_at
+                .iter()
+                .filter_map(|m| m.filter(|(f, _)| *f == frame).map(|(_, px)| px))
+                .collect(),
+            camera_turns: if self.turns.iter().any(|t| *t != Vector3::zeros()) {
+                self.turns.iter().map(|t| [t.x, t.y, t.z]).collect()
+            } else {
+                Vec::new()
+            },
             jump,
             stop: out.stop,
             predicted: out.predicted,

@@ -116,6 +116,8 @@ fn track_into(
                 tracker.restore_colour_balance(&r.colour_balance, &r.colour_readings);
                 // A camera found late stays left out; one that repeated this frame is watched.
                 tracker.restore_sync(&r.late_cameras, &r.repeated_cameras);
+                // A camera found turned stays turned.
+                tracker.restore_turns(last, &r.camera_turns);
             }
             let prepared = prepare(&scene.load_images(last)?, opts).with_repeated(&repeated);
             let positions = folder.read_positions(last)?;

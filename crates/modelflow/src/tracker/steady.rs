@@ -1,0 +1,529 @@
+//! Whether each camera still stands where it was calibrated. A knock on a tripod, a mount that
+//! slips or a camera that sags turns it a fraction of a degree, and from then on every ray the
+//! tracker casts through it is off by that turn: with two cameras the mesh slides along the
+//! other camera's rays to where the two agree again, a consistent change of depth that no
+//! comparison between the cameras can show. What does show it is everything that does not
+//! move: the room behind the subject. Each frame, each static camera's view of its background
+//! (its image outside the mesh's reach) is compared with its first frame's, and the turn about
+//! its own centre that lines the two up is found (a rotation moves every background point the
+//! same way whatever its depth, `H = K·ΔR·K⁻¹`). A turn that moves the image by more than
+//! [`MOVED_PX`] from the one the tracker uses is taken: the camera's pose from that frame on is
+//! the calibrated one turned by it (`Tracker::steady_cameras`).
+//!
+//! The comparison is a Gauss–Newton fit of the turn, a brightness gain and an offset (the
+//! exposure may change), Huber-weighted and then Tukey-weighted at a scale taken from the
+//! residuals' median (a person walking through the room, the hands holding the object and its
+//! shadow are outliers), coarse level then fine, on the pyramid levels the tracker builds
+//! anyway, sampled on a grid of about [`SAMPLES`] pixels. It reads a turn only from a
+//! background with texture: at least [`TEXTURED_SHARE`] of the samples must show a gradient, and
+//! the turn must be held to a tenth of a pixel (a plain studio wall gives no reading; a rod
+//! crossing a plain wall does not pass for the room). Written for this project: no crate aligns
+//! images by a camera's rotation with robust weights.
+
+use crate::base::camera::Projection;
+use crate::base::image::RgbImage;
+use nalgebra::{Matrix3, Rotation3, Vector3};
+
+/// The image motion (RMS over the image, full-resolution pixels) between the turn the tracker
+/// uses for a camera and the turn its background shows, above which the camera is taken to
+/// have moved.
+pub const MOVED_PX: f64 = 0.5;
+/// The share of the background's samples that must show texture (a gradient above
+/// [`TEXTURE_GRADIENT`]) for a reading, and the fewest such samples.
+pub const TEXTURED_SHARE: f64 = 0.1;
+const MIN_TEXTURED: usize = 100;
+/// A gradient (intensity per pixel at the level read) that counts as texture.
+const TEXTURE_GRADIENT: f32 = 0.01;
+/// About how many pixels each level's comparison samples.
+pub const SAMPLES: usize = 16_000;
+/// The largest standard error of a reading (full-resolution pixels) that is taken.
+const MAX_ERROR_PX: f64 = 0.1;
+/// The finest level read is the first at most this wide.
+const FINE_WIDTH: usize = 640;
+
+/// A luminance image.
+#[derive(Clone, Debug)]
+struct Grey {
+    width: usize,
+    height: usize,
+    data: Vec<f32>,
+}
+
+impl Grey {
+    fn of(img: &RgbImage) -> Grey {
+        Grey {
+            width: img.width(),
+            height: img.height(),
+            data: img
+                .pixels()
+                .iter()
+                .map(|p| 0.299 * p[0] + 0.587 * p[1] + 0.114 * p[2])
+                .collect(),
+        }
+    }
+
+    #[inline]
+    fn at(&self, x: usize, y: usize) -> f32 {
+        self.data[y * self.width + x]
+    }
+
+    /// Bilinear value and gradient at `(x, y)` (pixel centres at integers); `None` within a
+    /// pixel of the border.
+    #[inline]
+    fn sample(&self, x: f64, y: f64) -> Option<(f32, f32, f32)> {
+        if !(x >= 1.0 && y >= 1.0 && x < (self.width - 2) as f64 && y < (self.height - 2) as f64) {
+            return None;
+        }
+        let (x0, y0) = (x.floor() as usize, y.floor() as usize);
+        let (fx, fy) = ((x - x0 as f64) as f32, (y - y0 as f64) as f32);
+        let w = self.width;
+        let d = &self.data;
+        let i = y0 * w + x0;
+        let (a, b, c, e) = (d[i], d[i + 1], d[i + w], d[i + w + 1]);
+        let top = a + fx * (b - a);
+        let bottom = c + fx * (e - c);
+        let v = top + fy * (bottom - top);
+        let gx = (b - a) + fy * ((e - c) - (b - a));
+        let gy = bottom - top;
+        Some((v, gx, gy))
+    }
+}
+
+/// One camera's first-frame view, at the levels the check reads (finest first).
+#[derive(Clone, Debug)]
+pub(crate) struct Reference {
+    /// `(pyramid level, its image)`, finest first.
+    levels: Vec<(usize, Grey)>,
+    /// The full-resolution intrinsics of the calibrated pose.
+    k: Matrix3<f64>,
+    /// Where the mesh was at the first frame (full-resolution window, widened): not background.
+    first_window: Option<[f64; 4]>,
+    /// The full-resolution image's width and height.
+    size: (f64, f64),
+}
+
+/// The pyramid levels read for images `width` wide out of `levels`: the first at most
+/// [`FINE_WIDTH`] wide, and two coarser (or the coarsest there is).
+pub(crate) fn levels_read(width: usize, levels: usize) -> Vec<usize> {
+    let top = levels.max(1) - 1;
+    let mut fine = 0;
+    while fine < top && width >> fine > FINE_WIDTH {
+        fine += 1;
+    }
+    let coarse = (fine + 2).min(top);
+    if coarse == fine {
+        vec![fine]
+    } else {
+        vec![fine, coarse]
+    }
+}
+
+impl Reference {
+    /// Camera's first frame: its pyramid levels, its calibrated pose, and the window its mesh
+    /// covered (`None`: it saw none of it).
+    pub(crate) fn new(
+        levels: &[RgbImage],
+        pose: &Projection,
+        mesh_window: Option<[f64; 4]>,
+    ) -> Reference {
+        let width = levels.first().map_or(0, |l| l.width());
+        Reference {
+            levels: levels_read(width, levels.len())
+                .into_iter()
+                .map(|l| (l, Grey::of(&levels[l])))
+                .collect(),
+            k: pose.krt().0,
+            first_window: mesh_window.map(widened),
+            size: levels
+                .first()
+                .map_or((0.0, 0.0), |l| (l.width() as f64, l.height() as f64)),
+        }
+    }
+}
+
+/// A mesh's window widened by a quarter of its size and 8 pixels each way: the hands that hold
+/// an object and its shadow are near it.
+pub(crate) fn widened(w: [f64; 4]) -> [f64; 4] {
+    let (dx, dy) = (0.25 * (w[2] - w[0]) + 8.0, 0.25 * (w[3] - w[1]) + 8.0);
+    [w[0] - dx, w[1] - dy, w[2] + dx, w[3] + dy]
+}
+
+/// What the background of one frame showed.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(crate) struct Reading {
+    /// The camera's turn since the first frame (rotation vector, radians, in its own frame:
+    /// its new world-to-camera rotation is `exp(turn)·R`).
+    pub turn: Vector3<f64>,
+    /// The standard error of the image motion it gives, full-resolution pixels.
+    pub error_px: f64,
+}
+
+/// The pixel map of a turn `r` at the level whose intrinsics are `k`.
+fn homography(k: &Matrix3<f64>, k_inv: &Matrix3<f64>, r: &Matrix3<f64>) -> Matrix3<f64> {
+    k * r * k_inv
+}
+
+/// The intrinsics at pyramid level `l` (`Projection::downscaled`'s pixel-centre convention).
+fn level_k(k: &Matrix3<f64>, l: usize) -> Matrix3<f64> {
+    let s = 1.0 / (1u32 << l) as f64;
+    let off = 0.5 * s - 0.5;
+    Matrix3::new(s, 0.0, off, 0.0, s, off, 0.0, 0.0, 1.0) * k
+}
+
+/// The RMS image motion, full-resolution pixels over a 5×5 grid of the `width × height` image,
+/// between turns `a` and `b` of a camera with intrinsics `k`.
+pub(crate) fn motion_px(
+    k: &Matrix3<f64>,
+    width: f64,
+    height: f64,
+    a: &Vector3<f64>,
+    b: &Vector3<f64>,
+) -> f64 {
+    let Some(k_inv) = k.try_inverse() else {
+        return 0.0;
+    };
+    let ha = homography(k, &k_inv, Rotation3::new(*a).matrix());
+    let hb = homography(k, &k_inv, Rotation3::new(*b).matrix());
+    let mut sum = 0.0;
+    for i in 0..5 {
+        for j in 0..5 {
+            let u = Vector3::new(
+                (width - 1.0) * i as f64 / 4.0,
+                (height - 1.0) * j as f64 / 4.0,
+                1.0,
+            );
+            let (pa, pb) = (ha * u, hb * u);
+            sum += (pa.xy() / pa.z - pb.xy() / pb.z).norm_squared();
+        }
+    }
+    (sum / 25.0).sqrt()
+}
+
+/// Camera's turn since the first frame as its background shows it in `levels` (this frame's
+/// pyramid), started from `start`, with `windows` (full-resolution, where the mesh may be now)
+/// left out besides the first frame's; `None` when the background shows too little texture to
+/// tell (or the mesh covers it).
+pub(crate) fn read(
+    reference: &Reference,
+    levels: &[RgbImage],
+    windows: &[[f64; 4]],
+    start: Vector3<f64>,
+) -> Option<Reading> {
+    let mut turn = Rotation3::new(start);
+    let mut last = None;
+    let mut skip: Vec<[f64; 4]> = windows.iter().map(|w| widened(*w)).collect();
+    skip.extend(reference.first_window);
+    // Coarse to fine; a coarse level that finds the background where the turn in use puts it
+    // (within half of `MOVED_PX`) settles it: nothing moved.
+    let finest = reference.levels.first().map(|(l, _)| *l);
+    for (l, refimg) in reference.levels.iter().rev() {
+        let img = Grey::of(levels.get(*l)?);
+        if (img.width, img.height) != (refimg.width, refimg.height) {
+            return None;
+        }
+        let k = level_k(&reference.k, *l);
+        let scale = (1u32 << l) as f64;
+        let level_skip: Vec<[f64; 4]> = skip
+            .iter()
+            .map(|w| w.map(|v| (v + 0.5) / scale - 0.5))
+            .collect();
+        // A coarse level that shows too little background is passed over: the finer one
+        // decides.
+        last = fit_level(refimg, &img, &k, &level_skip, &mut turn);
+        if Some(*l) != finest
+            && last.as_ref().is_some_and(usable)
+            && motion_px(
+                &reference.k,
+                reference.size.0,
+                reference.size.1,
+                &turn.scaled_axis(),
+                &start,
+            ) < 0.5 * MOVED_PX
+        {
+            return None;
+        }
+    }
+    let fit = last?;
+    if !usable(&fit) {
+        return None;
+    }
+    // The turn's standard error (radians: its covariance is σ² times the inverse of its
+    // normal matrix), times the focal length: full-resolution pixels.
+    let error_px = reference.k[(0, 0)] / fit.min_curvature.max(1e-300).sqrt();
+    (error_px <= MAX_ERROR_PX).then(|| Reading {
+        turn: turn.scaled_axis(),
+        error_px,
+    })
+}
+
+/// Whether a fit saw enough textured background to read a turn from.
+fn usable(fit: &Fit) -> bool {
+    fit.textured >= MIN_TEXTURED && fit.textured as f64 >= TEXTURED_SHARE * fit.background as f64
+}
+
+/// What one level's fit left.
+struct Fit {
+    /// Background samples.
+    background: usize,
+    /// Background samples with texture.
+    textured: usize,
+    /// The smallest eigenvalue of the turn's weighted normal matrix over the residuals'
+    /// robust scale squared (per radian²): the turn's standard error is one over its root.
+    min_curvature: f64,
+}
+
+/// Gauss–Newton over the turn (three parameters, applied on the left), a gain and an offset at
+/// one level; `turn` updated in place. `None` when too few background samples remain.
+fn fit_level(
+    reference: &Grey,
+    img: &Grey,
+    k: &Matrix3<f64>,
+    skip: &[[f64; 4]],
+    turn: &mut Rotation3<f64>,
+) -> Option<Fit> {
+    let k_inv = k.try_inverse()?;
+    let (w, h) = (reference.width, reference.height);
+    // About `SAMPLES` of the background's pixels, however much of the image the mesh covers
+    // (its windows may overlap: then a little more).
+    let clipped = |s: &[f64; 4]| {
+        let (x0, x1) = (s[0].max(0.0), s[2].min(w as f64));
+        let (y0, y1) = (s[1].max(0.0), s[3].min(h as f64));
+        (x1 - x0).max(0.0) * (y1 - y0).max(0.0)
+    };
+    let area = skip
+        .iter()
+        .fold((w * h) as f64, |a, s| a - clipped(s))
+        .max((w * h) as f64 / 16.0);
+    let stride = ((area / SAMPLES as f64).sqrt().floor() as usize).max(1);
+    // The background samples: off every window, inside the image, and their rays.
+    let mut samples: Vec<(Vector3<f64>, f32)> = Vec::new();
+    let mut textured = 0;
+    for y in (2..h.saturating_sub(2)).step_by(stride) {
+        for x in (2..w.saturating_sub(2)).step_by(stride) {
+            let (xf, yf) = (x as f64, y as f64);
+            if skip
+                .iter()
+                .any(|s| xf >= s[0] && xf <= s[2] && yf >= s[1] && yf <= s[3])
+            {
+                continue;
+            }
+            let v = reference.at(x, y);
+            let gx = 0.5 * (reference.at(x + 1, y) - reference.at(x - 1, y));
+            let gy = 0.5 * (reference.at(x, y + 1) - reference.at(x, y - 1));
+            if gx.abs().max(gy.abs()) > TEXTURE_GRADIENT {
+                textured += 1;
+            }
+            samples.push((k_inv * Vector3::new(xf, yf, 1.0), v));
+        }
+    }
+    if samples.len() < MIN_TEXTURED {
+        return None;
+    }
+    let (mut gain, mut offset) = (1.0f64, 0.0f64);
+    let mut min_curvature = 0.0;
+    let mut residuals: Vec<f64> = Vec::with_capacity(samples.len());
+    const ITERATIONS: usize = 6;
+    for it in 0..ITERATIONS {
+        // Residuals at the current estimate, for the scale.
+        residuals.clear();
+        let r_mat = *turn.matrix();
+        for (ray, v) in &samples {
+            let p = k * (r_mat * ray);
+            if p.z <= 0.0 {
+                continue;
+            }
+            if let Some((i, _, _)) = img.sample(p.x / p.z, p.y / p.z) {
+                residuals.push((i as f64 - gain * *v as f64 - offset).abs());
+            }
+        }
+        if residuals.len() < 200 {
+            return None;
+        }
+        let mid = residuals.len() / 2;
+        residuals.select_nth_unstable_by(mid, |a, b| a.total_cmp(b));
+        let sigma = (1.4826 * residuals[mid]).max(1e-3);
+        let tukey = it >= 2;
+        let c = if tukey { 4.685 * sigma } else { 1.345 * sigma };
+        // Normal equations over (δ turn, gain, offset).
+        let mut am = nalgebra::Matrix5::<f64>::zeros();
+        let mut g = nalgebra::Vector5::<f64>::zeros();
+        for (ray, v) in &samples {
+            let q = r_mat * ray;
+            let p = k * q;
+            if p.z <= 0.0 {
+                continue;
+            }
+            let Some((i, gx, gy)) = img.sample(p.x / p.z, p.y / p.z) else {
+                continue;
+            };
+            let r = i as f64 - gain * *v as f64 - offset;
+            let wgt = if tukey {
+                if r.abs() >= c {
+                    continue;
+                }
+                let t = 1.0 - (r / c) * (r / c);
+                t * t
+            } else if r.abs() <= c {
+                1.0
+            } else {
+                c / r.abs()
+            };
+            // d(pixel)/d(p) then d(p)/dδ = −K·[q]×.
+            let iz = 1.0 / p.z;
+            let du = [iz, 0.0, -p.x * iz * iz];
+            let dv = [0.0, iz, -p.y * iz * iz];
+            let (gx, gy) = (gx as f64, gy as f64);
+            let dp = [
+                gx * du[0] + gy * dv[0],
+                gx * du[1] + gy * dv[1],
+                gx * du[2] + gy * dv[2],
+            ];
+            // Row vector dp·K, then times −[q]×: (dp·K) × q... written out: (dpK)·(−[q]×) =
+            // (q × (dpK)ᵀ)ᵀ.
+            let dpk = Vector3::new(
+                dp[0] * k[(0, 0)] + dp[1] * k[(1, 0)] + dp[2] * k[(2, 0)],
+                dp[0] * k[(0, 1)] + dp[1] * k[(1, 1)] + dp[2] * k[(2, 1)],
+                dp[0] * k[(0, 2)] + dp[1] * k[(1, 2)] + dp[2] * k[(2, 2)],
+            );
+            let jt = q.cross(&dpk);
+            let j = nalgebra::Vector5::new(jt.x, jt.y, jt.z, -(*v as f64), -1.0);
+            g += j * (wgt * r);
+            am.ger(wgt, &j, &j, 1.0);
+        }
+        let turn_block = am.fixed_view::<3, 3>(0, 0).into_owned();
+        min_curvature = turn_block
+            .symmetric_eigenvalues()
+            .iter()
+            .copied()
+            .fold(f64::INFINITY, f64::min)
+            / (sigma * sigma);
+        let damped = am + nalgebra::Matrix5::from_diagonal(&(am.diagonal() * 1e-6));
+        let step = damped.cholesky()?.solve(&-g);
+        *turn = Rotation3::new(Vector3::new(step[0], step[1], step[2])) * *turn;
+        gain += step[3];
+        offset += step[4];
+        // Converged once the step moves the image by under a fiftieth of a pixel.
+        if Vector3::new(step[0], step[1], step[2]).norm() * k[(0, 0)] < 0.02 {
+            break;
+        }
+    }
+    Some(Fit {
+        background: samples.len(),
+        textured,
+        min_curvature,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::synth::{Bump, SynthOptions, Synthetic};
+    use crate::tracker::pyramid::Pyramid;
+
+    /// The window the first mesh covers in camera `c` of `syn` at frame 0.
+    fn window(syn: &Synthetic, c: usize) -> [f64; 4] {
+        let p = syn.cameras[c].at(0);
+        let mut w = [f64::MAX, f64::MAX, f64::MIN, f64::MIN];
+        for q in syn.truth[0].iter().filter_map(|x| p.project(x)) {
+            w = [w[0].min(q.x), w[1].min(q.y), w[2].max(q.x), w[3].max(q.y)];
+        }
+        w
+    }
+
+    #[test]
+    fn the_levels_read_are_the_first_at_most_640_wide_and_two_coarser() {
+        assert_eq!(levels_read(640, 3), [0, 2]);
+        assert_eq!(levels_read(1280, 4), [1, 3]);
+        assert_eq!(levels_read(3840, 6), [3, 5]);
+        assert_eq!(levels_read(1920, 3), [2]);
+        assert_eq!(levels_read(320, 1), [0]);
+    }
+
+    #[test]
+    fn a_cameras_turn_is_read_from_its_background_and_nothing_from_a_plain_one() {
+        // Camera 0 turned 0.25° from frame 1 on (about 2 px at 320×240); camera 1 not.
+        let opts = SynthOptions {
+            cameras: Some(2),
+            width: 320,
+            height: 240,
+            frames: 2,
+            backdrop: true,
+            bump: Some(Bump {
+                camera: 0,
+                frame: 1,
+                degrees: 0.25,
+            }),
+            ..SynthOptions::default()
+        };
+        let syn = Synthetic::generate(&opts).unwrap();
+        let pyramid = |c: usize, f: u32| Pyramid::new(&syn.render(c, f), 3, 1.0);
+        let reference = |c: usize| {
+            Reference::new(
+                &pyramid(c, 0).levels,
+                syn.cameras[c].at(0),
+                Some(window(&syn, c)),
+            )
+        };
+        let truth = opts.bump.unwrap().rotation().scaled_axis();
+        let got = read(
+            &reference(0),
+            &pyramid(0, 1).levels,
+            &[window(&syn, 0)],
+            Vector3::zeros(),
+        )
+        .expect("a textured wall gives a reading");
+        assert!(
+            (got.turn - truth).norm() < 0.02 * truth.norm(),
+            "{:?} against {truth:?}",
+            got.turn
+        );
+        assert!(got.error_px < MAX_ERROR_PX, "{got:?}");
+        let k = reference(0).k;
+        let px = motion_px(&k, 320.0, 240.0, &got.turn, &Vector3::zeros());
+        assert!((1.5..3.0).contains(&px), "{px} px");
+        // Started from the turn already found, the reading stays there (or, when a coarse level
+        // sees enough of the wall, settles there: nothing more moved).
+        let again = read(
+            &reference(0),
+            &pyramid(0, 1).levels,
+            &[window(&syn, 0)],
+            got.turn,
+        );
+        assert!(
+            again.is_none_or(|r| motion_px(&k, 320.0, 240.0, &r.turn, &got.turn) < 0.05),
+            "{again:?}"
+        );
+        // The camera that stayed put: nothing to take.
+        let still = read(
+            &reference(1),
+            &pyramid(1, 1).levels,
+            &[window(&syn, 1)],
+            Vector3::zeros(),
+        );
+        assert!(
+            still.is_none_or(|r| motion_px(&k, 320.0, 240.0, &r.turn, &Vector3::zeros()) < 0.05),
+            "{still:?}"
+        );
+        // A plain background shows no turn, however far the camera turned.
+        let plain = Synthetic::generate(&SynthOptions {
+            backdrop: false,
+            ..opts.clone()
+        })
+        .unwrap();
+        let plain_pyramid = |f: u32| Pyramid::new(&plain.render(0, f), 3, 1.0);
+        let plain_reference = Reference::new(
+            &plain_pyramid(0).levels,
+            plain.cameras[0].at(0),
+            Some(window(&plain, 0)),
+        );
+        assert_eq!(
+            read(
+                &plain_reference,
+                &plain_pyramid(1).levels,
+                &[window(&plain, 0)],
+                Vector3::zeros()
+            ),
+            None
+        );
+    }
+}
