@@ -120,6 +120,11 @@ pub struct TrackArgs {
     /// along their normals onto the surface before tracking; only a warning then).
     #[arg(long)]
     pub keep_shape: bool,
+    /// Solve every frame with the calibrated poses, even when a camera's view of the background
+    /// shows it turned since the first frame (by default such a camera, e.g. a knocked tripod,
+    /// is posed turned with it from that frame on; docs/tracker.md, "A camera that moves").
+    #[arg(long)]
+    pub keep_poses: bool,
     /// Huber threshold on the RGB residual (image values 0..1; above 0, at most 10).
     #[arg(long, default_value_t = TrackOptions::default().solver.huber)]
     pub huber: f64,
@@ -225,6 +230,7 @@ impl TrackArgs {
             lent_anchor: self.lent_anchor,
             hidden_ahead: !self.keep_hidden,
             onto_surface: !self.keep_shape,
+            steady_cameras: !self.keep_poses,
             blur: self.blur,
             checkerboard: !self.all_pixels,
             rigid_first: !self.no_rigid_stage,

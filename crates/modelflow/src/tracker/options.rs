@@ -103,6 +103,12 @@ pub struct TrackOptions {
     /// made before it existed.
     #[serde(default)]
     pub onto_surface: bool,
+    /// A static camera whose view of its background (its image outside the mesh's reach) has
+    /// turned against its first frame's by more than half a pixel is posed turned with it from
+    /// that frame on (`tracker::steady`: a knocked tripod, a slipping mount). Off in runs made
+    /// before it existed.
+    #[serde(default)]
+    pub steady_cameras: bool,
 }
 
 fn default_consensus() -> f64 {
@@ -140,6 +146,7 @@ impl Default for TrackOptions {
             lent_anchor: 1.0,
             hidden_ahead: true,
             onto_surface: true,
+            steady_cameras: true,
         }
     }
 }
@@ -567,6 +574,7 @@ mod tests {
         assert_eq!(
             TrackOptions {
                 onto_surface: true,
+                steady_cameras: true,
                 ..read
             },
             TrackOptions::default()

@@ -426,7 +426,7 @@ impl Tracker {
             .iter()
             .enumerate()
             .map(|(c, cam)| {
-                (!cam.is_moving() && !blank[c]).then(|| {
+                (t.opts.steady_cameras && !cam.is_moving() && !blank[c]).then(|| {
                     steady::Reference::new(
                         &t.prev.pyramids[c].levels,
                         cam.at(frame),

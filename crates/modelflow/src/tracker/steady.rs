@@ -36,8 +36,10 @@ const MIN_TEXTURED: usize = 100;
 const TEXTURE_GRADIENT: f32 = 0.01;
 /// About how many pixels each level's comparison samples.
 pub const SAMPLES: usize = 16_000;
-/// The largest standard error of a reading (full-resolution pixels) that is taken.
+/// The largest standard error of a reading (full-resolution pixels) that is taken, or its share
+/// of the move it reads when that is larger.
 const MAX_ERROR_PX: f64 = 0.1;
+const MAX_ERROR_SHARE: f64 = 0.02;
 /// The finest level read is the first at most this wide.
 const FINE_WIDTH: usize = 640;
 
@@ -100,6 +102,8 @@ pub(crate) struct Reference {
     first_window: Option<[f64; 4]>,
     /// The full-resolution image's width and height.
     size: (f64, f64),
+    /// The coarsest level read, halved and halved again: where a hard knock is looked for.
+    wide: Vec<Grey>,
 }
 
 /// The pyramid levels read for images `width` wide out of `levels`: the first at most
@@ -127,11 +131,20 @@ impl Reference {
         mesh_window: Option<[f64; 4]>,
     ) -> Reference {
         let width = levels.first().map_or(0, |l| l.width());
+        let read = levels_read(width, levels.len());
+        let mut wide = Vec::new();
+        if let Some(coarsest) = read.last().filter(|_| read.len() > 1) {
+            let mut img = levels[*coarsest].downsample2();
+            wide.push(Grey::of(&img));
+            img = img.downsample2();
+            wide.push(Grey::of(&img));
+        }
         Reference {
-            levels: levels_read(width, levels.len())
+            levels: read
                 .into_iter()
                 .map(|l| (l, Grey::of(&levels[l])))
                 .collect(),
+            wide,
             k: pose.krt().0,
             first_window: mesh_window.map(widened),
             size: levels
@@ -209,48 +222,91 @@ pub(crate) fn read(
     windows: &[[f64; 4]],
     start: Vector3<f64>,
 ) -> Option<Reading> {
-    let mut turn = Rotation3::new(start);
-    let mut last = None;
     let mut skip: Vec<[f64; 4]> = windows.iter().map(|w| widened(*w)).collect();
     skip.extend(reference.first_window);
-    // Coarse to fine; a coarse level that finds the background where the turn in use puts it
-    // (within half of `MOVED_PX`) settles it: nothing moved.
-    let finest = reference.levels.first().map(|(l, _)| *l);
-    for (l, refimg) in reference.levels.iter().rev() {
-        let img = Grey::of(levels.get(*l)?);
-        if (img.width, img.height) != (refimg.width, refimg.height) {
-            return None;
-        }
-        let k = level_k(&reference.k, *l);
+    let at = |l: usize| {
         let scale = (1u32 << l) as f64;
         let level_skip: Vec<[f64; 4]> = skip
             .iter()
             .map(|w| w.map(|v| (v + 0.5) / scale - 0.5))
             .collect();
-        // A coarse level that shows too little background is passed over: the finer one
-        // decides.
-        last = fit_level(refimg, &img, &k, &level_skip, &mut turn);
-        if Some(*l) != finest
-            && last.as_ref().is_some_and(usable)
-            && motion_px(
-                &reference.k,
-                reference.size.0,
-                reference.size.1,
-                &turn.scaled_axis(),
-                &start,
-            ) < 0.5 * MOVED_PX
-        {
+        (level_k(&reference.k, l), level_skip)
+    };
+    let moved = |t: &Rotation3<f64>| {
+        motion_px(
+            &reference.k,
+            reference.size.0,
+            reference.size.1,
+            &t.scaled_axis(),
+            &start,
+        )
+    };
+    let mut turn = Rotation3::new(start);
+    let mut last = None;
+    let mut coarse: Option<(Rotation3<f64>, Fit)> = None;
+    let read_levels = reference.levels.len();
+    // Coarse to fine.
+    for (i, (l, refimg)) in reference.levels.iter().enumerate().rev() {
+        let image = levels.get(*l)?;
+        let img = Grey::of(image);
+        if (img.width, img.height) != (refimg.width, refimg.height) {
             return None;
         }
+        let (k, level_skip) = at(*l);
+        last = fit_level(refimg, &img, &k, &level_skip, &mut turn);
+        if i + 1 == read_levels && read_levels > 1 {
+            // The coarse level: finding the background where the turn in use puts it (within
+            // half of `MOVED_PX`) settles it, nothing moved; that is the common case.
+            if last.as_ref().is_some_and(usable) && moved(&turn) < 0.5 * MOVED_PX {
+                return None;
+            }
+            // Something moved, maybe past this level's reach (a hard knock): the same from two
+            // levels coarser still, kept if it explains the background better here.
+            let mut wide = Rotation3::new(start);
+            let mut coarser = image.downsample2();
+            let mut stages = Vec::new();
+            for (j, r) in reference.wide.iter().enumerate() {
+                if j > 0 {
+                    coarser = coarser.downsample2();
+                }
+                stages.push((l + 1 + j, r, Grey::of(&coarser)));
+            }
+            for (wl, r, g) in stages.iter().rev() {
+                if (g.width, g.height) == (r.width, r.height) {
+                    let (k, level_skip) = at(*wl);
+                    fit_level(r, g, &k, &level_skip, &mut wide);
+                }
+            }
+            let from_wide = fit_level(refimg, &img, &k, &level_skip, &mut wide);
+            let better = match (&last, &from_wide) {
+                (_, None) => false,
+                (None, Some(_)) => true,
+                (Some(a), Some(b)) => b.residual < a.residual,
+            };
+            if better {
+                turn = wide;
+                last = from_wide;
+            }
+            // What the finer level starts from, and what is read if it cannot tell (a knock
+            // past its reach leaves it too far off: the next frame starts from this reading
+            // and closes in).
+            coarse = last
+                .as_ref()
+                .filter(|f| usable(f))
+                .map(|f| (turn, f.clone()));
+        }
     }
-    let fit = last?;
-    if !usable(&fit) {
-        return None;
-    }
+    let (turn, fit) = match last.filter(usable) {
+        Some(fit) => (turn, fit),
+        None => coarse?,
+    };
     // The turn's standard error (radians: its covariance is σ² times the inverse of its
     // normal matrix), times the focal length: full-resolution pixels.
     let error_px = reference.k[(0, 0)] / fit.min_curvature.max(1e-300).sqrt();
-    (error_px <= MAX_ERROR_PX).then(|| Reading {
+    // Held to a tenth of a pixel, or to 2 % of a larger move (a hard knock read partly: the
+    // next frame starts from it and closes in).
+    let limit = MAX_ERROR_PX.max(MAX_ERROR_SHARE * moved(&turn));
+    (error_px <= limit).then(|| Reading {
         turn: turn.scaled_axis(),
         error_px,
     })
@@ -262,11 +318,14 @@ fn usable(fit: &Fit) -> bool {
 }
 
 /// What one level's fit left.
+#[derive(Clone, Debug)]
 struct Fit {
     /// Background samples.
     background: usize,
     /// Background samples with texture.
     textured: usize,
+    /// The median absolute residual where the fit ended (gain and offset applied).
+    residual: f64,
     /// The smallest eigenvalue of the turn's weighted normal matrix over the residuals'
     /// robust scale squared (per radian²): the turn's standard error is one over its root.
     min_curvature: f64,
@@ -324,24 +383,10 @@ fn fit_level(
     let mut residuals: Vec<f64> = Vec::with_capacity(samples.len());
     const ITERATIONS: usize = 6;
     for it in 0..ITERATIONS {
-        // Residuals at the current estimate, for the scale.
-        residuals.clear();
+        // The residuals' median at the current estimate, for the scale.
         let r_mat = *turn.matrix();
-        for (ray, v) in &samples {
-            let p = k * (r_mat * ray);
-            if p.z <= 0.0 {
-                continue;
-            }
-            if let Some((i, _, _)) = img.sample(p.x / p.z, p.y / p.z) {
-                residuals.push((i as f64 - gain * *v as f64 - offset).abs());
-            }
-        }
-        if residuals.len() < 200 {
-            return None;
-        }
-        let mid = residuals.len() / 2;
-        residuals.select_nth_unstable_by(mid, |a, b| a.total_cmp(b));
-        let sigma = (1.4826 * residuals[mid]).max(1e-3);
+        let median = median_residual(&samples, img, k, &r_mat, gain, offset, &mut residuals)?;
+        let sigma = (1.4826 * median).max(1e-3);
         let tukey = it >= 2;
         let c = if tukey { 4.685 * sigma } else { 1.345 * sigma };
         // Normal equations over (δ turn, gain, offset).
@@ -407,11 +452,50 @@ fn fit_level(
             break;
         }
     }
+    let residual = median_residual(
+        &samples,
+        img,
+        k,
+        turn.matrix(),
+        gain,
+        offset,
+        &mut residuals,
+    )?;
     Some(Fit {
         background: samples.len(),
         textured,
+        residual,
         min_curvature,
     })
+}
+
+/// The median absolute residual of `samples` (rays and reference values) against `img` with
+/// turn `r`, `gain` and `offset`; `None` when fewer than [`MIN_TEXTURED`] land in the image.
+fn median_residual(
+    samples: &[(Vector3<f64>, f32)],
+    img: &Grey,
+    k: &Matrix3<f64>,
+    r: &Matrix3<f64>,
+    gain: f64,
+    offset: f64,
+    residuals: &mut Vec<f64>,
+) -> Option<f64> {
+    residuals.clear();
+    for (ray, v) in samples {
+        let p = k * (r * ray);
+        if p.z <= 0.0 {
+            continue;
+        }
+        if let Some((i, _, _)) = img.sample(p.x / p.z, p.y / p.z) {
+            residuals.push((i as f64 - gain * *v as f64 - offset).abs());
+        }
+    }
+    if residuals.len() < MIN_TEXTURED {
+        return None;
+    }
+    let mid = residuals.len() / 2;
+    residuals.select_nth_unstable_by(mid, |a, b| a.total_cmp(b));
+    Some(residuals[mid])
 }
 
 #[cfg(test)]
