@@ -794,7 +794,14 @@ impl Tracker {
                     .iter()
                     .filter_map(|p| mesh_window(cam, this.prev.frame, p))
                     .collect();
-                steady::read(reference, &next[c].levels, &windows, this.turns[c])
+                let just_moved = matches!(this.moved_at[c], Some((f, _)) if f == this.prev.frame);
+                steady::read(
+                    reference,
+                    &next[c].levels,
+                    &windows,
+                    this.turns[c],
+                    just_moved,
+                )
             })
             .collect();
         for (c, reading) in readings.into_iter().enumerate() {

@@ -14,7 +14,8 @@
 //! exposure may change), Huber-weighted and then Tukey-weighted at a scale taken from the
 //! residuals' median (a person walking through the room, the hands holding the object and its
 //! shadow are outliers), coarse level then fine, on the pyramid levels the tracker builds
-//! anyway, sampled on a grid of about [`SAMPLES`] pixels. It reads a turn only from a
+//! anyway, sampled on a grid of about [`SAMPLES`] background pixels (a quarter as many at the
+//! coarser levels). It reads a turn only from a
 //! background with texture: at least [`TEXTURED_SHARE`] of the samples must show a gradient, and
 //! the turn must be held to a tenth of a pixel (a plain studio wall gives no reading; a rod
 //! crossing a plain wall does not pass for the room). Written for this project: no crate aligns
@@ -34,7 +35,8 @@ pub const TEXTURED_SHARE: f64 = 0.1;
 const MIN_TEXTURED: usize = 100;
 /// A gradient (intensity per pixel at the level read) that counts as texture.
 const TEXTURE_GRADIENT: f32 = 0.01;
-/// About how many pixels each level's comparison samples.
+/// About how many background pixels the finest level's comparison samples; the coarser levels,
+/// which only have to tell whether anything moved, a quarter as many.
 pub const SAMPLES: usize = 16_000;
 /// The largest standard error of a reading (full-resolution pixels) that is taken, or its share
 /// of the move it reads when that is larger.
@@ -104,6 +106,9 @@ pub(crate) struct Reference {
     size: (f64, f64),
     /// The coarsest level read, halved and halved again: where a hard knock is looked for.
     wide: Vec<Grey>,
+    /// Whether the first frame's background shows enough texture at the finest level read to
+    /// read a turn from (a plain studio wall does not: nothing is read, at no cost).
+    textured: bool,
 }
 
 /// The pyramid levels read for images `width` wide out of `levels`: the first at most
@@ -139,17 +144,30 @@ impl Reference {
             img = img.downsample2();
             wide.push(Grey::of(&img));
         }
+        let first_window = mesh_window.map(widened);
+        let size = levels
+            .first()
+            .map_or((0.0, 0.0), |l| (l.width() as f64, l.height() as f64));
+        let levels: Vec<(usize, Grey)> = read
+            .into_iter()
+            .map(|l| (l, Grey::of(&levels[l])))
+            .collect();
+        let textured = levels.first().is_some_and(|(l, g)| {
+            let scale = (1u32 << l) as f64;
+            let skip: Vec<[f64; 4]> = first_window
+                .iter()
+                .map(|w| w.map(|v| (v + 0.5) / scale - 0.5))
+                .collect();
+            let (background, textured) = background_samples(g, &skip, SAMPLES, |_, _| ());
+            textured >= MIN_TEXTURED && textured as f64 >= TEXTURED_SHARE * background as f64
+        });
         Reference {
-            levels: read
-                .into_iter()
-                .map(|l| (l, Grey::of(&levels[l])))
-                .collect(),
+            levels,
             wide,
+            textured,
             k: pose.krt().0,
-            first_window: mesh_window.map(widened),
-            size: levels
-                .first()
-                .map_or((0.0, 0.0), |l| (l.width() as f64, l.height() as f64)),
+            first_window,
+            size,
         }
     }
 }
@@ -214,14 +232,19 @@ pub(crate) fn motion_px(
 
 /// Camera's turn since the first frame as its background shows it in `levels` (this frame's
 /// pyramid), started from `start`, with `windows` (full-resolution, where the mesh may be now)
-/// left out besides the first frame's; `None` when the background shows too little texture to
-/// tell (or the mesh covers it).
+/// left out besides the first frame's (`just_moved`: the camera was found turned at the frame
+/// before, so every level is read); `None` when the background shows too little texture to
+/// tell (or the mesh covers it), or when it shows nothing moved.
 pub(crate) fn read(
     reference: &Reference,
     levels: &[RgbImage],
     windows: &[[f64; 4]],
     start: Vector3<f64>,
+    just_moved: bool,
 ) -> Option<Reading> {
+    if !reference.textured {
+        return None;
+    }
     let mut skip: Vec<[f64; 4]> = windows.iter().map(|w| widened(*w)).collect();
     skip.extend(reference.first_window);
     let at = |l: usize| {
@@ -253,15 +276,21 @@ pub(crate) fn read(
             return None;
         }
         let (k, level_skip) = at(*l);
-        last = fit_level(refimg, &img, &k, &level_skip, &mut turn);
+        let samples = if i == 0 { SAMPLES } else { SAMPLES / 4 };
+        last = fit_level(refimg, &img, &k, &level_skip, samples, &mut turn);
         if i + 1 == read_levels && read_levels > 1 {
             // The coarse level: finding the background where the turn in use puts it (within
-            // half of `MOVED_PX`) settles it, nothing moved; that is the common case.
-            if last.as_ref().is_some_and(usable) && moved(&turn) < 0.5 * MOVED_PX {
+            // half of `MOVED_PX`) settles it, nothing moved; that is the common case. Not
+            // right after the camera was found turned: a hard knock may have been read only
+            // partly, and this level may hold on where that reading left it.
+            if !just_moved && last.as_ref().is_some_and(usable) && moved(&turn) < 0.5 * MOVED_PX {
                 return None;
             }
             // Something moved, maybe past this level's reach (a hard knock): the same from two
             // levels coarser still, kept if it explains the background better here.
+            if !last.as_ref().is_some_and(usable) {
+                continue;
+            }
             let mut wide = Rotation3::new(start);
             let mut coarser = image.downsample2();
             let mut stages = Vec::new();
@@ -274,10 +303,10 @@ pub(crate) fn read(
             for (wl, r, g) in stages.iter().rev() {
                 if (g.width, g.height) == (r.width, r.height) {
                     let (k, level_skip) = at(*wl);
-                    fit_level(r, g, &k, &level_skip, &mut wide);
+                    fit_level(r, g, &k, &level_skip, SAMPLES / 4, &mut wide);
                 }
             }
-            let from_wide = fit_level(refimg, &img, &k, &level_skip, &mut wide);
+            let from_wide = fit_level(refimg, &img, &k, &level_skip, samples, &mut wide);
             let better = match (&last, &from_wide) {
                 (_, None) => false,
                 (None, Some(_)) => true,
@@ -338,43 +367,18 @@ fn fit_level(
     img: &Grey,
     k: &Matrix3<f64>,
     skip: &[[f64; 4]],
+    samples_wanted: usize,
     turn: &mut Rotation3<f64>,
 ) -> Option<Fit> {
     let k_inv = k.try_inverse()?;
-    let (w, h) = (reference.width, reference.height);
-    // About `SAMPLES` of the background's pixels, however much of the image the mesh covers
-    // (its windows may overlap: then a little more).
-    let clipped = |s: &[f64; 4]| {
-        let (x0, x1) = (s[0].max(0.0), s[2].min(w as f64));
-        let (y0, y1) = (s[1].max(0.0), s[3].min(h as f64));
-        (x1 - x0).max(0.0) * (y1 - y0).max(0.0)
-    };
-    let area = skip
-        .iter()
-        .fold((w * h) as f64, |a, s| a - clipped(s))
-        .max((w * h) as f64 / 16.0);
-    let stride = ((area / SAMPLES as f64).sqrt().floor() as usize).max(1);
-    // The background samples: off every window, inside the image, and their rays.
+    // The background samples: their rays and reference values.
     let mut samples: Vec<(Vector3<f64>, f32)> = Vec::new();
-    let mut textured = 0;
-    for y in (2..h.saturating_sub(2)).step_by(stride) {
-        for x in (2..w.saturating_sub(2)).step_by(stride) {
-            let (xf, yf) = (x as f64, y as f64);
-            if skip
-                .iter()
-                .any(|s| xf >= s[0] && xf <= s[2] && yf >= s[1] && yf <= s[3])
-            {
-                continue;
-            }
-            let v = reference.at(x, y);
-            let gx = 0.5 * (reference.at(x + 1, y) - reference.at(x - 1, y));
-            let gy = 0.5 * (reference.at(x, y + 1) - reference.at(x, y - 1));
-            if gx.abs().max(gy.abs()) > TEXTURE_GRADIENT {
-                textured += 1;
-            }
-            samples.push((k_inv * Vector3::new(xf, yf, 1.0), v));
-        }
-    }
+    let (_, textured) = background_samples(reference, skip, samples_wanted, |x, y| {
+        samples.push((
+            k_inv * Vector3::new(x as f64, y as f64, 1.0),
+            reference.at(x, y),
+        ))
+    });
     if samples.len() < MIN_TEXTURED {
         return None;
     }
@@ -469,6 +473,48 @@ fn fit_level(
     })
 }
 
+/// Visits `img`'s background samples (`each(x, y)`): about `wanted` of its pixels off every
+/// window in `skip`, however much of the image those cover (disjoint windows: somewhat fewer),
+/// at least 2 pixels from the border; returns how many, and how many show texture (a
+/// gradient above [`TEXTURE_GRADIENT`]).
+fn background_samples(
+    img: &Grey,
+    skip: &[[f64; 4]],
+    wanted: usize,
+    mut each: impl FnMut(usize, usize),
+) -> (usize, usize) {
+    let (w, h) = (img.width, img.height);
+    let clipped = |s: &[f64; 4]| {
+        let (x0, x1) = (s[0].max(0.0), s[2].min(w as f64));
+        let (y0, y1) = (s[1].max(0.0), s[3].min(h as f64));
+        (x1 - x0).max(0.0) * (y1 - y0).max(0.0)
+    };
+    // The windows are mostly the same object's, one inside another: the largest is taken out.
+    let area =
+        ((w * h) as f64 - skip.iter().map(clipped).fold(0.0, f64::max)).max((w * h) as f64 / 16.0);
+    let stride = ((area / wanted as f64).sqrt().round() as usize).max(1);
+    let (mut count, mut textured) = (0, 0);
+    for y in (2..h.saturating_sub(2)).step_by(stride) {
+        for x in (2..w.saturating_sub(2)).step_by(stride) {
+            let (xf, yf) = (x as f64, y as f64);
+            if skip
+                .iter()
+                .any(|s| xf >= s[0] && xf <= s[2] && yf >= s[1] && yf <= s[3])
+            {
+                continue;
+            }
+            let gx = 0.5 * (img.at(x + 1, y) - img.at(x - 1, y));
+            let gy = 0.5 * (img.at(x, y + 1) - img.at(x, y - 1));
+            if gx.abs().max(gy.abs()) > TEXTURE_GRADIENT {
+                textured += 1;
+            }
+            count += 1;
+            each(x, y);
+        }
+    }
+    (count, textured)
+}
+
 /// The median absolute residual of `samples` (rays and reference values) against `img` with
 /// turn `r`, `gain` and `offset`; `None` when fewer than [`MIN_TEXTURED`] land in the image.
 fn median_residual(
@@ -554,6 +600,7 @@ mod tests {
             &pyramid(0, 1).levels,
             &[window(&syn, 0)],
             Vector3::zeros(),
+            false,
         )
         .expect("a textured wall gives a reading");
         assert!(
@@ -566,23 +613,28 @@ mod tests {
         let px = motion_px(&k, 320.0, 240.0, &got.turn, &Vector3::zeros());
         assert!((1.5..3.0).contains(&px), "{px} px");
         // Started from the turn already found, the reading stays there (or, when a coarse level
-        // sees enough of the wall, settles there: nothing more moved).
-        let again = read(
-            &reference(0),
-            &pyramid(0, 1).levels,
-            &[window(&syn, 0)],
-            got.turn,
-        );
-        assert!(
-            again.is_none_or(|r| motion_px(&k, 320.0, 240.0, &r.turn, &got.turn) < 0.05),
-            "{again:?}"
-        );
+        // sees enough of the wall, settles there: nothing more moved), also when every level is
+        // read again.
+        for just_moved in [false, true] {
+            let again = read(
+                &reference(0),
+                &pyramid(0, 1).levels,
+                &[window(&syn, 0)],
+                got.turn,
+                just_moved,
+            );
+            assert!(
+                again.is_none_or(|r| motion_px(&k, 320.0, 240.0, &r.turn, &got.turn) < 0.05),
+                "{again:?}"
+            );
+        }
         // The camera that stayed put: nothing to take.
         let still = read(
             &reference(1),
             &pyramid(1, 1).levels,
             &[window(&syn, 1)],
             Vector3::zeros(),
+            false,
         );
         assert!(
             still.is_none_or(|r| motion_px(&k, 320.0, 240.0, &r.turn, &Vector3::zeros()) < 0.05),
@@ -605,7 +657,8 @@ mod tests {
                 &plain_reference,
                 &plain_pyramid(1).levels,
                 &[window(&plain, 0)],
-                Vector3::zeros()
+                Vector3::zeros(),
+                false,
             ),
             None
         );
