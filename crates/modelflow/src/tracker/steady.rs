@@ -13,7 +13,9 @@
 //! The comparison is a Gauss–Newton fit of the turn, a brightness gain and an offset (the
 //! exposure may change), Huber-weighted and then Tukey-weighted at a scale taken from the
 //! residuals' median (a person walking through the room, the hands holding the object and its
-//! shadow are outliers), coarse level then fine, on the pyramid levels the tracker builds
+//! shadow are outliers), coarse level then fine (a knock past the coarse level's reach is found
+//! by the background's best whole-pixel shift there, by normalised cross-correlation, and the
+//! fit is taken again from it), on the pyramid levels the tracker builds
 //! anyway, sampled on a grid of about [`SAMPLES`] background pixels (a quarter as many at the
 //! coarser levels). It reads a turn only from a
 //! background with texture: at least [`TEXTURED_SHARE`] of the samples must show a gradient, and
@@ -42,6 +44,10 @@ pub const SAMPLES: usize = 16_000;
 /// of the move it reads when that is larger.
 const MAX_ERROR_PX: f64 = 0.1;
 const MAX_ERROR_SHARE: f64 = 0.02;
+/// How far (pixels of the coarse level, each way) and on how many background pixels a hard
+/// knock is searched for when the coarse level finds the background moved.
+const SHIFT_REACH: usize = 16;
+const SHIFT_SAMPLES: usize = 1_000;
 /// The finest level read is the first at most this wide.
 const FINE_WIDTH: usize = 640;
 
@@ -104,8 +110,6 @@ pub(crate) struct Reference {
     first_window: Option<[f64; 4]>,
     /// The full-resolution image's width and height.
     size: (f64, f64),
-    /// The coarsest level read, halved and halved again: where a hard knock is looked for.
-    wide: Vec<Grey>,
     /// Whether the first frame's background shows enough texture at the finest level read to
     /// read a turn from (a plain studio wall does not: nothing is read, at no cost).
     textured: bool,
@@ -137,13 +141,6 @@ impl Reference {
     ) -> Reference {
         let width = levels.first().map_or(0, |l| l.width());
         let read = levels_read(width, levels.len());
-        let mut wide = Vec::new();
-        if let Some(coarsest) = read.last().filter(|_| read.len() > 1) {
-            let mut img = levels[*coarsest].downsample2();
-            wide.push(Grey::of(&img));
-            img = img.downsample2();
-            wide.push(Grey::of(&img));
-        }
         let first_window = mesh_window.map(widened);
         let size = levels
             .first()
@@ -163,7 +160,6 @@ impl Reference {
         });
         Reference {
             levels,
-            wide,
             textured,
             k: pose.krt().0,
             first_window,
@@ -288,24 +284,18 @@ pub(crate) fn read(
             }
             // Something moved, maybe past this level's reach (a hard knock): the same from two
             // levels coarser still, kept if it explains the background better here.
+            // Something moved, maybe past this level's reach (a hard knock): the best shift of
+            // the whole background here, searched pixel by pixel, then the same fit from there,
+            // kept if it explains the background better.
             if !last.as_ref().is_some_and(usable) {
                 continue;
             }
             let mut wide = Rotation3::new(start);
-            let mut coarser = image.downsample2();
-            let mut stages = Vec::new();
-            for (j, r) in reference.wide.iter().enumerate() {
-                if j > 0 {
-                    coarser = coarser.downsample2();
-                }
-                stages.push((l + 1 + j, r, Grey::of(&coarser)));
-            }
-            for (wl, r, g) in stages.iter().rev() {
-                if (g.width, g.height) == (r.width, r.height) {
-                    let (k, level_skip) = at(*wl);
-                    fit_level(r, g, &k, &level_skip, SAMPLES / 4, &mut wide);
-                }
-            }
+            let Some((dx, dy)) = best_shift(refimg, &img, &k, &level_skip, &wide) else {
+                continue;
+            };
+            // A shift of the image centre by (dx, dy) is the turn (−dy/fy, dx/fx, 0).
+            wide = Rotation3::new(Vector3::new(-dy / k[(1, 1)], dx / k[(0, 0)], 0.0)) * wide;
             let from_wide = fit_level(refimg, &img, &k, &level_skip, samples, &mut wide);
             let better = match (&last, &from_wide) {
                 (_, None) => false,
@@ -339,6 +329,58 @@ pub(crate) fn read(
         turn: turn.scaled_axis(),
         error_px,
     })
+}
+
+/// How far, in whole pixels of `img` up to [`SHIFT_REACH`] each way, the background moved from
+/// where `turn` puts it: the shift whose samples correlate best with the reference's (normalised
+/// cross-correlation, so brightness does not matter). `None` without enough background.
+fn best_shift(
+    reference: &Grey,
+    img: &Grey,
+    k: &Matrix3<f64>,
+    skip: &[[f64; 4]],
+    turn: &Rotation3<f64>,
+) -> Option<(f64, f64)> {
+    let k_inv = k.try_inverse()?;
+    let mut points: Vec<(f64, f64, f64)> = Vec::new();
+    background_samples(reference, skip, SHIFT_SAMPLES, |x, y| {
+        let p = k * (turn * (k_inv * Vector3::new(x as f64, y as f64, 1.0)));
+        if p.z > 0.0 {
+            points.push((p.x / p.z, p.y / p.z, reference.at(x, y) as f64));
+        }
+    });
+    if points.len() < MIN_TEXTURED {
+        return None;
+    }
+    let n = points.len() as f64;
+    let mean_v = points.iter().map(|p| p.2).sum::<f64>() / n;
+    let var_v = points.iter().map(|p| (p.2 - mean_v).powi(2)).sum::<f64>();
+    let reach = SHIFT_REACH as i32;
+    let mut best: Option<(f64, f64, f64)> = None;
+    for dy in -reach..=reach {
+        for dx in -reach..=reach {
+            let (mut si, mut sii, mut svi, mut m) = (0.0, 0.0, 0.0, 0.0);
+            for (x, y, v) in &points {
+                if let Some((i, _, _)) = img.sample(x + dx as f64, y + dy as f64) {
+                    let i = i as f64;
+                    si += i;
+                    sii += i * i;
+                    svi += (v - mean_v) * i;
+                    m += 1.0;
+                }
+            }
+            // Most of the background must still be in view.
+            if m < 0.5 * n {
+                continue;
+            }
+            let var_i = sii - si * si / m;
+            let ncc = svi / (var_i * var_v).max(1e-300).sqrt();
+            if best.is_none_or(|b| ncc > b.2) {
+                best = Some((dx as f64, dy as f64, ncc));
+            }
+        }
+    }
+    best.map(|(dx, dy, _)| (dx, dy))
 }
 
 /// Whether a fit saw enough textured background to read a turn from.
