@@ -827,17 +827,28 @@ impl Tracker {
         self.turns[c] = turn;
     }
 
-    /// Poses each camera turned as the frame a run stopped at used it
-    /// ([`FrameReport::camera_turns`]): with [`Tracker::restore`], what `--resume` needs to
-    /// continue exactly. Ignored unless it has one entry per camera.
-    pub fn restore_turns(&mut self, frame: u32, turns: &[[f64; 3]]) {
-        if turns.len() != self.cameras.len() {
-            return;
+    /// Poses each camera turned as the frame a run stopped at used it, and marks those found
+    /// turned at that frame ([`FrameReport::camera_turns`], [`FrameReport::moved_cameras`] and
+    /// [`FrameReport::moved_px`]): with [`Tracker::restore`], what `--resume` needs to continue
+    /// exactly. Turns are ignored unless there is one per camera, indices past the rig.
+    pub fn restore_turns(
+        &mut self,
+        frame: u32,
+        turns: &[[f64; 3]],
+        moved: &[u16],
+        moved_px: &[f64],
+    ) {
+        if turns.len() == self.cameras.len() {
+            for (c, t) in turns.iter().enumerate() {
+                let t = Vector3::from(*t);
+                if t != Vector3::zeros() && t.iter().all(|v| v.is_finite()) {
+                    self.turn_camera(c, frame, t);
+                }
+            }
         }
-        for (c, t) in turns.iter().enumerate() {
-            let t = Vector3::from(*t);
-            if t != Vector3::zeros() && t.iter().all(|v| v.is_finite()) {
-                self.turn_camera(c, frame, t);
+        for (i, &c) in moved.iter().enumerate() {
+            if let Some(m) = self.moved_at.get_mut(c as usize) {
+                *m = Some((frame, moved_px.get(i).copied().unwrap_or(0.0)));
             }
         }
     }

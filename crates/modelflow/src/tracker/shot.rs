@@ -117,7 +117,7 @@ fn track_into(
                 // A camera found late stays left out; one that repeated this frame is watched.
                 tracker.restore_sync(&r.late_cameras, &r.repeated_cameras);
                 // A camera found turned stays turned.
-                tracker.restore_turns(last, &r.camera_turns);
+                tracker.restore_turns(last, &r.camera_turns, &r.moved_cameras, &r.moved_px);
             }
             let prepared = prepare(&scene.load_images(last)?, opts).with_repeated(&repeated);
             let positions = folder.read_positions(last)?;
