@@ -9,7 +9,7 @@
 
 use super::{html, photometric, residual};
 
-use crate::base::camera::Projection;
+use crate::base::camera::{Camera, Projection};
 use crate::base::image::RgbImage;
 use crate::base::mesh::{centroid, Mesh};
 use crate::base::units::Length;
@@ -179,6 +179,19 @@ pub fn write_report(
         .iter()
         .map(|(name, dir)| load_run(scene, name, dir))
         .collect::<Result<_>>()?;
+    // A camera the tracker found turned on its mount took its images turned: every mesh is
+    // drawn over them through the cameras as that run used them (the first run that turned one).
+    let as_used;
+    let scene = match turned_in_runs(scene, runs)? {
+        Some(cameras) => {
+            as_used = Scene {
+                cameras,
+                ..scene.clone()
+            };
+            &as_used
+        }
+        None => scene,
+    };
     let seconds: Vec<Option<f64>> = runs
         .iter()
         .map(|(_, dir)| seconds_per_frame(dir))
@@ -607,6 +620,26 @@ fn read_health(scene: &Scene, dir: &Path) -> Result<Option<Health>> {
     }
     let measures = by_frame.into_iter().map(|(f, (i, c))| (f, i, c)).collect();
     Ok(Some(Health { checks, measures }))
+}
+
+/// The scene's cameras as the first of `runs` whose tracker found a camera turned on its mount
+/// used them (`tracker::steady`, the log's `camera_turns`); `None` when no run turned one.
+fn turned_in_runs(scene: &Scene, runs: &[(String, PathBuf)]) -> Result<Option<Vec<Camera>>> {
+    for (_, dir) in runs {
+        let lines = crate::run::read_frame_log(dir)?;
+        let turns: Vec<(u32, Vec<[f64; 3]>)> = lines
+            .iter()
+            .filter_map(|l| Some((l.frame, l.model_flow()?.camera_turns.clone())))
+            .collect();
+        if turns.iter().any(|(_, t)| !t.is_empty()) {
+            return Ok(Some(crate::tracker::steady::cameras_as_used(
+                &scene.cameras,
+                scene.first,
+                &turns,
+            )));
+        }
+    }
+    Ok(None)
 }
 
 /// The manifest's `first_mesh_moved`, when the folder has a manifest.

@@ -25,7 +25,7 @@ pub(crate) mod sequence;
 mod shot;
 pub(crate) mod solve;
 pub(crate) mod sparse;
-mod steady;
+pub(crate) mod steady;
 pub(crate) mod warp;
 
 #[cfg(test)]

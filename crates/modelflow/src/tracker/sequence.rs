@@ -32,7 +32,7 @@ use crate::tracker::solve::{
     VertexConfidence,
 };
 use crate::tracker::steady;
-use nalgebra::{Point3, Rotation3, Vector3};
+use nalgebra::{Point3, Vector3};
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 use std::sync::atomic::AtomicBool;
@@ -818,9 +818,7 @@ impl Tracker {
 
     /// Poses camera `c` turned by `turn` since its calibration from `frame` on.
     fn turn_camera(&mut self, c: usize, frame: u32, turn: Vector3<f64>) {
-        let (k, r, t) = self.calibrated[c].krt();
-        let q = Rotation3::new(turn);
-        let Ok(pose) = Projection::from_krt(&k, &(q.matrix() * r), &(q * t)) else {
+        let Some(pose) = steady::turned(&self.calibrated[c], &turn) else {
             return;
         };
         self.cameras[c] = self.cameras[c].with_pose_from(frame, pose);

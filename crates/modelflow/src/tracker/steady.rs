@@ -23,7 +23,7 @@
 //! crossing a plain wall does not pass for the room). Written for this project: no crate aligns
 //! images by a camera's rotation with robust weights.
 
-use crate::base::camera::Projection;
+use crate::base::camera::{Camera, Projection};
 use crate::base::image::RgbImage;
 use nalgebra::{Matrix3, Rotation3, Vector3};
 
@@ -166,6 +166,42 @@ impl Reference {
             size,
         }
     }
+}
+
+/// `pose` turned by `turn` about the camera's centre (a rotation vector in its own axes):
+/// `exp(turn)·R`, `exp(turn)·t`, the intrinsics kept.
+pub(crate) fn turned(pose: &Projection, turn: &Vector3<f64>) -> Option<Projection> {
+    let (k, r, t) = pose.krt();
+    let q = Rotation3::new(*turn);
+    Projection::from_krt(&k, &(q.matrix() * r), &(q * t)).ok()
+}
+
+/// `cameras` as a run used them: each one posed turned by the turns its frames' log lines give
+/// (`FrameReport::camera_turns`, frame by frame in order; its pose at `first` is the calibrated
+/// one), from the frame each turn was first used on. The images were taken with the cameras
+/// turned, so whatever is drawn over them (the report's overlays) is drawn through these.
+pub(crate) fn cameras_as_used(
+    cameras: &[Camera],
+    first: u32,
+    turns: &[(u32, Vec<[f64; 3]>)],
+) -> Vec<Camera> {
+    let mut out = cameras.to_vec();
+    let mut in_use = vec![[0.0; 3]; cameras.len()];
+    for (frame, t) in turns {
+        if t.len() != cameras.len() {
+            continue;
+        }
+        for (c, turn) in t.iter().enumerate() {
+            if *turn == in_use[c] || !turn.iter().all(|v| v.is_finite()) {
+                continue;
+            }
+            if let Some(pose) = turned(cameras[c].at(first), &Vector3::from(*turn)) {
+                out[c] = out[c].with_pose_from(*frame, pose);
+                in_use[c] = *turn;
+            }
+        }
+    }
+    out
 }
 
 /// A mesh's window widened by a quarter of its size and 8 pixels each way: the hands that hold
@@ -600,6 +636,42 @@ mod tests {
             w = [w[0].min(q.x), w[1].min(q.y), w[2].max(q.x), w[3].max(q.y)];
         }
         w
+    }
+
+    #[test]
+    fn the_cameras_a_run_used_are_turned_from_the_frame_each_turn_was_first_used_on() {
+        let syn = Synthetic::generate(&SynthOptions {
+            cameras: Some(2),
+            width: 64,
+            height: 48,
+            frames: 2,
+            ..SynthOptions::default()
+        })
+        .unwrap();
+        let turn = [0.001, -0.002, 0.0005];
+        // Camera 1 turned from frame 3 on (frames 1 and 2 logged without turns).
+        let lines = vec![
+            (1, vec![]),
+            (2, vec![]),
+            (3, vec![[0.0; 3], turn]),
+            (4, vec![[0.0; 3], turn]),
+        ];
+        let used = cameras_as_used(&syn.cameras, 0, &lines);
+        let x = syn.truth[0][100];
+        let expected = turned(syn.cameras[1].at(0), &Vector3::from(turn)).unwrap();
+        for f in 0..6 {
+            assert_eq!(used[0].at(f).project(&x), syn.cameras[0].at(0).project(&x));
+            let want = if f < 3 {
+                syn.cameras[1].at(0)
+            } else {
+                &expected
+            };
+            assert_eq!(used[1].at(f).project(&x), want.project(&x), "frame {f}");
+        }
+        // The turn moves the point by about f·|turn| pixels.
+        let moved =
+            (expected.project(&x).unwrap() - syn.cameras[1].at(0).project(&x).unwrap()).norm();
+        assert!((0.05..0.3).contains(&moved), "{moved}");
     }
 
     #[test]
