@@ -318,29 +318,28 @@ pub(crate) fn read(
             if !just_moved && last.as_ref().is_some_and(usable) && moved(&turn) < 0.5 * MOVED_PX {
                 return None;
             }
-            // Something moved, maybe past this level's reach (a hard knock): the same from two
-            // levels coarser still, kept if it explains the background better here.
             // Something moved, maybe past this level's reach (a hard knock): the best shift of
             // the whole background here, searched pixel by pixel, then the same fit from there,
             // kept if it explains the background better.
-            if !last.as_ref().is_some_and(usable) {
-                continue;
-            }
-            let mut wide = Rotation3::new(start);
-            let Some((dx, dy)) = best_shift(refimg, &img, &k, &level_skip, &wide) else {
-                continue;
+            let shift = if last.as_ref().is_some_and(usable) {
+                best_shift(refimg, &img, &k, &level_skip, &Rotation3::new(start))
+            } else {
+                None
             };
-            // A shift of the image centre by (dx, dy) is the turn (−dy/fy, dx/fx, 0).
-            wide = Rotation3::new(Vector3::new(-dy / k[(1, 1)], dx / k[(0, 0)], 0.0)) * wide;
-            let from_wide = fit_level(refimg, &img, &k, &level_skip, samples, &mut wide);
-            let better = match (&last, &from_wide) {
-                (_, None) => false,
-                (None, Some(_)) => true,
-                (Some(a), Some(b)) => b.residual < a.residual,
-            };
-            if better {
-                turn = wide;
-                last = from_wide;
+            if let Some((dx, dy)) = shift {
+                // A shift of the image centre by (dx, dy) is the turn (−dy/fy, dx/fx, 0).
+                let mut wide = Rotation3::new(Vector3::new(-dy / k[(1, 1)], dx / k[(0, 0)], 0.0))
+                    * Rotation3::new(start);
+                let from_wide = fit_level(refimg, &img, &k, &level_skip, samples, &mut wide);
+                let better = match (&last, &from_wide) {
+                    (_, None) => false,
+                    (None, Some(_)) => true,
+                    (Some(a), Some(b)) => b.residual < a.residual,
+                };
+                if better {
+                    turn = wide;
+                    last = from_wide;
+                }
             }
             // What the finer level starts from, and what is read if it cannot tell (a knock
             // past its reach leaves it too far off: the next frame starts from this reading
