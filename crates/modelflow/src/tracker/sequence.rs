@@ -265,8 +265,6 @@ pub struct Tracker {
     /// Per camera, its first frame's view of its background (`None`: a moving camera, or one
     /// whose first image was blank): whether it has turned since (`steady`).
     steady: Vec<Option<steady::Reference>>,
-    /// Per camera, its pose at the first frame, as calibrated.
-    calibrated: Vec<Projection>,
     /// Per camera, the turn since it was calibrated that the tracker uses
     /// ([`FrameReport::camera_turns`]).
     turns: Vec<Vector3<f64>>,
@@ -416,7 +414,6 @@ impl Tracker {
             watch_sync: Vec::new(),
             late: Vec::new(),
             steady: Vec::new(),
-            calibrated: Vec::new(),
             turns: Vec::new(),
             moved_at: Vec::new(),
         };
@@ -435,7 +432,6 @@ impl Tracker {
                 })
             })
             .collect();
-        t.calibrated = t.cameras.iter().map(|c| c.at(frame).clone()).collect();
         t.turns = vec![Vector3::zeros(); t.cameras.len()];
         t.moved_at = vec![None; t.cameras.len()];
         (t.anchor, t.contradicted_at_first) = t.anchor_patches(&t.prev, None);
@@ -807,7 +803,9 @@ impl Tracker {
         for (c, reading) in readings.into_iter().enumerate() {
             let Some(reading) = reading else { continue };
             let (w, h) = (self.cameras[c].width as f64, self.cameras[c].height as f64);
-            let k = self.calibrated[c].krt().0;
+            // Its pose at the first frame is the calibrated one (a turn applies from a later
+            // frame on).
+            let k = self.cameras[c].at(self.anchor_frame).krt().0;
             let px = steady::motion_px(&k, w, h, &reading.turn, &self.turns[c]);
             if px > steady::MOVED_PX {
                 self.turn_camera(c, frame, reading.turn);
@@ -818,7 +816,7 @@ impl Tracker {
 
     /// Poses camera `c` turned by `turn` since its calibration from `frame` on.
     fn turn_camera(&mut self, c: usize, frame: u32, turn: Vector3<f64>) {
-        let Some(pose) = steady::turned(&self.calibrated[c], &turn) else {
+        let Some(pose) = steady::turned(self.cameras[c].at(self.anchor_frame), &turn) else {
             return;
         };
         self.cameras[c] = self.cameras[c].with_pose_from(frame, pose);
@@ -1869,7 +1867,11 @@ pub(crate) fn stereo_levels(levels: usize, finest: usize) -> std::ops::Range<usi
 /// The pixel window `[x0, y0, x1, y1]` that `positions` project into in `camera`'s image at
 /// `frame`, widened by 4 pixels and cut to the image; `None` when no vertex lies in front of the
 /// camera or the window misses the image.
-fn mesh_window(camera: &Camera, frame: u32, positions: &[Point3<f64>]) -> Option<[f64; 4]> {
+pub(crate) fn mesh_window(
+    camera: &Camera,
+    frame: u32,
+    positions: &[Point3<f64>],
+) -> Option<[f64; 4]> {
     let p = camera.at(frame);
     let mut w = [
         f64::INFINITY,

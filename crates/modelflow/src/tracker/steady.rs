@@ -629,12 +629,7 @@ mod tests {
 
     /// The window the first mesh covers in camera `c` of `syn` at frame 0.
     fn window(syn: &Synthetic, c: usize) -> [f64; 4] {
-        let p = syn.cameras[c].at(0);
-        let mut w = [f64::MAX, f64::MAX, f64::MIN, f64::MIN];
-        for q in syn.truth[0].iter().filter_map(|x| p.project(x)) {
-            w = [w[0].min(q.x), w[1].min(q.y), w[2].max(q.x), w[3].max(q.y)];
-        }
-        w
+        crate::tracker::sequence::mesh_window(&syn.cameras[c], 0, &syn.truth[0]).unwrap()
     }
 
     #[test]
