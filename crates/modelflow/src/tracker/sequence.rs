@@ -682,19 +682,15 @@ impl Tracker {
 
     /// Per camera, whether its image of the frame being `prepared` repeats its image of the
     /// previous frame solved (`health::repeated_of` over the change of each camera's block
-    /// means within the window the mesh covered there): the recorder filled a dropped frame
+    /// means within the window the mesh covered there, `windows`): the recorder filled a dropped frame
     /// with the one before, or the camera's stream froze. A blank image is not a repeat.
-    fn repeated(&self, prepared: &Prepared) -> Vec<bool> {
-        let changes: Vec<Option<f64>> = self
-            .cameras
-            .iter()
-            .enumerate()
-            .map(|(c, cam)| {
+    fn repeated(&self, prepared: &Prepared, windows: &[Option<[f64; 4]>]) -> Vec<bool> {
+        let changes: Vec<Option<f64>> = (0..self.cameras.len())
+            .map(|c| {
                 if prepared.blank[c] {
                     return None;
                 }
-                let window = mesh_window(cam, self.prev.frame, &self.prev.positions)?;
-                prepared.thumbs[c].change_within(&self.prev.thumbs[c], window)
+                prepared.thumbs[c].change_within(&self.prev.thumbs[c], windows[c]?)
             })
             .collect();
         health::repeated_of(&changes)
@@ -775,6 +771,7 @@ impl Tracker {
         frame: u32,
         next: &[Pyramid],
         left_out: &[bool],
+        prev_windows: &[Option<[f64; 4]>],
         predicted: &[Point3<f64>],
     ) {
         let this = &*self;
@@ -786,9 +783,9 @@ impl Tracker {
                     return None;
                 }
                 let cam = &this.cameras[c];
-                let windows: Vec<[f64; 4]> = [&this.prev.positions[..], predicted]
-                    .iter()
-                    .filter_map(|p| mesh_window(cam, this.prev.frame, p))
+                let windows: Vec<[f64; 4]> = prev_windows[c]
+                    .into_iter()
+                    .chain(mesh_window(cam, this.prev.frame, predicted))
                     .collect();
                 let just_moved = matches!(this.moved_at[c], Some((f, _)) if f == this.prev.frame);
                 steady::read(
@@ -1149,7 +1146,14 @@ impl Tracker {
         let next_blank = prepared.blank.clone();
         // A camera whose image repeats the previous frame's shows where the surface was, not
         // where it is: left out of this frame as a blank one is.
-        let next_repeated = self.repeated(&prepared);
+        // Each camera's window of the previous solution, which both the repeat check and the
+        // background's (`steady`) leave out of what they compare.
+        let prev_windows: Vec<Option<[f64; 4]>> = self
+            .cameras
+            .iter()
+            .map(|cam| mesh_window(cam, self.prev.frame, &self.prev.positions))
+            .collect();
+        let next_repeated = self.repeated(&prepared, &prev_windows);
         // While a camera is watched for running late, the frame is kept to be solved again
         // without it if it is found so.
         let again = self.watch_sync.iter().any(|&w| w).then(|| prepared.clone());
@@ -1201,7 +1205,13 @@ impl Tracker {
             None => self.prev.positions.clone(),
         };
         // A camera whose background turned since the first frame is solved turned with it.
-        self.steady_cameras(frame, &next, &next_left_out, &predicted_shape);
+        self.steady_cameras(
+            frame,
+            &next,
+            &next_left_out,
+            &prev_windows,
+            &predicted_shape,
+        );
         let context = FrameContext {
             previous: &self.prev.positions,
             predicted: &predicted_shape,
