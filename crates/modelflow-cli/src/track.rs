@@ -619,6 +619,8 @@ pub fn run_scene(
                     Concern::Blank { .. } => Some(&r.blank_cameras),
                     Concern::Repeated { .. } => Some(&r.repeated_cameras),
                     Concern::Late { .. } => Some(&r.late_cameras),
+                    Concern::Early { .. } => Some(&r.early_cameras),
+                    Concern::Ahead { .. } => Some(&r.ahead_cameras),
                     Concern::Moved { .. } => Some(&r.moved_cameras),
                     _ => None,
                 };

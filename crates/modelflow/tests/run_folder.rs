@@ -213,6 +213,55 @@ fn a_run_stopped_where_a_camera_repeated_or_was_found_late_resumes_to_the_same_f
 }
 
 #[test]
+fn a_run_stopped_where_a_camera_dropped_a_frame_or_was_found_early_resumes_to_the_same_files() {
+    // Camera 0 loses frame 4 without filling it in (its files 4 to 6 show frames 5 to 7): its
+    // view leaps at frame 4, and frame 5 finds it a frame early and leaves it out from then on.
+    // Stopped at either frame, the resumed run must do the same.
+    let dir = tempfile::tempdir().unwrap();
+    let opts = SynthOptions {
+        width: 480,
+        height: 360,
+        frames: 8,
+        shake: 3.0,
+        ..SynthOptions::default()
+    };
+    let scene = write_dataset(&opts, &dir.path().join("footage"), &|_, _| {}).unwrap();
+    let images = scene.parent().unwrap().join("images/cam0");
+    for f in 4..7 {
+        std::fs::copy(
+            images.join(format!("{:04}.png", f + 1)),
+            images.join(format!("{f:04}.png")),
+        )
+        .unwrap();
+    }
+    // Frames 0 to 6 only (camera 0 has no frame 7 to show).
+    let text = std::fs::read_to_string(&scene).unwrap();
+    let mut json: serde_json::Value = serde_json::from_str(&text).unwrap();
+    json["frames"]["last"] = serde_json::json!(6);
+    std::fs::write(&scene, serde_json::to_string_pretty(&json).unwrap()).unwrap();
+    let reference = dir.path().join("reference");
+    track(&scene, &reference, &RunOptions::default()).unwrap();
+    let log = read_frame_log(&reference).unwrap();
+    let listed = |pick: fn(&modelflow::tracker::FrameReport) -> &Vec<u16>| -> Vec<u32> {
+        log.iter()
+            .filter(|l| !pick(l.model_flow().unwrap()).is_empty())
+            .map(|l| l.frame)
+            .collect()
+    };
+    assert_eq!(listed(|r| &r.leapt_cameras), [4]);
+    assert_eq!(listed(|r| &r.ahead_cameras), [5]);
+    assert_eq!(listed(|r| &r.early_cameras), [5, 6]);
+    // Stopped where its view leapt (watched) and where it was found early (left out).
+    for stop in [4, 5] {
+        let out = dir.path().join(format!("interrupted-{stop}"));
+        interrupted_after(&scene, &out, stop);
+        assert_eq!(track(&scene, &out, &resume()).unwrap(), (6 - stop) as usize);
+        assert_eq!(meshes(&out), meshes(&reference), "byte-identical meshes");
+        assert_eq!(logs_without_times(&out), logs_without_times(&reference));
+    }
+}
+
+#[test]
 fn a_run_stopped_after_a_camera_was_found_turned_resumes_to_the_same_files() {
     // Camera 1 is knocked 0.3° off its calibration at frame 3 (a textured wall behind the cloth
     // shows it): the tracker poses it turned from frame 3 on. Stopped at frame 3 or 4, the

@@ -75,6 +75,13 @@ pub enum Concern {
     /// better than with this one ([`LATE_RATIO`]): they run a frame late since, and the mesh
     /// is pulled toward where it was.
     Late { cameras: usize },
+    /// `cameras` cameras whose image of the previous frame agrees with the other cameras' images
+    /// of this one clearly better than their own image of this frame does ([`LATE_RATIO`]):
+    /// they dropped a frame and run a frame early since; left out from this frame on.
+    Early { cameras: usize },
+    /// The next frame found `cameras` cameras running a frame early since this one: this frame
+    /// was solved with their image a frame ahead of the others', which pulls the mesh.
+    Ahead { cameras: usize },
     /// `cameras` cameras' views of their background turned since the first frame, by up to `px`
     /// pixels from where the tracker had them (`tracker::steady`: a knock on a tripod, a mount
     /// that slipped): this frame and the later ones are solved with their poses turned to match.
@@ -125,6 +132,14 @@ impl Concern {
                 "{} a frame late since repeating a frame (its image agrees with the other cameras' previous frame better than with this one), so the mesh is pulled toward where it was: track from here on with its frame_offset raised by 1 (docs/scene-format.md)",
                 counted(cameras, "1 camera runs", "cameras run")
             ),
+            Concern::Early { cameras } => format!(
+                "{} a frame early since the frame before (its image of that frame agrees with the other cameras' images of this one better than its own image of this one does: it dropped a frame), left out from this frame on: the mesh is held by the other cameras only; track from here on with its frame_offset lowered by 1 (docs/scene-format.md)",
+                counted(cameras, "1 camera runs", "cameras run")
+            ),
+            Concern::Ahead { cameras } => format!(
+                "solved with {} a frame ahead of the others' (found at the next frame: it dropped a frame), which pulls the mesh toward where the surface went next: check this frame's mesh",
+                counted(cameras, "1 camera's image", "cameras' images")
+            ),
             Concern::Moved { cameras, px } => format!(
                 "{} since the first frame (its view of the background moved {px:.1} px against its first frame's: a knock on its tripod, a slipping mount); this frame and the later ones are solved with its pose turned to match (the log's camera_turns): check the overlay, and recalibrate it if it keeps moving",
                 counted(cameras, "1 camera has turned", "cameras have turned")
@@ -161,6 +176,59 @@ pub const REPEAT_MOVED: f64 = 2.5e-3;
 /// late comparison, one a frame late 1/300 (two cameras) and 0.45 (a limb's four cameras,
 /// whose view-dependent shading both comparisons share); docs/tracker.md, "Repeated frames".
 pub const LATE_RATIO: f64 = 2.0 / 3.0;
+
+/// A camera's view leapt when its change since the previous frame grew, against its change at
+/// the previous frame, by at least this times the median of the same growth in the other
+/// cameras ([`growth_of`]): a frame it dropped shows about twice a frame's motion (1.7 on the
+/// shaken cloth; 1.2 at 20 px a frame, where the 8×8-pixel block means no longer follow the
+/// motion in proportion), where every camera sees the object speed up or slow down alike.
+/// Footage with hands, a rod or glare passing one camera's view leaps too (up to 3.5 on the
+/// real board, 12 on the Blender hard sample), which is why a leap is only a reason to check
+/// at the next frame, and only when the view's change falls back there (by this ratio again):
+/// two comparisons of the cameras, twice on the real board's 19 frames.
+pub const LEAP_RATIO: f64 = 1.15;
+
+/// Per camera, how its view's change grew since the previous frame against the other cameras':
+/// its growth `changes/before` (each camera's view change at this frame and at the previous
+/// one, as [`repeated_of`] reads them) over the median growth of the other cameras. `None` for
+/// a camera `out` (left out of either frame), one that did not see the mesh move in both frames
+/// ([`REPEAT_MOVED`]), or with no other camera to compare with. At least [`LEAP_RATIO`]: the
+/// view leapt (a frame dropped shows two frames' motion); at most its inverse at the next
+/// frame: it fell back (one frame's motion again), as a dropped frame does and an occluder
+/// moving in over several frames does not.
+pub fn growth_of(
+    changes: &[Option<f64>],
+    before: &[Option<f64>],
+    out: &[bool],
+) -> Vec<Option<f64>> {
+    let growth: Vec<Option<f64>> = (0..changes.len())
+        .map(|c| {
+            let (now, then) = (changes[c]?, before.get(c).copied().flatten()?);
+            (!out.get(c).copied().unwrap_or(true) && now >= REPEAT_MOVED && then >= REPEAT_MOVED)
+                .then(|| now / then)
+        })
+        .collect();
+    (0..changes.len())
+        .map(|c| {
+            let g = growth[c]?;
+            let mut others: Vec<f64> = (0..changes.len())
+                .filter(|&o| o != c)
+                .filter_map(|o| growth[o])
+                .collect();
+            if others.is_empty() {
+                return None;
+            }
+            others.sort_by(f64::total_cmp);
+            let m = others.len();
+            let median = if m % 2 == 1 {
+                others[m / 2]
+            } else {
+                0.5 * (others[m / 2 - 1] + others[m / 2])
+            };
+            Some(g / median)
+        })
+        .collect()
+}
 
 /// Which cameras' images of a frame repeat their previous frame's, from each camera's change
 /// of its block means over the mesh's window since then (`None`: not measured, e.g. a blank
@@ -240,8 +308,10 @@ pub fn own_concerns(r: &FrameReport) -> Vec<Concern> {
     }
     // Measured against the first frame seen by every camera: a frame that left a camera out
     // (blank, repeated, late) has less to go on by that alone, and says so below.
-    let left_out =
-        !r.blank_cameras.is_empty() || !r.repeated_cameras.is_empty() || !r.late_cameras.is_empty();
+    let left_out = !r.blank_cameras.is_empty()
+        || !r.repeated_cameras.is_empty()
+        || !r.late_cameras.is_empty()
+        || !r.early_cameras.is_empty();
     if r.information_share < INFORMATION_FLOOR && !left_out {
         c.push(Concern::LittleTexture {
             share: r.information_share,
@@ -266,6 +336,11 @@ pub fn own_concerns(r: &FrameReport) -> Vec<Concern> {
     if !r.late_cameras.is_empty() {
         c.push(Concern::Late {
             cameras: r.late_cameras.len(),
+        });
+    }
+    if !r.early_cameras.is_empty() {
+        c.push(Concern::Early {
+            cameras: r.early_cameras.len(),
         });
     }
     if !r.moved_cameras.is_empty() {
@@ -295,6 +370,14 @@ impl Checks {
             .and_then(|prev| self.judge(prev, first, r.contradicted_share, r.contradicted_at_first))
             .into_iter()
             .collect();
+        if !r.ahead_cameras.is_empty() && frame > first + 1 {
+            // The frame before was solved with the cameras found early here a frame ahead.
+            let c = Concern::Ahead {
+                cameras: r.ahead_cameras.len(),
+            };
+            self.push(frame - 1, c);
+            added.push((frame - 1, c));
+        }
         for c in own_concerns(r) {
             self.push(frame, c);
             added.push((frame, c));
@@ -519,6 +602,64 @@ mod tests {
             json,
             serde_json::json!({"kind": "moved", "cameras": 1, "px": 3.25})
         );
+    }
+
+    #[test]
+    fn a_view_that_leaps_against_the_others_and_falls_back_is_what_a_dropped_frame_looks_like() {
+        // The shaken cloth, camera 0 dropping frame 5: its view changes 0.0288 then 0.0495
+        // (two frames' motion) then 0.0295, camera 1's 0.0286, 0.0289, 0.0308.
+        let g = growth_of(
+            &[Some(0.0495), Some(0.0289)],
+            &[Some(0.0288), Some(0.0286)],
+            &[false, false],
+        );
+        assert!(g[0].unwrap() >= LEAP_RATIO, "{g:?}");
+        assert!(g[1].unwrap() < 1.0, "{g:?}");
+        let back = growth_of(
+            &[Some(0.0295), Some(0.0308)],
+            &[Some(0.0495), Some(0.0289)],
+            &[false, false],
+        );
+        assert!(back[0].unwrap() * LEAP_RATIO <= 1.0, "{back:?}");
+        // Both speeding up alike is no leap.
+        let alike = growth_of(
+            &[Some(0.06), Some(0.058)],
+            &[Some(0.03), Some(0.029)],
+            &[false, false],
+        );
+        assert!(
+            alike.iter().all(|g| (g.unwrap() - 1.0).abs() < 0.05),
+            "{alike:?}"
+        );
+        // Not measured: a camera left out, a still view, or no other camera to compare with.
+        let none = growth_of(
+            &[Some(0.06), Some(0.001), Some(0.05)],
+            &[Some(0.03), Some(0.001), Some(0.03)],
+            &[false, false, true],
+        );
+        assert_eq!(none, [None, None, None]);
+    }
+
+    #[test]
+    fn a_camera_found_early_flags_the_frame_before_and_every_frame_after() {
+        let ok = report(0.06, 0.8, false);
+        let mut found = ok.clone();
+        found.early_cameras = vec![1];
+        found.ahead_cameras = vec![1];
+        let mut after = ok.clone();
+        after.early_cameras = vec![1];
+        let reps = [(1, ok.clone()), (2, ok), (3, found), (4, after)];
+        let checks = check_reports(0, reps.iter().map(|(f, r)| (*f, r)));
+        let frames: Vec<u32> = checks.iter().map(|c| c.frame).collect();
+        assert_eq!(frames, [2, 3, 4]);
+        assert_eq!(checks[0].concerns, [Concern::Ahead { cameras: 1 }]);
+        assert_eq!(checks[1].concerns, [Concern::Early { cameras: 1 }]);
+        assert!(checks.iter().all(FrameCheck::suspect));
+        assert!(checks[1].concerns[0]
+            .describe()
+            .contains("frame_offset lowered by 1"));
+        let json = serde_json::to_value(checks[0].concerns[0]).unwrap();
+        assert_eq!(json, serde_json::json!({"kind": "ahead", "cameras": 1}));
     }
 
     #[test]

@@ -111,6 +111,27 @@ pub struct FrameReport {
     /// repeat, and its images pull the mesh back (docs/tracker.md, "Repeated frames").
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub late_cameras: Vec<u16>,
+    /// The cameras (indices) found running a frame early (a frame they dropped without
+    /// repeating one): their image of the previous frame agreed with the other cameras' images
+    /// of this one clearly better than their own image of this frame did
+    /// ([`health::LATE_RATIO`]). Left out of this frame (solved again without them) and of every
+    /// later one; listed at each (docs/tracker.md, "A camera that runs a frame early").
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub early_cameras: Vec<u16>,
+    /// The cameras (indices) found running early at this frame: the previous frame was solved
+    /// with their image a frame ahead, so its mesh is likely off (that frame is flagged).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub ahead_cameras: Vec<u16>,
+    /// Per camera, how much its view of the mesh changed since the previous frame solved: the
+    /// RMS change of its 8×8-pixel block means (0–1 luminance) over the window the mesh covered
+    /// there (`null`: not measured, e.g. a blank image). A camera whose change leaps against
+    /// the others' ([`health::LEAP_RATIO`]) is checked at the next frame for running early.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub view_changes: Vec<Option<f64>>,
+    /// The cameras (indices) whose view leapt at this frame ([`health::growth_of`]): checked at
+    /// the next frame for running a frame early.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub leapt_cameras: Vec<u16>,
     /// Per camera, its colour balance against the first frame after this frame (red, green,
     /// blue; luminance 1): what the next frame's images are divided by, so that every
     /// comparison is made in the colours the camera had at the first frame (docs/tracker.md,
@@ -262,6 +283,16 @@ pub struct Tracker {
     /// Per camera, whether it was found running a frame late ([`Tracker::late_cameras`]): left
     /// out of every later frame.
     late: Vec<bool>,
+    /// Per camera, whether its view changed at the last frame solved by clearly more than the
+    /// others' ([`health::growth_of`]): asked at this frame whether it runs a frame early
+    /// ([`Tracker::early_cameras`]).
+    watch_early: Vec<bool>,
+    /// Per camera, the frame at which it was found running a frame early: left out of that
+    /// frame and every later one.
+    early_since: Vec<Option<u32>>,
+    /// Per camera, its view's change at the last frame solved ([`FrameReport::view_changes`];
+    /// `None` after a stalled frame, which kept its template).
+    prev_changes: Vec<Option<f64>>,
     /// Per camera, its first frame's view of its background (`None`: a moving camera, or one
     /// whose first image was blank): whether it has turned since (`steady`).
     steady: Vec<Option<steady::Reference>>,
@@ -413,6 +444,9 @@ impl Tracker {
             readings: Vec::new(),
             watch_sync: Vec::new(),
             late: Vec::new(),
+            watch_early: Vec::new(),
+            early_since: Vec::new(),
+            prev_changes: Vec::new(),
             steady: Vec::new(),
             turns: Vec::new(),
             moved_at: Vec::new(),
@@ -680,28 +714,27 @@ impl Tracker {
         prepared
     }
 
-    /// Per camera, whether its image of the frame being `prepared` repeats its image of the
-    /// previous frame solved (`health::repeated_of` over the change of each camera's block
-    /// means within the window the mesh covered there, `windows`): the recorder filled a dropped frame
-    /// with the one before, or the camera's stream froze. A blank image is not a repeat.
-    fn repeated(&self, prepared: &Prepared, windows: &[Option<[f64; 4]>]) -> Vec<bool> {
-        let changes: Vec<Option<f64>> = (0..self.cameras.len())
+    /// Per camera, how much its view changed since the previous frame solved: the change of
+    /// its block means within the window the mesh covered there (`windows`); `None` for a blank
+    /// image or a mesh out of view. Whether it repeats that frame (`health::repeated_of`: the
+    /// recorder filled a dropped frame with the one before, or the stream froze) and whether it
+    /// leapt ahead (`health::growth_of`: a frame dropped) are read from it.
+    fn view_changes(&self, prepared: &Prepared, windows: &[Option<[f64; 4]>]) -> Vec<Option<f64>> {
+        (0..self.cameras.len())
             .map(|c| {
                 if prepared.blank[c] {
                     return None;
                 }
                 prepared.thumbs[c].change_within(&self.prev.thumbs[c], windows[c]?)
             })
-            .collect();
-        health::repeated_of(&changes)
+            .collect()
     }
 
     /// Per camera, whether it runs a frame late: for each camera watched since it repeated a
-    /// frame, the cameras' comparison with each other (`offset::cross_cost`, at full resolution
-    /// up to 1 280 pixels wide) with its image of `frame` beside the others' previous frame at the previous
-    /// solution, against the same with the others' `frame` at its solution `x`; late when the
-    /// first is below [`health::LATE_RATIO`] of the second. Cameras left out of either frame
-    /// take no part.
+    /// frame, the cameras' comparison with each other ([`Tracker::paired_cost`]) with its image
+    /// of `frame` beside the others' previous frame at the previous solution, against the same
+    /// with the others' `frame` at its solution `x`; late when the first is below
+    /// [`health::LATE_RATIO`] of the second. Cameras left out of either frame take no part.
     fn late_cameras(
         &self,
         frame: u32,
@@ -710,56 +743,100 @@ impl Tracker {
         left_out: &[bool],
     ) -> Vec<bool> {
         let n = self.cameras.len();
-        let mut late = vec![false; n];
         let watched = |c: usize| self.watch_sync.get(c).copied().unwrap_or(false);
-        if !(0..n).any(watched) {
-            return late;
+        (0..n)
+            .map(|c| {
+                if !watched(c) || left_out[c] {
+                    return false;
+                }
+                // The camera and the others shown in both frames, compared the same way in both.
+                let set: Vec<usize> = (0..n)
+                    .filter(|&o| o == c || (!left_out[o] && !self.prev.left_out[o]))
+                    .collect();
+                let now = self.paired_cost(c, &set, x, |o| (frame, &next[o]));
+                let behind = self.paired_cost(c, &set, &self.prev.positions, |o| {
+                    if o == c {
+                        (frame, &next[o])
+                    } else {
+                        (self.prev.frame, &self.prev.pyramids[o])
+                    }
+                });
+                matches!((now, behind), (Some(a), Some(b)) if b < health::LATE_RATIO * a)
+            })
+            .collect()
+    }
+
+    /// Per camera, whether it runs a frame early: for each camera whose view leapt at the
+    /// previous frame ([`Tracker::watch_early`]) and `fell_back` at this one
+    /// ([`health::growth_of`]), the cameras' comparison with each other
+    /// ([`Tracker::paired_cost`]) at this frame's solution `x` with its image of the *previous*
+    /// frame beside the others' `frame`, against the same with its own image of `frame`; early
+    /// when the first is below [`health::LATE_RATIO`] of the second (it dropped a frame: what
+    /// it recorded as the previous frame shows this one). Cameras left out of either frame take
+    /// no part.
+    fn early_cameras(
+        &self,
+        frame: u32,
+        x: &[Point3<f64>],
+        next: &[Pyramid],
+        left_out: &[bool],
+        fell_back: &[bool],
+    ) -> Vec<bool> {
+        let n = self.cameras.len();
+        let watched = |c: usize| self.watch_early.get(c).copied().unwrap_or(false);
+        (0..n)
+            .map(|c| {
+                if !watched(c) || !fell_back[c] || left_out[c] || self.prev.left_out[c] {
+                    return false;
+                }
+                let set: Vec<usize> = (0..n).filter(|&o| o == c || !left_out[o]).collect();
+                let now = self.paired_cost(c, &set, x, |o| (frame, &next[o]));
+                let ahead = self.paired_cost(c, &set, x, |o| {
+                    if o == c {
+                        (frame, &self.prev.pyramids[o])
+                    } else {
+                        (frame, &next[o])
+                    }
+                });
+                matches!((now, ahead), (Some(a), Some(b)) if b < health::LATE_RATIO * a)
+            })
+            .collect()
+    }
+
+    /// The comparisons between camera `c` and the other cameras of `set` (`offset::cross_cost`,
+    /// as the first-mesh check compares cameras; at full resolution up to 1 280 pixels wide,
+    /// the level below for wider images) at positions `x`, each camera `o` posed at and showing
+    /// what `image(o)` gives (a frame, its pyramid). `None` when `set` has no other camera, or
+    /// `c` sees no triangle another camera sees.
+    fn paired_cost<'a>(
+        &'a self,
+        c: usize,
+        set: &[usize],
+        x: &[Point3<f64>],
+        image: impl Fn(usize) -> (u32, &'a Pyramid),
+    ) -> Option<f64> {
+        if set.len() < 2 {
+            return None;
         }
-        // Full resolution up to 1 280 pixels wide, then the level below (watched frames only).
         let widest = self.cameras.iter().map(|c| c.width).max().unwrap_or(0);
         let level = usize::from(widest > 1280).min(self.opts.levels.max(1) - 1);
-        let closed = !self.two_sided;
-        for c in (0..n).filter(|&c| watched(c) && !left_out[c]) {
-            // The camera and the others shown in both frames, compared the same way in both.
-            let set: Vec<usize> = (0..n)
-                .filter(|&o| o == c || (!left_out[o] && !self.prev.left_out[o]))
-                .collect();
-            if set.len() < 2 {
-                continue;
-            }
-            let cost = |x: &[Point3<f64>], behind: bool| {
-                crate::tracker::offset::cross_cost(
-                    x,
-                    &self.triangles,
-                    &self.pattern,
-                    closed,
-                    &set.iter()
-                        .map(|&o| {
-                            let f = if behind && o != c {
-                                self.prev.frame
-                            } else {
-                                frame
-                            };
-                            self.cameras[o].at(f)
-                        })
-                        .collect::<Vec<_>>(),
-                    &set.iter()
-                        .map(|&o| {
-                            if behind && o != c {
-                                &self.prev.pyramids[o].levels[level]
-                            } else {
-                                &next[o].levels[level]
-                            }
-                        })
-                        .collect::<Vec<_>>(),
-                    level,
-                    set.iter().position(|&o| o == c).unwrap_or(0),
-                )
-            };
-            let (now, behind) = (cost(x, false), cost(&self.prev.positions, true));
-            late[c] = matches!((now, behind), (Some(a), Some(b)) if b < health::LATE_RATIO * a);
-        }
-        late
+        let shown: Vec<(u32, &Pyramid)> = set.iter().map(|&o| image(o)).collect();
+        crate::tracker::offset::cross_cost(
+            x,
+            &self.triangles,
+            &self.pattern,
+            !self.two_sided,
+            &set.iter()
+                .zip(&shown)
+                .map(|(&o, (f, _))| self.cameras[o].at(*f))
+                .collect::<Vec<_>>(),
+            &shown
+                .iter()
+                .map(|(_, p)| &p.levels[level])
+                .collect::<Vec<_>>(),
+            level,
+            set.iter().position(|&o| o == c).unwrap_or(0),
+        )
     }
 
     /// Before `frame` is solved: each static camera's turn since the first frame as its
@@ -888,6 +965,31 @@ impl Tracker {
         let mark = |list: &[u16]| (0..n).map(|c| list.contains(&(c as u16))).collect();
         self.late = mark(late);
         self.watch_sync = mark(repeated);
+    }
+
+    /// Marks the cameras found running a frame early ([`FrameReport::early_cameras`]) and
+    /// those whose view leapt ([`FrameReport::leapt_cameras`], checked at the next frame), and
+    /// takes each camera's view change ([`FrameReport::view_changes`]), as the frame a run
+    /// stopped at gave them (no changes when it `stalled`): with [`Tracker::restore`] and
+    /// [`Tracker::restore_sync`], what `--resume` needs to continue exactly. Indices past the
+    /// rig are ignored.
+    pub fn restore_early(
+        &mut self,
+        frame: u32,
+        early: &[u16],
+        leapt: &[u16],
+        view_changes: &[Option<f64>],
+        stalled: bool,
+    ) {
+        let n = self.cameras.len();
+        let mark = |list: &[u16], c: usize| list.contains(&(c as u16));
+        self.early_since = (0..n).map(|c| mark(early, c).then_some(frame)).collect();
+        self.watch_early = (0..n).map(|c| mark(leapt, c)).collect();
+        self.prev_changes = if view_changes.len() == n && !stalled {
+            view_changes.to_vec()
+        } else {
+            vec![None; n]
+        };
     }
 
     /// Sets each camera's colour balance against the first frame and the readings it comes
@@ -1153,17 +1255,41 @@ impl Tracker {
             .iter()
             .map(|cam| mesh_window(cam, self.prev.frame, &self.prev.positions))
             .collect();
-        let next_repeated = self.repeated(&prepared, &prev_windows);
-        // While a camera is watched for running late, the frame is kept to be solved again
-        // without it if it is found so.
-        let again = self.watch_sync.iter().any(|&w| w).then(|| prepared.clone());
-        // A camera found running a frame late pulls the mesh toward where it was: left out of
-        // every frame after it was found.
+        let view_changes = self.view_changes(&prepared, &prev_windows);
+        let next_repeated = health::repeated_of(&view_changes);
+        // While a camera is watched for running late or early, the frame is kept to be solved
+        // again without it if it is found so.
+        let again =
+            (self.watch_sync.iter().chain(&self.watch_early).any(|&w| w)).then(|| prepared.clone());
+        // A camera found running a frame late pulls the mesh toward where it was, one found
+        // running early toward where it will be: left out of every frame after it was found.
         let known_late: Vec<bool> = (0..self.cameras.len())
             .map(|c| self.late.get(c).copied().unwrap_or(false))
             .collect();
+        let known_early: Vec<bool> = (0..self.cameras.len())
+            .map(|c| self.early_since.get(c).is_some_and(Option::is_some))
+            .collect();
         let next_left_out: Vec<bool> = (0..self.cameras.len())
-            .map(|c| next_blank[c] || next_repeated[c] || known_late[c])
+            .map(|c| next_blank[c] || next_repeated[c] || known_late[c] || known_early[c])
+            .collect();
+        // A camera whose view changed clearly more than the others' since the previous frame
+        // may have dropped a frame: it is checked once this frame's successor is solved.
+        let growth = health::growth_of(
+            &view_changes,
+            &self.prev_changes,
+            &(0..self.cameras.len())
+                .map(|c| next_left_out[c] || self.prev.left_out[c])
+                .collect::<Vec<_>>(),
+        );
+        let leapt: Vec<bool> = growth
+            .iter()
+            .map(|g| g.is_some_and(|g| g >= health::LEAP_RATIO))
+            .collect();
+        // A watched camera is asked only when its view's change fell back as much: a dropped
+        // frame's leap is one frame's, an occluder moving in goes on changing the view.
+        let fell_back: Vec<bool> = growth
+            .iter()
+            .map(|g| g.is_some_and(|g| g * health::LEAP_RATIO <= 1.0))
             .collect();
         let prepared = self.in_luminance(prepared);
         let mut next = prepared.pyramids;
@@ -1307,19 +1433,33 @@ impl Tracker {
                     .iter()
                     .any(|s| matches!(s.stop, StopReason::CostRose | StopReason::NonFinite)));
         let folded = self.folds.folded(&x, &self.triangles);
-        let found_late = if stalled {
-            vec![false; self.cameras.len()]
+        let (found_late, found_early) = if stalled {
+            (
+                vec![false; self.cameras.len()],
+                vec![false; self.cameras.len()],
+            )
         } else {
-            self.late_cameras(frame, &x, &next, &next_left_out)
+            (
+                self.late_cameras(frame, &x, &next, &next_left_out),
+                self.early_cameras(frame, &x, &next, &next_left_out, &fell_back),
+            )
         };
-        if found_late.iter().any(|&l| l) {
+        if found_late.iter().chain(&found_early).any(|&l| l) {
             if let Some(again) = again {
-                // Solved again without it: what it showed pulled this frame toward the last.
+                // Solved again without it: what it showed pulled this frame toward the last
+                // (late) or the next (early).
                 let n = self.cameras.len();
                 self.late = (0..n).map(|c| known_late[c] || found_late[c]).collect();
                 self.watch_sync = (0..n)
                     .map(|c| !found_late[c] && self.watch_sync.get(c).copied().unwrap_or(false))
                     .collect();
+                self.early_since = (0..n)
+                    .map(|c| {
+                        let known = self.early_since.get(c).copied().flatten();
+                        known.or(found_early[c].then_some(frame))
+                    })
+                    .collect();
+                self.watch_early = vec![false; n];
                 return self.step_prepared(frame, again);
             }
         }
@@ -1333,6 +1473,21 @@ impl Tracker {
             .map(|c| known_late[c] || found_late[c])
             .collect();
         let late_cameras = marked(&self.late);
+        let early_cameras = marked(&known_early);
+        let ahead_cameras: Vec<u16> = (0..self.cameras.len() as u16)
+            .filter(|&c| self.early_since.get(c as usize) == Some(&Some(frame)))
+            .collect();
+        // Watched at the next frame: a camera whose view leapt here, unless already left out.
+        self.watch_early = (0..self.cameras.len())
+            .map(|c| !stalled && leapt[c] && !self.late[c] && !known_early[c])
+            .collect();
+        // What the next frame's leap is measured against (a stalled frame keeps its template,
+        // so the next change spans two frames: none).
+        self.prev_changes = if stalled {
+            vec![None; self.cameras.len()]
+        } else {
+            view_changes.clone()
+        };
         // How far the solution is from the constant-velocity prediction (the membrane's
         // reference above), over the previous shape's size.
         let jump = if stalled {
@@ -1400,6 +1555,10 @@ impl Tracker {
             blank_cameras,
             repeated_cameras,
             late_cameras,
+            early_cameras,
+            ahead_cameras,
+            view_changes,
+            leapt_cameras: marked(&self.watch_early),
             colour_balance: self.balance.clone(),
             colour_readings: self.readings.clone(),
             moved_cameras: (0..self.cameras.len() as u16)

@@ -107,15 +107,31 @@ fn track_into(
                 .into_iter()
                 .find(|l| l.frame == last)
                 .and_then(|l| l.model_flow().cloned());
-            // Left out of it: the cameras that repeated the frame before, and those found late.
+            // Left out of it: the cameras that repeated the frame before, and those found late
+            // or early.
             let repeated: Vec<u16> = report
                 .as_ref()
-                .map(|r| [&r.repeated_cameras[..], &r.late_cameras[..]].concat())
+                .map(|r| {
+                    [
+                        &r.repeated_cameras[..],
+                        &r.late_cameras[..],
+                        &r.early_cameras[..],
+                    ]
+                    .concat()
+                })
                 .unwrap_or_default();
             if let Some(r) = &report {
                 tracker.restore_colour_balance(&r.colour_balance, &r.colour_readings);
                 // A camera found late stays left out; one that repeated this frame is watched.
                 tracker.restore_sync(&r.late_cameras, &r.repeated_cameras);
+                // A camera found early stays left out; one whose view leapt is checked next.
+                tracker.restore_early(
+                    last,
+                    &r.early_cameras,
+                    &r.leapt_cameras,
+                    &r.view_changes,
+                    r.stalled,
+                );
                 // A camera found turned stays turned.
                 tracker.restore_turns(last, &r.camera_turns, &r.moved_cameras, &r.moved_px);
             }
