@@ -1007,12 +1007,13 @@ fn a_camera_that_runs_a_frame_late_after_repeating_one_is_found_and_left_out() {
 }
 
 #[test]
-fn a_camera_that_drops_a_frame_and_runs_early_is_found_and_left_out_and_the_frame_before_named() {
+fn a_camera_that_drops_a_frame_and_runs_early_is_found_and_taken_a_frame_back() {
     // Camera 0 of the shaken cloth's two loses frame 5 without filling it in: its files 5 to 9
     // show what camera 1's 6 to 10 do. With two cameras that is a consistent change of depth,
     // and it took the mesh 7.2 % of its size off by the last frame, with no warning at all.
     // Its view changes twice as much as camera 1's at frame 5 and falls back at frame 6, where
-    // its frame 5 is compared with camera 1's frame 6.
+    // its file 5 is compared with camera 1's frame 6: from there on each of its files is taken
+    // as the frame after it. Frame 5, solved before anything could tell, is named.
     let dir = tempfile::tempdir().unwrap();
     let scene = two_camera_cloth_480(dir.path(), 11, 3.0);
     let footage = scene.parent().unwrap();
@@ -1034,17 +1035,13 @@ fn a_camera_that_drops_a_frame_and_runs_early_is_found_and_left_out_and_the_fram
         err.contains("warning: frame 5: solved with 1 camera's image a frame ahead of the others'"),
         "{err}"
     );
-    for f in 6..10 {
-        assert!(
-            err.contains(&format!(
-                "warning: frame {f}: 1 camera runs a frame early since the frame before"
-            )),
-            "frame {f}: {err}"
-        );
-    }
+    assert!(
+        err.contains("warning: frame 6: 1 camera runs a frame early since the frame before"),
+        "{err}"
+    );
     assert!(err.contains("frame_offset lowered by 1"), "{err}");
     assert!(err.contains("(cam0)"), "{err}");
-    assert!(err.contains("5 SUSPECT"), "{err}");
+    assert!(err.contains("2 SUSPECT"), "{err}");
     let log = modelflow::run::read_frame_log(&run).unwrap();
     for l in &log {
         let r = l.model_flow().unwrap();
@@ -1052,9 +1049,12 @@ fn a_camera_that_drops_a_frame_and_runs_early_is_found_and_left_out_and_the_fram
         let ahead: &[u16] = if l.frame == 6 { &[0] } else { &[] };
         assert_eq!(r.ahead_cameras, ahead, "frame {}", l.frame);
     }
-    // Before the drop the track is as good as ever.
-    let before = error_share(footage, &run, 4);
-    assert!(before < 0.003, "frame 4 is {:.2} % off", 100.0 * before);
+    // Before the drop and from the frame after it on, the track is as good as ever (the cloth
+    // as rendered ends 0.16 % off).
+    for f in [4, 7, 9] {
+        let e = error_share(footage, &run, f);
+        assert!(e < 0.003, "frame {f} is {:.2} % off", 100.0 * e);
+    }
 }
 
 #[test]

@@ -77,7 +77,8 @@ pub enum Concern {
     Late { cameras: usize },
     /// `cameras` cameras whose image of the previous frame agrees with the other cameras' images
     /// of this one clearly better than their own image of this frame does ([`LATE_RATIO`]):
-    /// they dropped a frame and run a frame early since; left out from this frame on.
+    /// they dropped a frame and run a frame early since; from this frame on each frame takes
+    /// their file for the frame before.
     Early { cameras: usize },
     /// The next frame found `cameras` cameras running a frame early since this one: this frame
     /// was solved with their image a frame ahead of the others', which pulls the mesh.
@@ -133,7 +134,7 @@ impl Concern {
                 counted(cameras, "1 camera runs", "cameras run")
             ),
             Concern::Early { cameras } => format!(
-                "{} a frame early since the frame before (its image of that frame agrees with the other cameras' images of this one better than its own image of this one does: it dropped a frame), left out from this frame on: the mesh is held by the other cameras only; track from here on with its frame_offset lowered by 1 (docs/scene-format.md)",
+                "{} a frame early since the frame before (its image of that frame agrees with the other cameras' images of this one better than its own image of this one does: it dropped a frame): from this frame on, its image of each frame is taken from its file for the frame before, as its frame_offset lowered by 1 would (docs/scene-format.md; the log's early_cameras)",
                 counted(cameras, "1 camera runs", "cameras run")
             ),
             Concern::Ahead { cameras } => format!(
@@ -308,10 +309,8 @@ pub fn own_concerns(r: &FrameReport) -> Vec<Concern> {
     }
     // Measured against the first frame seen by every camera: a frame that left a camera out
     // (blank, repeated, late) has less to go on by that alone, and says so below.
-    let left_out = !r.blank_cameras.is_empty()
-        || !r.repeated_cameras.is_empty()
-        || !r.late_cameras.is_empty()
-        || !r.early_cameras.is_empty();
+    let left_out =
+        !r.blank_cameras.is_empty() || !r.repeated_cameras.is_empty() || !r.late_cameras.is_empty();
     if r.information_share < INFORMATION_FLOOR && !left_out {
         c.push(Concern::LittleTexture {
             share: r.information_share,
@@ -338,9 +337,9 @@ pub fn own_concerns(r: &FrameReport) -> Vec<Concern> {
             cameras: r.late_cameras.len(),
         });
     }
-    if !r.early_cameras.is_empty() {
+    if !r.ahead_cameras.is_empty() {
         c.push(Concern::Early {
-            cameras: r.early_cameras.len(),
+            cameras: r.ahead_cameras.len(),
         });
     }
     if !r.moved_cameras.is_empty() {
@@ -641,7 +640,7 @@ mod tests {
     }
 
     #[test]
-    fn a_camera_found_early_flags_the_frame_before_and_every_frame_after() {
+    fn a_camera_found_early_flags_the_frame_before_and_the_frame_it_is_found_in() {
         let ok = report(0.06, 0.8, false);
         let mut found = ok.clone();
         found.early_cameras = vec![1];
@@ -651,13 +650,14 @@ mod tests {
         let reps = [(1, ok.clone()), (2, ok), (3, found), (4, after)];
         let checks = check_reports(0, reps.iter().map(|(f, r)| (*f, r)));
         let frames: Vec<u32> = checks.iter().map(|c| c.frame).collect();
-        assert_eq!(frames, [2, 3, 4]);
+        // Taken a frame back from frame 3 on, frame 4 is as good as any.
+        assert_eq!(frames, [2, 3]);
         assert_eq!(checks[0].concerns, [Concern::Ahead { cameras: 1 }]);
         assert_eq!(checks[1].concerns, [Concern::Early { cameras: 1 }]);
         assert!(checks.iter().all(FrameCheck::suspect));
         assert!(checks[1].concerns[0]
             .describe()
-            .contains("frame_offset lowered by 1"));
+            .contains("taken from its file for the frame before"));
         let json = serde_json::to_value(checks[0].concerns[0]).unwrap();
         assert_eq!(json, serde_json::json!({"kind": "ahead", "cameras": 1}));
     }

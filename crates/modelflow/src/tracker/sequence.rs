@@ -114,12 +114,13 @@ pub struct FrameReport {
     /// The cameras (indices) found running a frame early (a frame they dropped without
     /// repeating one): their image of the previous frame agreed with the other cameras' images
     /// of this one clearly better than their own image of this frame did
-    /// ([`health::LATE_RATIO`]). Left out of this frame (solved again without them) and of every
-    /// later one; listed at each (docs/tracker.md, "A camera that runs a frame early").
+    /// ([`health::LATE_RATIO`]). From the frame they are found in (solved again) on, each
+    /// frame takes their file for the frame before as their image of it; listed at each
+    /// (docs/tracker.md, "A camera that runs a frame early").
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub early_cameras: Vec<u16>,
-    /// The cameras (indices) found running early at this frame: the previous frame was solved
-    /// with their image a frame ahead, so its mesh is likely off (that frame is flagged).
+    /// The cameras (indices) found running early at this frame (flagged): the previous frame
+    /// was solved with their image a frame ahead, so its mesh is likely off (flagged too).
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub ahead_cameras: Vec<u16>,
     /// Per camera, how much its view of the mesh changed since the previous frame solved: the
@@ -287,9 +288,13 @@ pub struct Tracker {
     /// others' ([`health::growth_of`]): asked at this frame whether it runs a frame early
     /// ([`Tracker::early_cameras`]).
     watch_early: Vec<bool>,
-    /// Per camera, the frame at which it was found running a frame early: left out of that
-    /// frame and every later one.
+    /// Per camera, the frame at which it was found running a frame early: from that frame on,
+    /// its image of each frame is its file for the frame before ([`Tracker::held`]).
     early_since: Vec<Option<u32>>,
+    /// Per camera, its latest image as read (before luminance and colour balance), kept for
+    /// the next frame: for a camera running early, its image of the next frame; for one whose
+    /// view leapt, its image of the next frame if that frame finds it early.
+    held: Vec<Option<CameraImage>>,
     /// Per camera, its view's change at the last frame solved ([`FrameReport::view_changes`];
     /// `None` after a stalled frame, which kept its template).
     prev_changes: Vec<Option<f64>>,
@@ -446,6 +451,7 @@ impl Tracker {
             late: Vec::new(),
             watch_early: Vec::new(),
             early_since: Vec::new(),
+            held: Vec::new(),
             prev_changes: Vec::new(),
             steady: Vec::new(),
             turns: Vec::new(),
@@ -970,9 +976,11 @@ impl Tracker {
     /// Marks the cameras found running a frame early ([`FrameReport::early_cameras`]) and
     /// those whose view leapt ([`FrameReport::leapt_cameras`], checked at the next frame), and
     /// takes each camera's view change ([`FrameReport::view_changes`]), as the frame a run
-    /// stopped at gave them (no changes when it `stalled`): with [`Tracker::restore`] and
-    /// [`Tracker::restore_sync`], what `--resume` needs to continue exactly. Indices past the
-    /// rig are ignored.
+    /// stopped at gave them (no changes when it `stalled`); `latest` is that frame's images as
+    /// read, from which the early and leapt cameras' next images are kept. With
+    /// [`Tracker::restore`] (given the early cameras' images of the frame before:
+    /// [`Prepared::with_cameras_from`]) and [`Tracker::restore_sync`], what `--resume` needs to
+    /// continue exactly. Indices past the rig are ignored.
     pub fn restore_early(
         &mut self,
         frame: u32,
@@ -980,11 +988,19 @@ impl Tracker {
         leapt: &[u16],
         view_changes: &[Option<f64>],
         stalled: bool,
+        latest: &Prepared,
     ) {
         let n = self.cameras.len();
         let mark = |list: &[u16], c: usize| list.contains(&(c as u16));
         self.early_since = (0..n).map(|c| mark(early, c).then_some(frame)).collect();
         self.watch_early = (0..n).map(|c| mark(leapt, c)).collect();
+        // Their images of the next frame (early), or of it if found early there (leapt).
+        self.held = (0..n)
+            .map(|c| {
+                ((mark(early, c) || mark(leapt, c)) && c < latest.pyramids.len())
+                    .then(|| latest.camera(c))
+            })
+            .collect();
         self.prev_changes = if view_changes.len() == n && !stalled {
             view_changes.to_vec()
         } else {
@@ -1241,8 +1257,24 @@ impl Tracker {
 
     /// [`Tracker::step`] with the frame's images already prepared by [`prepare`] (which needs
     /// no tracker, so it can run while the previous frame is being solved).
-    pub fn step_prepared(&mut self, frame: u32, prepared: Prepared) -> Result<FrameReport> {
+    pub fn step_prepared(&mut self, frame: u32, mut prepared: Prepared) -> Result<FrameReport> {
         self.check_prepared(&prepared)?;
+        let n = self.cameras.len();
+        // While a camera is watched for running late or early, the frame is kept to be solved
+        // again without it (late) or with its images a frame back (early) if it is found so.
+        let again = (self.watch_sync.iter().chain(&self.watch_early).any(|&w| w))
+            .then(|| (prepared.clone(), self.held.clone()));
+        // A camera found running early (it dropped a frame) shows each frame in its file for
+        // the frame before: that file, kept from the last step, is its image of this frame.
+        let known_early: Vec<bool> = (0..n)
+            .map(|c| self.early_since.get(c).is_some_and(Option::is_some))
+            .collect();
+        self.held.resize(n, None);
+        for c in (0..n).filter(|&c| known_early[c]) {
+            if let Some(h) = self.held[c].take() {
+                self.held[c] = Some(prepared.swap_camera(c, h));
+            }
+        }
         let levels = self.opts.levels;
         let pyramid_seconds = prepared.seconds;
         let next_blank = prepared.blank.clone();
@@ -1255,22 +1287,20 @@ impl Tracker {
             .iter()
             .map(|cam| mesh_window(cam, self.prev.frame, &self.prev.positions))
             .collect();
-        let view_changes = self.view_changes(&prepared, &prev_windows);
+        let mut view_changes = self.view_changes(&prepared, &prev_windows);
+        // Found early at this frame: its image now is the one the previous frame was solved
+        // with, so it did not change (and is no repeat).
+        for c in (0..n).filter(|&c| self.early_since.get(c) == Some(&Some(frame))) {
+            view_changes[c] = None;
+        }
         let next_repeated = health::repeated_of(&view_changes);
-        // While a camera is watched for running late or early, the frame is kept to be solved
-        // again without it if it is found so.
-        let again =
-            (self.watch_sync.iter().chain(&self.watch_early).any(|&w| w)).then(|| prepared.clone());
-        // A camera found running a frame late pulls the mesh toward where it was, one found
-        // running early toward where it will be: left out of every frame after it was found.
+        // A camera found running a frame late pulls the mesh toward where it was: left out of
+        // every frame after it was found.
         let known_late: Vec<bool> = (0..self.cameras.len())
             .map(|c| self.late.get(c).copied().unwrap_or(false))
             .collect();
-        let known_early: Vec<bool> = (0..self.cameras.len())
-            .map(|c| self.early_since.get(c).is_some_and(Option::is_some))
-            .collect();
         let next_left_out: Vec<bool> = (0..self.cameras.len())
-            .map(|c| next_blank[c] || next_repeated[c] || known_late[c] || known_early[c])
+            .map(|c| next_blank[c] || next_repeated[c] || known_late[c])
             .collect();
         // A camera whose view changed clearly more than the others' since the previous frame
         // may have dropped a frame: it is checked once this frame's successor is solved.
@@ -1291,6 +1321,11 @@ impl Tracker {
             .iter()
             .map(|g| g.is_some_and(|g| g * health::LEAP_RATIO <= 1.0))
             .collect();
+        // Kept for the next frame: a leapt camera's image as read (its image of the next frame
+        // if it is found early there); an early camera's is already kept.
+        for c in (0..n).filter(|&c| !known_early[c]) {
+            self.held[c] = (leapt[c] && !known_late[c]).then(|| prepared.camera(c));
+        }
         let prepared = self.in_luminance(prepared);
         let mut next = prepared.pyramids;
         let next_thumbs = prepared.thumbs;
@@ -1445,7 +1480,8 @@ impl Tracker {
             )
         };
         if found_late.iter().chain(&found_early).any(|&l| l) {
-            if let Some(again) = again {
+            if let Some((again, held)) = again {
+                self.held = held;
                 // Solved again without it: what it showed pulled this frame toward the last
                 // (late) or the next (early).
                 let n = self.cameras.len();
@@ -1460,6 +1496,11 @@ impl Tracker {
                     })
                     .collect();
                 self.watch_early = vec![false; n];
+                // Its template, the previous frame's image at the previous solution, showed
+                // this frame: it gives no patches here.
+                for c in (0..n).filter(|&c| found_early[c]) {
+                    self.prev.left_out[c] = true;
+                }
                 return self.step_prepared(frame, again);
             }
         }
@@ -1986,7 +2027,47 @@ pub struct Prepared {
     seconds: f64,
 }
 
+/// One camera's part of a [`Prepared`] frame, as read.
+#[derive(Clone)]
+pub(crate) struct CameraImage {
+    pyramid: Pyramid,
+    blank: bool,
+    thumbs: BlockMeans,
+}
+
 impl Prepared {
+    /// Camera `c`'s image (a copy).
+    pub(crate) fn camera(&self, c: usize) -> CameraImage {
+        CameraImage {
+            pyramid: self.pyramids[c].clone(),
+            blank: self.blank[c],
+            thumbs: self.thumbs[c].clone(),
+        }
+    }
+
+    /// Puts `image` in as camera `c`'s image; returns the one it replaces.
+    pub(crate) fn swap_camera(&mut self, c: usize, image: CameraImage) -> CameraImage {
+        CameraImage {
+            pyramid: std::mem::replace(&mut self.pyramids[c], image.pyramid),
+            blank: std::mem::replace(&mut self.blank[c], image.blank),
+            thumbs: std::mem::replace(&mut self.thumbs[c], image.thumbs),
+        }
+    }
+
+    /// The same frame with the images of `cameras` (indices) taken from `other`: for cameras
+    /// found running a frame early, whose image of a frame is their file for the frame before
+    /// ([`FrameReport::early_cameras`]), what [`Tracker::restore`] needs to continue where a
+    /// run stopped. Indices past the rig are ignored.
+    pub fn with_cameras_from(mut self, cameras: &[u16], other: &Prepared) -> Self {
+        for &c in cameras {
+            let c = c as usize;
+            if c < self.pyramids.len() && c < other.pyramids.len() {
+                self.swap_camera(c, other.camera(c));
+            }
+        }
+        self
+    }
+
     /// Time it took to build the pyramids, seconds.
     pub fn seconds(&self) -> f64 {
         self.seconds

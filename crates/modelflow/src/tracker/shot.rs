@@ -107,35 +107,43 @@ fn track_into(
                 .into_iter()
                 .find(|l| l.frame == last)
                 .and_then(|l| l.model_flow().cloned());
-            // Left out of it: the cameras that repeated the frame before, and those found late
-            // or early.
+            // Left out of it: the cameras that repeated the frame before, and those found late.
             let repeated: Vec<u16> = report
                 .as_ref()
-                .map(|r| {
-                    [
-                        &r.repeated_cameras[..],
-                        &r.late_cameras[..],
-                        &r.early_cameras[..],
-                    ]
-                    .concat()
-                })
+                .map(|r| [&r.repeated_cameras[..], &r.late_cameras[..]].concat())
                 .unwrap_or_default();
             if let Some(r) = &report {
                 tracker.restore_colour_balance(&r.colour_balance, &r.colour_readings);
                 // A camera found late stays left out; one that repeated this frame is watched.
                 tracker.restore_sync(&r.late_cameras, &r.repeated_cameras);
-                // A camera found early stays left out; one whose view leapt is checked next.
+                // A camera found turned stays turned.
+                tracker.restore_turns(last, &r.camera_turns, &r.moved_cameras, &r.moved_px);
+            }
+            let latest = prepare(&scene.load_images(last)?, opts);
+            let early = report
+                .as_ref()
+                .map(|r| r.early_cameras.clone())
+                .unwrap_or_default();
+            if let Some(r) = &report {
+                // A camera found early goes on a frame back; one whose view leapt is checked
+                // at the next frame. Both keep their image of this frame for the next.
                 tracker.restore_early(
                     last,
                     &r.early_cameras,
                     &r.leapt_cameras,
                     &r.view_changes,
                     r.stalled,
+                    &latest,
                 );
-                // A camera found turned stays turned.
-                tracker.restore_turns(last, &r.camera_turns, &r.moved_cameras, &r.moved_px);
             }
-            let prepared = prepare(&scene.load_images(last)?, opts).with_repeated(&repeated);
+            // A camera found early showed this frame in its file for the frame before.
+            let latest = if early.is_empty() {
+                latest
+            } else {
+                let before = prepare(&scene.load_images(last - 1)?, opts);
+                latest.with_cameras_from(&early, &before)
+            };
+            let prepared = latest.with_repeated(&repeated);
             let positions = folder.read_positions(last)?;
             let before = folder.read_positions(last - 1)?;
             // Cameras that record late or early took their anchor where the surface had moved
