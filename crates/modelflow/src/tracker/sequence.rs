@@ -1326,6 +1326,21 @@ impl Tracker {
         for c in (0..n).filter(|&c| !known_early[c]) {
             self.held[c] = (leapt[c] && !known_late[c]).then(|| prepared.camera(c));
         }
+        // With two or more other cameras, a watched camera that fell back is checked at a
+        // solution it took no part in (the frame is then solved again either way): solved with
+        // it, their solution bends toward its image, and a camera a frame early compared 0.83
+        // (the limb's four cameras) where it compares below 2/3 without.
+        let probed: Vec<bool> = (0..n)
+            .map(|c| {
+                self.watch_early.get(c).copied().unwrap_or(false)
+                    && fell_back[c]
+                    && !next_left_out[c]
+                    && !self.prev.left_out[c]
+                    && (0..n).filter(|&o| o != c && !next_left_out[o]).count() >= 2
+            })
+            .collect();
+        let checked_left_out = next_left_out;
+        let next_left_out: Vec<bool> = (0..n).map(|c| checked_left_out[c] || probed[c]).collect();
         let prepared = self.in_luminance(prepared);
         let mut next = prepared.pyramids;
         let next_thumbs = prepared.thumbs;
@@ -1475,15 +1490,20 @@ impl Tracker {
             )
         } else {
             (
-                self.late_cameras(frame, &x, &next, &next_left_out),
-                self.early_cameras(frame, &x, &next, &next_left_out, &fell_back),
+                self.late_cameras(frame, &x, &next, &checked_left_out),
+                self.early_cameras(frame, &x, &next, &checked_left_out, &fell_back),
             )
         };
-        if found_late.iter().chain(&found_early).any(|&l| l) {
+        if found_late
+            .iter()
+            .chain(&found_early)
+            .chain(&probed)
+            .any(|&l| l)
+        {
             if let Some((again, held)) = again {
                 self.held = held;
-                // Solved again without it: what it showed pulled this frame toward the last
-                // (late) or the next (early).
+                // Solved again without it (late: what it showed pulled this frame toward the
+                // last), with its image a frame back (early), or with it (checked, in step).
                 let n = self.cameras.len();
                 self.late = (0..n).map(|c| known_late[c] || found_late[c]).collect();
                 self.watch_sync = (0..n)
