@@ -621,6 +621,7 @@ pub fn run_scene(
                     Concern::Late { .. } => Some(&r.late_cameras),
                     Concern::Early { .. } => Some(&r.early_cameras),
                     Concern::Ahead { .. } => Some(&r.ahead_cameras),
+                    Concern::Rejoined { .. } => Some(&r.rejoined_cameras),
                     Concern::Moved { .. } => Some(&r.moved_cameras),
                     _ => None,
                 };

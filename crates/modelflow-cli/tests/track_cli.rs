@@ -1058,6 +1058,79 @@ fn a_camera_that_drops_a_frame_and_runs_early_is_found_and_taken_a_frame_back() 
 }
 
 #[test]
+fn a_camera_taken_a_frame_back_that_catches_up_is_taken_as_it_is_again() {
+    // Camera 0 of the shaken cloth's two loses frame 5 (its files 5 to 7 show frames 6 to 8),
+    // then writes frame 8 twice and is in step again from file 8 on. Found early at frame 6,
+    // it is taken a frame back; at frame 9 the file that would be taken back (file 8) repeats
+    // the one frame 8 was solved with (file 7), while camera 1 saw the cloth move: it caught
+    // up, and its own files are taken from there.
+    let dir = tempfile::tempdir().unwrap();
+    let scene = two_camera_cloth_480(dir.path(), 11, 3.0);
+    let footage = scene.parent().unwrap();
+    let img = |f: u32| footage.join(format!("images/cam0/{f:04}.png"));
+    for f in 5..8 {
+        std::fs::copy(img(f + 1), img(f)).unwrap();
+    }
+    let run = dir.path().join("run");
+    let o = Command::new(env!("CARGO_BIN_EXE_modelflow"))
+        .args(["track", "--frames", "0..9", "--scene"])
+        .arg(&scene)
+        .arg("--out")
+        .arg(&run)
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&o.stderr).to_string();
+    assert!(o.status.success(), "{err}");
+    assert!(
+        err.contains("warning: frame 6: 1 camera runs a frame early since the frame before"),
+        "{err}"
+    );
+    assert!(
+        err.contains("warning: frame 9: 1 camera taken a frame back since it was found running a frame early now agrees with the other cameras better in its own files"),
+        "{err}"
+    );
+    let log = modelflow::run::read_frame_log(&run).unwrap();
+    for l in &log {
+        let r = l.model_flow().unwrap();
+        let early = (6..9).contains(&l.frame);
+        assert_eq!(!r.early_cameras.is_empty(), early, "frame {}", l.frame);
+        assert_eq!(
+            !r.rejoined_cameras.is_empty(),
+            l.frame == 9,
+            "frame {}",
+            l.frame
+        );
+    }
+    for f in [7, 8, 9] {
+        let e = error_share(footage, &run, f);
+        assert!(e < 0.003, "frame {f} is {:.2} % off", 100.0 * e);
+    }
+}
+
+#[test]
+fn one_frame_swapped_in_names_the_frame_it_was_solved_in() {
+    // Camera 0's file 5 is its frame 6 (a frame swapped in), and its file 6 is frame 6 as it
+    // should be: its view leaps at frame 5, and at frame 6 it repeats what it showed. Frame 6
+    // is left out for the repeat, and frame 5, solved with camera 0 a frame ahead, is named.
+    let dir = tempfile::tempdir().unwrap();
+    let scene = two_camera_cloth_480(dir.path(), 10, 3.0);
+    let footage = scene.parent().unwrap();
+    let img = |f: u32| footage.join(format!("images/cam0/{f:04}.png"));
+    std::fs::copy(img(6), img(5)).unwrap();
+    let run = dir.path().join("run");
+    let err = track_ok(&scene, &run);
+    assert!(
+        err.contains("warning: frame 5: solved with 1 camera's image a frame ahead of the others'"),
+        "{err}"
+    );
+    assert!(
+        err.contains("warning: frame 6: 1 camera's image repeats"),
+        "{err}"
+    );
+    assert!(!err.contains("runs a frame early"), "{err}");
+}
+
+#[test]
 fn among_four_cameras_one_running_a_frame_early_is_found_at_a_solution_it_took_no_part_in() {
     // The shaken limb's four cameras, camera 0 losing frame 5: the other three outvote it, but
     // their solution bends toward its images (0.67 % of the size off at the last frame against

@@ -217,13 +217,13 @@ fn frame_of<'a>(
 
 /// The cameras' comparison with each other (each camera's pixels of `x` warped into every other
 /// camera that sees the triangle, up to the gains, the convex loss) at pyramid `level`: its
-/// mean cost per pixel, each camera `c` seen through `projections[c]` (full resolution) in
+/// mean cost per pixel and, per triangle compared, its index, cost and weight, each camera `c` seen through `projections[c]` (full resolution) in
 /// `images[c]` (that level's image, from any frame); only the comparisons that involve camera
 /// `involving` (its pixels warped into the others, theirs into it). `None` when it sees no
 /// triangle another camera sees. What [`surface_offset`] scans along the normals, at the mesh as
 /// it is.
-#[allow(clippy::too_many_arguments)]
-pub(crate) fn cross_cost(
+#[allow(clippy::too_many_arguments, clippy::type_complexity)]
+pub(crate) fn cross_scan(
     x: &[Point3<f64>],
     triangles: &[[u32; 3]],
     edges: &[[u32; 2]],
@@ -232,7 +232,7 @@ pub(crate) fn cross_cost(
     images: &[&RgbImage],
     level: usize,
     involving: usize,
-) -> Option<f64> {
+) -> Option<(f64, Vec<(u32, f64, f64)>)> {
     let f = Frame {
         targets: images.to_vec(),
         projections: projections
@@ -250,7 +250,6 @@ pub(crate) fn cross_cost(
     f.scan(x, &still, triangles, edges, closed, 0..=0)
         .pop()
         .flatten()
-        .map(|(cost, _)| cost)
 }
 
 fn pyramids(images: &[RgbImage], levels: usize) -> Vec<Pyramid> {

@@ -119,8 +119,10 @@ pub struct FrameReport {
     /// (docs/tracker.md, "A camera that runs a frame early").
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub early_cameras: Vec<u16>,
-    /// The cameras (indices) found running early at this frame (flagged): the previous frame
-    /// was solved with their image a frame ahead, so its mesh is likely off (flagged too).
+    /// The cameras (indices) found at this frame to have shown the previous frame a frame
+    /// ahead: found running early here (also in `early_cameras`), or repeating here what they
+    /// showed there after their view leapt (one frame swapped in). The previous frame was
+    /// solved with their image a frame ahead, so its mesh is likely off (it is flagged).
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub ahead_cameras: Vec<u16>,
     /// Per camera, how much its view of the mesh changed since the previous frame solved: the
@@ -129,6 +131,12 @@ pub struct FrameReport {
     /// the others' ([`health::LEAP_RATIO`]) is checked at the next frame for running early.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub view_changes: Vec<Option<f64>>,
+    /// The cameras (indices) taken a frame back since an earlier frame whose own file of this
+    /// frame agrees with the other cameras clearly better than the one taken back
+    /// ([`health::LATE_RATIO`]: the alarm was false, or the camera caught up): taken as they
+    /// are from this frame on (it is solved again); the frames in between are in doubt.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub rejoined_cameras: Vec<u16>,
     /// The cameras (indices) whose view leapt at this frame ([`health::growth_of`]): checked at
     /// the next frame for running a frame early.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
@@ -291,6 +299,12 @@ pub struct Tracker {
     /// Per camera, the frame at which it was found running a frame early: from that frame on,
     /// its image of each frame is its file for the frame before ([`Tracker::held`]).
     early_since: Vec<Option<u32>>,
+    /// Per camera, whether the solve under way leaves it out, to ask at its solution whether the
+    /// camera runs early (within one frame's solves only).
+    early_probe: Vec<bool>,
+    /// Per camera, whether this frame found it, taken a frame back until now, agreeing better
+    /// with its own file (within one frame's solves only; [`FrameReport::rejoined_cameras`]).
+    rejoined: Vec<bool>,
     /// Per camera, its latest image as read (before luminance and colour balance), kept for
     /// the next frame: for a camera running early, its image of the next frame; for one whose
     /// view leapt, its image of the next frame if that frame finds it early.
@@ -451,6 +465,8 @@ impl Tracker {
             late: Vec::new(),
             watch_early: Vec::new(),
             early_since: Vec::new(),
+            early_probe: Vec::new(),
+            rejoined: Vec::new(),
             held: Vec::new(),
             prev_changes: Vec::new(),
             steady: Vec::new(),
@@ -772,46 +788,74 @@ impl Tracker {
             .collect()
     }
 
-    /// Per camera, whether it runs a frame early: for each camera whose view leapt at the
-    /// previous frame ([`Tracker::watch_early`]) and `fell_back` at this one
-    /// ([`health::growth_of`]), the cameras' comparison with each other
-    /// ([`Tracker::paired_cost`]) at this frame's solution `x` with its image of the *previous*
-    /// frame beside the others' `frame`, against the same with its own image of `frame`; early
-    /// when the first is below [`health::LATE_RATIO`] of the second (it dropped a frame: what
-    /// it recorded as the previous frame shows this one). Cameras left out of either frame take
-    /// no part.
-    fn early_cameras(
+    /// Per camera, whether it seems to run a frame early: for each camera whose view leapt at
+    /// the previous frame ([`Tracker::watch_early`]), the cameras' comparison with each other
+    /// ([`Tracker::paired_cost`], the median over triangles) at this frame's solution `x` with
+    /// its image of the *previous* frame beside the others' `frame`, over the same with its own
+    /// image of `frame` (below [`health::LATE_RATIO`]: early, it dropped a frame, and what it
+    /// recorded as the previous frame shows this one). For a camera already taken a frame
+    /// back, its own file of `frame` (kept in [`Tracker::held`]) against the one taken back
+    /// (below: it is in step again). `None` for cameras not asked, or left out of either frame.
+    fn early_ratios(
         &self,
         frame: u32,
         x: &[Point3<f64>],
         next: &[Pyramid],
         left_out: &[bool],
-        fell_back: &[bool],
-    ) -> Vec<bool> {
+    ) -> Vec<Option<f64>> {
         let n = self.cameras.len();
         let watched = |c: usize| self.watch_early.get(c).copied().unwrap_or(false);
         (0..n)
             .map(|c| {
-                if !watched(c) || !fell_back[c] || left_out[c] || self.prev.left_out[c] {
-                    return false;
+                if !watched(c) || left_out[c] || self.prev.left_out[c] {
+                    return None;
                 }
-                let set: Vec<usize> = (0..n).filter(|&o| o == c || !left_out[o]).collect();
-                let now = self.paired_cost(c, &set, x, |o| (frame, &next[o]));
-                let ahead = self.paired_cost(c, &set, x, |o| {
-                    if o == c {
-                        (frame, &self.prev.pyramids[o])
-                    } else {
-                        (frame, &next[o])
+                // Taken a frame back since before this frame: asked whether its own file of
+                // this frame (kept as read: in this frame's colours) agrees better after all.
+                let own = match self.early_since.get(c).copied().flatten() {
+                    Some(f) if f < frame => {
+                        let mut p = self.held.get(c)?.as_ref()?.pyramid.clone();
+                        if self.luminance {
+                            p.levels.iter_mut().for_each(RgbImage::to_luminance);
+                        }
+                        if let Some(b) = self.balance.get(c) {
+                            balance::divide(&mut p, *b);
+                        }
+                        Some(p)
                     }
-                });
-                matches!((now, ahead), (Some(a), Some(b)) if b < health::LATE_RATIO * a)
+                    _ => None,
+                };
+                let other = own.as_ref().unwrap_or(&self.prev.pyramids[c]);
+                let set: Vec<usize> = (0..n).filter(|&o| o == c || !left_out[o]).collect();
+                // Asked at every leap, most frames of real footage. With two cameras a camera a
+                // frame early moves the whole mesh in depth (7 to 19 % of its size on the
+                // cloths): compared up to 1 280 pixels wide. With more, the others outvote it
+                // (0.1 to 1 % on the real board's four cameras): up to 640, a ninth of the
+                // solve's time on the board instead of a fifth.
+                let widest = if set.len() > 2 { 640 } else { 1280 };
+                let now = self.paired_scan(c, &set, x, |o| (frame, &next[o]), widest)?;
+                let ahead = self.paired_scan(
+                    c,
+                    &set,
+                    x,
+                    |o| {
+                        if o == c {
+                            (frame, other)
+                        } else {
+                            (frame, &next[o])
+                        }
+                    },
+                    widest,
+                )?;
+                let (now, ahead) = (median_per_triangle(&now.1)?, median_per_triangle(&ahead.1)?);
+                (now > 0.0).then(|| ahead / now)
             })
             .collect()
     }
 
-    /// The comparisons between camera `c` and the other cameras of `set` (`offset::cross_cost`,
-    /// as the first-mesh check compares cameras; at full resolution up to 1 280 pixels wide,
-    /// the level below for wider images) at positions `x`, each camera `o` posed at and showing
+    /// The comparisons between camera `c` and the other cameras of `set` (`offset::cross_scan`,
+    /// as the first-mesh check compares cameras; at the first pyramid level at most 1 280
+    /// pixels wide) at positions `x`, each camera `o` posed at and showing
     /// what `image(o)` gives (a frame, its pyramid). `None` when `set` has no other camera, or
     /// `c` sees no triangle another camera sees.
     fn paired_cost<'a>(
@@ -821,13 +865,31 @@ impl Tracker {
         x: &[Point3<f64>],
         image: impl Fn(usize) -> (u32, &'a Pyramid),
     ) -> Option<f64> {
+        self.paired_scan(c, set, x, image, 1280)
+            .map(|(cost, _)| cost)
+    }
+
+    /// [`Tracker::paired_cost`] with its parts (the mean cost per pixel, and per triangle
+    /// compared its index, cost and weight), at the first level at most `widest_compared`
+    /// pixels wide.
+    #[allow(clippy::type_complexity)]
+    fn paired_scan<'b>(
+        &self,
+        c: usize,
+        set: &[usize],
+        x: &[Point3<f64>],
+        image: impl Fn(usize) -> (u32, &'b Pyramid),
+        widest_compared: u32,
+    ) -> Option<(f64, Vec<(u32, f64, f64)>)> {
         if set.len() < 2 {
             return None;
         }
         let widest = self.cameras.iter().map(|c| c.width).max().unwrap_or(0);
-        let level = usize::from(widest > 1280).min(self.opts.levels.max(1) - 1);
+        let level = (0..self.opts.levels.max(1))
+            .find(|&l| widest >> l <= widest_compared)
+            .unwrap_or(self.opts.levels.max(1) - 1);
         let shown: Vec<(u32, &Pyramid)> = set.iter().map(|&o| image(o)).collect();
-        crate::tracker::offset::cross_cost(
+        crate::tracker::offset::cross_scan(
             x,
             &self.triangles,
             &self.pattern,
@@ -1264,12 +1326,42 @@ impl Tracker {
         // again without it (late) or with its images a frame back (early) if it is found so.
         let again = (self.watch_sync.iter().chain(&self.watch_early).any(|&w| w))
             .then(|| (prepared.clone(), self.held.clone()));
+        // Each camera's window of the previous solution, which the repeat check, the
+        // background's (`steady`) and the one below leave out of what they compare.
+        let prev_windows: Vec<Option<[f64; 4]>> = self
+            .cameras
+            .iter()
+            .map(|cam| mesh_window(cam, self.prev.frame, &self.prev.positions))
+            .collect();
         // A camera found running early (it dropped a frame) shows each frame in its file for
-        // the frame before: that file, kept from the last step, is its image of this frame.
-        let known_early: Vec<bool> = (0..n)
+        // the frame before: that file, kept from the last step, is its image of this frame...
+        let mut known_early: Vec<bool> = (0..n)
             .map(|c| self.early_since.get(c).is_some_and(Option::is_some))
             .collect();
         self.held.resize(n, None);
+        // ... unless that file repeats the one the previous frame was solved with while the
+        // others moved: the camera caught up (it repeated a frame, or the drop was one frame
+        // swapped in), and its own files are taken from here.
+        let taken_back: Vec<bool> = (0..n)
+            .map(|c| matches!(self.early_since.get(c), Some(Some(f)) if *f < frame))
+            .collect();
+        if taken_back.iter().any(|&t| t) {
+            let mut changes = self.view_changes(&prepared, &prev_windows);
+            for c in (0..n).filter(|&c| taken_back[c]) {
+                changes[c] = self.held[c].as_ref().and_then(|h| {
+                    h.thumbs
+                        .change_within(&self.prev.thumbs[c], prev_windows[c]?)
+                });
+            }
+            let repeats = health::repeated_of(&changes);
+            for c in (0..n).filter(|&c| taken_back[c] && repeats[c]) {
+                self.early_since[c] = None;
+                self.held[c] = None;
+                self.rejoined.resize(n, false);
+                self.rejoined[c] = true;
+                known_early[c] = false;
+            }
+        }
         for c in (0..n).filter(|&c| known_early[c]) {
             if let Some(h) = self.held[c].take() {
                 self.held[c] = Some(prepared.swap_camera(c, h));
@@ -1280,17 +1372,12 @@ impl Tracker {
         let next_blank = prepared.blank.clone();
         // A camera whose image repeats the previous frame's shows where the surface was, not
         // where it is: left out of this frame as a blank one is.
-        // Each camera's window of the previous solution, which both the repeat check and the
-        // background's (`steady`) leave out of what they compare.
-        let prev_windows: Vec<Option<[f64; 4]>> = self
-            .cameras
-            .iter()
-            .map(|cam| mesh_window(cam, self.prev.frame, &self.prev.positions))
-            .collect();
         let mut view_changes = self.view_changes(&prepared, &prev_windows);
         // Found early at this frame: its image now is the one the previous frame was solved
         // with, so it did not change (and is no repeat).
-        for c in (0..n).filter(|&c| self.early_since.get(c) == Some(&Some(frame))) {
+        for c in (0..n).filter(|&c| {
+            self.early_since.get(c) == Some(&Some(frame)) || self.rejoined.get(c) == Some(&true)
+        }) {
             view_changes[c] = None;
         }
         let next_repeated = health::repeated_of(&view_changes);
@@ -1315,29 +1402,15 @@ impl Tracker {
             .iter()
             .map(|g| g.is_some_and(|g| g >= health::LEAP_RATIO))
             .collect();
-        // A watched camera is asked only when its view's change fell back as much: a dropped
-        // frame's leap is one frame's, an occluder moving in goes on changing the view.
-        let fell_back: Vec<bool> = growth
-            .iter()
-            .map(|g| g.is_some_and(|g| g * health::LEAP_RATIO <= 1.0))
-            .collect();
         // Kept for the next frame: a leapt camera's image as read (its image of the next frame
         // if it is found early there); an early camera's is already kept.
         for c in (0..n).filter(|&c| !known_early[c]) {
             self.held[c] = (leapt[c] && !known_late[c]).then(|| prepared.camera(c));
         }
-        // With two or more other cameras, a watched camera that fell back is checked at a
-        // solution it took no part in (the frame is then solved again either way): solved with
-        // it, their solution bends toward its image, and a camera a frame early compared 0.83
-        // (the limb's four cameras) where it compares below 2/3 without.
+        // A camera asked again at a solution it takes no part in (`early_probe`): left out of
+        // this solve, compared after it.
         let probed: Vec<bool> = (0..n)
-            .map(|c| {
-                self.watch_early.get(c).copied().unwrap_or(false)
-                    && fell_back[c]
-                    && !next_left_out[c]
-                    && !self.prev.left_out[c]
-                    && (0..n).filter(|&o| o != c && !next_left_out[o]).count() >= 2
-            })
+            .map(|c| self.early_probe.get(c).copied().unwrap_or(false))
             .collect();
         let checked_left_out = next_left_out;
         let next_left_out: Vec<bool> = (0..n).map(|c| checked_left_out[c] || probed[c]).collect();
@@ -1483,21 +1556,35 @@ impl Tracker {
                     .iter()
                     .any(|s| matches!(s.stop, StopReason::CostRose | StopReason::NonFinite)));
         let folded = self.folds.folded(&x, &self.triangles);
-        let (found_late, found_early) = if stalled {
-            (
-                vec![false; self.cameras.len()],
-                vec![false; self.cameras.len()],
-            )
+        let (found_late, early_ratios) = if stalled {
+            (vec![false; n], vec![None; n])
         } else {
             (
                 self.late_cameras(frame, &x, &next, &checked_left_out),
-                self.early_cameras(frame, &x, &next, &checked_left_out, &fell_back),
+                self.early_ratios(frame, &x, &next, &checked_left_out),
             )
         };
+        let found_early: Vec<bool> = early_ratios
+            .iter()
+            .map(|r| r.is_some_and(|r| r < health::LATE_RATIO))
+            .collect();
+        // Not clearly early, but its previous image agrees with the others at least as well as
+        // its own: with two or more other cameras, asked again at a solution it took no part
+        // in. Solved with it, their solution bends toward its image: a camera a frame early
+        // among the limb's four compared 0.83 here, 0.31 there.
+        let probe: Vec<bool> = (0..n)
+            .map(|c| {
+                !probed[c]
+                    && !found_early[c]
+                    && early_ratios[c].is_some_and(|r| r < 1.0)
+                    && (0..n).filter(|&o| o != c && !checked_left_out[o]).count() >= 2
+            })
+            .collect();
         if found_late
             .iter()
             .chain(&found_early)
             .chain(&probed)
+            .chain(&probe)
             .any(|&l| l)
         {
             if let Some((again, held)) = again {
@@ -1509,13 +1596,26 @@ impl Tracker {
                 self.watch_sync = (0..n)
                     .map(|c| !found_late[c] && self.watch_sync.get(c).copied().unwrap_or(false))
                     .collect();
+                // Found early: taken a frame back from here. Taken a frame back before and its
+                // own file agrees better now (a false alarm, or it caught up): taken as it is.
                 self.early_since = (0..n)
+                    .map(
+                        |c| match (self.early_since.get(c).copied().flatten(), found_early[c]) {
+                            (Some(_), true) => None,
+                            (None, true) => Some(frame),
+                            (known, false) => known,
+                        },
+                    )
+                    .collect();
+                self.rejoined = (0..n)
                     .map(|c| {
-                        let known = self.early_since.get(c).copied().flatten();
-                        known.or(found_early[c].then_some(frame))
+                        self.rejoined.get(c).copied().unwrap_or(false)
+                            || (found_early[c] && known_early[c])
                     })
                     .collect();
-                self.watch_early = vec![false; n];
+                // Asked again (probe) or answered (found, in step, or probed).
+                self.watch_early = (0..n).map(|c| probe[c]).collect();
+                self.early_probe = probe.clone();
                 // Its template, the previous frame's image at the previous solution, showed
                 // this frame: it gives no patches here.
                 for c in (0..n).filter(|&c| found_early[c]) {
@@ -1535,13 +1635,22 @@ impl Tracker {
             .collect();
         let late_cameras = marked(&self.late);
         let early_cameras = marked(&known_early);
+        // Found early here, or repeating here what it showed a frame ahead (its view leapt at
+        // the previous frame: one frame swapped in, then the right one again): the previous
+        // frame was solved with its image a frame ahead.
         let ahead_cameras: Vec<u16> = (0..self.cameras.len() as u16)
-            .filter(|&c| self.early_since.get(c as usize) == Some(&Some(frame)))
+            .filter(|&c| {
+                let c = c as usize;
+                self.early_since.get(c) == Some(&Some(frame))
+                    || (next_repeated[c] && self.watch_early.get(c) == Some(&true))
+            })
             .collect();
         // Watched at the next frame: a camera whose view leapt here, unless already left out.
         self.watch_early = (0..self.cameras.len())
-            .map(|c| !stalled && leapt[c] && !self.late[c] && !known_early[c])
+            .map(|c| !stalled && leapt[c] && !self.late[c])
             .collect();
+        let rejoined_cameras = marked(&self.rejoined);
+        self.rejoined = Vec::new();
         // What the next frame's leap is measured against (a stalled frame keeps its template,
         // so the next change spans two frames: none).
         self.prev_changes = if stalled {
@@ -1618,6 +1727,7 @@ impl Tracker {
             late_cameras,
             early_cameras,
             ahead_cameras,
+            rejoined_cameras,
             view_changes,
             leapt_cameras: marked(&self.watch_early),
             colour_balance: self.balance.clone(),
@@ -2160,6 +2270,27 @@ pub(crate) fn mesh_window(
         (w[3] + pad).min(camera.height as f64 - 1.0),
     ];
     (w[0] <= w[2] && w[1] <= w[3]).then_some(w)
+}
+
+/// The median over `triangles` (index, cost, weight: [`offset::cross_scan`]'s parts) of each
+/// one's cost per unit weight: what most of the surface says, whatever an occluder or a highlight
+/// over a few triangles does to the mean. `None` when no triangle has weight.
+fn median_per_triangle(triangles: &[(u32, f64, f64)]) -> Option<f64> {
+    let mut v: Vec<f64> = triangles
+        .iter()
+        .filter(|(_, _, w)| *w > 0.0)
+        .map(|(_, c, w)| c / w)
+        .collect();
+    if v.is_empty() {
+        return None;
+    }
+    v.sort_by(f64::total_cmp);
+    let m = v.len();
+    Some(if m % 2 == 1 {
+        v[m / 2]
+    } else {
+        0.5 * (v[m / 2 - 1] + v[m / 2])
+    })
 }
 
 /// The indices of the cameras `flags` marks (blank, repeated, late).
