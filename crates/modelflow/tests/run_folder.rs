@@ -262,6 +262,57 @@ fn a_run_stopped_where_a_camera_dropped_a_frame_or_was_found_early_resumes_to_th
 }
 
 #[test]
+fn a_cancelled_step_after_a_camera_was_taken_a_frame_back_steps_again_as_if_never_cancelled() {
+    // Camera 0 loses frame 4 (its files 4 to 6 show frames 5 to 7); frame 5 finds it early and
+    // takes its files a frame back from there. A step cancelled at frame 6 (after its image
+    // was taken back, before the solve ends) must leave the tracker so that stepping frame 6
+    // again gives what an uncancelled run gives.
+    let dir = tempfile::tempdir().unwrap();
+    let opts = SynthOptions {
+        width: 480,
+        height: 360,
+        frames: 8,
+        shake: 3.0,
+        ..SynthOptions::default()
+    };
+    let scene = write_dataset(&opts, &dir.path().join("footage"), &|_, _| {}).unwrap();
+    let images = scene.parent().unwrap().join("images/cam0");
+    for f in 4..7 {
+        std::fs::copy(
+            images.join(format!("{:04}.png", f + 1)),
+            images.join(format!("{f:04}.png")),
+        )
+        .unwrap();
+    }
+    let s = Scene::load(&scene).unwrap();
+    let tracker = || {
+        let mut t = Tracker::new(
+            &s.mesh,
+            s.cameras.clone(),
+            0,
+            &s.load_images(0).unwrap(),
+            TrackOptions::default(),
+        )
+        .unwrap();
+        let mut early = Vec::new();
+        for f in 1..=5 {
+            early = t.step(f, &s.load_images(f).unwrap()).unwrap().early_cameras;
+        }
+        assert_eq!(early, [0], "found early by frame 5");
+        t
+    };
+    let mut reference = tracker();
+    let want = reference.step(6, &s.load_images(6).unwrap()).unwrap();
+    let mut t = tracker();
+    t.set_cancel(Arc::new(AtomicBool::new(true)));
+    assert!(t.step(6, &s.load_images(6).unwrap()).is_err());
+    t.set_cancel(Arc::new(AtomicBool::new(false)));
+    let got = t.step(6, &s.load_images(6).unwrap()).unwrap();
+    assert_eq!(got.early_cameras, want.early_cameras);
+    assert_eq!(t.positions(), reference.positions());
+}
+
+#[test]
 fn a_run_stopped_after_a_camera_was_found_turned_resumes_to_the_same_files() {
     // Camera 1 is knocked 0.3° off its calibration at frame 3 (a textured wall behind the cloth
     // shows it): the tracker poses it turned from frame 3 on. Stopped at frame 3 or 4, the

@@ -80,9 +80,10 @@ pub enum Concern {
     /// they dropped a frame and run a frame early since; from this frame on each frame takes
     /// their file for the frame before.
     Early { cameras: usize },
-    /// `cameras` cameras taken a frame back since they were found running early agree with the
-    /// other cameras clearly better in their own files of this frame ([`LATE_RATIO`]): taken
-    /// as they are from here; the frames since they were taken back are in doubt.
+    /// `cameras` cameras taken a frame back since they were found running early are taken as
+    /// they are from here: their own files of this frame agree with the other cameras clearly
+    /// better ([`LATE_RATIO`]), or the file they would be taken back to repeats the last (they
+    /// caught up). The frames since they were taken back are in doubt.
     Rejoined { cameras: usize },
     /// The next frame found `cameras` cameras running a frame early since this one: this frame
     /// was solved with their image a frame ahead of the others', which pulls the mesh.

@@ -127,18 +127,24 @@ pub struct FrameReport {
     pub ahead_cameras: Vec<u16>,
     /// Per camera, how much its view of the mesh changed since the previous frame solved: the
     /// RMS change of its 8×8-pixel block means (0–1 luminance) over the window the mesh covered
-    /// there (`null`: not measured, e.g. a blank image). A camera whose change leaps against
-    /// the others' ([`health::LEAP_RATIO`]) is checked at the next frame for running early.
+    /// there (`null`: not measured, e.g. a blank image; and for a camera found early or taken
+    /// as it is again at this frame, whose image is not the one after the previous frame's). A
+    /// camera whose change leaps against the others' ([`health::LEAP_RATIO`]) is checked at
+    /// the next frame for running early.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub view_changes: Vec<Option<f64>>,
-    /// The cameras (indices) taken a frame back since an earlier frame whose own file of this
-    /// frame agrees with the other cameras clearly better than the one taken back
-    /// ([`health::LATE_RATIO`]: the alarm was false, or the camera caught up): taken as they
-    /// are from this frame on (it is solved again); the frames in between are in doubt.
+    /// The cameras (indices) taken a frame back since an earlier frame that are taken as they
+    /// are again from this frame on: their own file of this frame agrees with the other
+    /// cameras clearly better than the one taken back ([`health::LATE_RATIO`]: the alarm was
+    /// false, or the camera caught up; the frame is solved again without its template), or
+    /// the file it would be taken back to repeats the one the previous frame was solved with
+    /// while the others moved (it caught up by writing a frame twice). The frames in between
+    /// are in doubt.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub rejoined_cameras: Vec<u16>,
     /// The cameras (indices) whose view leapt at this frame ([`health::growth_of`]): checked at
-    /// the next frame for running a frame early.
+    /// the next frame for running a frame early (never after a stalled frame, nor a camera
+    /// found late).
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub leapt_cameras: Vec<u16>,
     /// Per camera, its colour balance against the first frame after this frame (red, green,
@@ -294,7 +300,7 @@ pub struct Tracker {
     late: Vec<bool>,
     /// Per camera, whether its view changed at the last frame solved by clearly more than the
     /// others' ([`health::growth_of`]): asked at this frame whether it runs a frame early
-    /// ([`Tracker::early_cameras`]).
+    /// ([`Tracker::early_ratios`]); within a frame's passes, whether it is asked again.
     watch_early: Vec<bool>,
     /// Per camera, the frame at which it was found running a frame early: from that frame on,
     /// its image of each frame is its file for the frame before ([`Tracker::held`]).
@@ -308,7 +314,10 @@ pub struct Tracker {
     /// Per camera, its latest image as read (before luminance and colour balance), kept for
     /// the next frame: for a camera running early, its image of the next frame; for one whose
     /// view leapt, its image of the next frame if that frame finds it early.
-    held: Vec<Option<CameraImage>>,
+    held: Vec<Option<Arc<CameraImage>>>,
+    /// Per camera, whether its view leapt at the last frame solved: a camera that then repeats
+    /// what it showed there had it a frame ahead ([`FrameReport::ahead_cameras`]).
+    leapt_before: Vec<bool>,
     /// Per camera, its view's change at the last frame solved ([`FrameReport::view_changes`];
     /// `None` after a stalled frame, which kept its template).
     prev_changes: Vec<Option<f64>>,
@@ -468,6 +477,7 @@ impl Tracker {
             early_probe: Vec::new(),
             rejoined: Vec::new(),
             held: Vec::new(),
+            leapt_before: Vec::new(),
             prev_changes: Vec::new(),
             steady: Vec::new(),
             turns: Vec::new(),
@@ -1056,11 +1066,12 @@ impl Tracker {
         let mark = |list: &[u16], c: usize| list.contains(&(c as u16));
         self.early_since = (0..n).map(|c| mark(early, c).then_some(frame)).collect();
         self.watch_early = (0..n).map(|c| mark(leapt, c)).collect();
+        self.leapt_before = self.watch_early.clone();
         // Their images of the next frame (early), or of it if found early there (leapt).
         self.held = (0..n)
             .map(|c| {
                 ((mark(early, c) || mark(leapt, c)) && c < latest.pyramids.len())
-                    .then(|| latest.camera(c))
+                    .then(|| Arc::new(latest.camera(c)))
             })
             .collect();
         self.prev_changes = if view_changes.len() == n && !stalled {
@@ -1319,7 +1330,38 @@ impl Tracker {
 
     /// [`Tracker::step`] with the frame's images already prepared by [`prepare`] (which needs
     /// no tracker, so it can run while the previous frame is being solved).
-    pub fn step_prepared(&mut self, frame: u32, mut prepared: Prepared) -> Result<FrameReport> {
+    pub fn step_prepared(&mut self, frame: u32, prepared: Prepared) -> Result<FrameReport> {
+        // What a frame's passes change before they may fail (interrupted, a bad image), put
+        // back on failure so that the same frame can be stepped again.
+        let kept = (
+            self.held.clone(),
+            self.early_since.clone(),
+            self.early_probe.clone(),
+            self.watch_early.clone(),
+            self.rejoined.clone(),
+            self.late.clone(),
+            self.watch_sync.clone(),
+            self.prev.left_out.clone(),
+        );
+        let result = self.solve_frame(frame, prepared);
+        if result.is_err() {
+            (
+                self.held,
+                self.early_since,
+                self.early_probe,
+                self.watch_early,
+                self.rejoined,
+                self.late,
+                self.watch_sync,
+                self.prev.left_out,
+            ) = kept;
+        }
+        result
+    }
+
+    /// One pass of [`Tracker::step_prepared`]: solves `frame`, and solves it again (a pass of
+    /// its own) when a camera is found late or early, or asked again without it.
+    fn solve_frame(&mut self, frame: u32, mut prepared: Prepared) -> Result<FrameReport> {
         self.check_prepared(&prepared)?;
         let n = self.cameras.len();
         // While a camera is watched for running late or early, the frame is kept to be solved
@@ -1364,7 +1406,9 @@ impl Tracker {
         }
         for c in (0..n).filter(|&c| known_early[c]) {
             if let Some(h) = self.held[c].take() {
-                self.held[c] = Some(prepared.swap_camera(c, h));
+                // Moved when no snapshot shares it (`again`, the state kept against an error).
+                let h = Arc::try_unwrap(h).unwrap_or_else(|shared| (*shared).clone());
+                self.held[c] = Some(Arc::new(prepared.swap_camera(c, h)));
             }
         }
         let levels = self.opts.levels;
@@ -1405,7 +1449,7 @@ impl Tracker {
         // Kept for the next frame: a leapt camera's image as read (its image of the next frame
         // if it is found early there); an early camera's is already kept.
         for c in (0..n).filter(|&c| !known_early[c]) {
-            self.held[c] = (leapt[c] && !known_late[c]).then(|| prepared.camera(c));
+            self.held[c] = (leapt[c] && !known_late[c]).then(|| Arc::new(prepared.camera(c)));
         }
         // A camera asked again at a solution it takes no part in (`early_probe`): left out of
         // this solve, compared after it.
@@ -1617,11 +1661,13 @@ impl Tracker {
                 self.watch_early = (0..n).map(|c| probe[c]).collect();
                 self.early_probe = probe.clone();
                 // Its template, the previous frame's image at the previous solution, showed
-                // this frame: it gives no patches here.
+                // this frame (found early), or is the file it was taken back to, which its own
+                // file says it was not (rejoined by the comparison): no patches here.
                 for c in (0..n).filter(|&c| found_early[c]) {
                     self.prev.left_out[c] = true;
                 }
-                return self.step_prepared(frame, again);
+                drop(next);
+                return self.solve_frame(frame, again);
             }
         }
         // A camera that repeated a frame is watched until it is seen in step or found late; one
@@ -1642,13 +1688,14 @@ impl Tracker {
             .filter(|&c| {
                 let c = c as usize;
                 self.early_since.get(c) == Some(&Some(frame))
-                    || (next_repeated[c] && self.watch_early.get(c) == Some(&true))
+                    || (next_repeated[c] && self.leapt_before.get(c) == Some(&true))
             })
             .collect();
         // Watched at the next frame: a camera whose view leapt here, unless already left out.
         self.watch_early = (0..self.cameras.len())
             .map(|c| !stalled && leapt[c] && !self.late[c])
             .collect();
+        self.leapt_before = self.watch_early.clone();
         let rejoined_cameras = marked(&self.rejoined);
         self.rejoined = Vec::new();
         // What the next frame's leap is measured against (a stalled frame keeps its template,
