@@ -1006,31 +1006,43 @@ fn a_camera_that_runs_a_frame_late_after_repeating_one_is_found_and_left_out() {
     assert!(last < 0.015, "the last frame is {:.2} % off", 100.0 * last);
 }
 
+/// Camera 0's files `files` in `footage` replaced by the next one's: it lost a frame there and
+/// shows each later frame one early.
+fn cam0_a_frame_early(footage: &std::path::Path, files: std::ops::Range<u32>) {
+    let img = |f: u32| footage.join(format!("images/cam0/{f:04}.png"));
+    for f in files {
+        std::fs::copy(img(f + 1), img(f)).unwrap();
+    }
+}
+
+/// `modelflow track --frames 0..9` of `scene` into `run`, which must succeed; its stderr.
+fn track_frames_0_to_9(scene: &std::path::Path, run: &std::path::Path) -> String {
+    let o = Command::new(env!("CARGO_BIN_EXE_modelflow"))
+        .args(["track", "--frames", "0..9", "--scene"])
+        .arg(scene)
+        .arg("--out")
+        .arg(run)
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&o.stderr).to_string();
+    assert!(o.status.success(), "{err}");
+    err
+}
+
 #[test]
 fn a_camera_that_drops_a_frame_and_runs_early_is_found_and_taken_a_frame_back() {
     // Camera 0 of the shaken cloth's two loses frame 5 without filling it in: its files 5 to 9
     // show what camera 1's 6 to 10 do. With two cameras that is a consistent change of depth,
     // and it took the mesh 7.2 % of its size off by the last frame, with no warning at all.
-    // Its view changes twice as much as camera 1's at frame 5 and falls back at frame 6, where
-    // its file 5 is compared with camera 1's frame 6: from there on each of its files is taken
-    // as the frame after it. Frame 5, solved before anything could tell, is named.
+    // Its view changes twice as much as camera 1's at frame 5; at frame 6 its file 5 is
+    // compared with camera 1's frame 6: from there on each of its files is taken as the frame
+    // after it. Frame 5, solved before anything could tell, is named.
     let dir = tempfile::tempdir().unwrap();
     let scene = two_camera_cloth_480(dir.path(), 11, 3.0);
     let footage = scene.parent().unwrap();
-    let img = |f: u32| footage.join(format!("images/cam0/{f:04}.png"));
-    for f in 5..10 {
-        std::fs::copy(img(f + 1), img(f)).unwrap();
-    }
+    cam0_a_frame_early(footage, 5..10);
     let run = dir.path().join("run");
-    let o = Command::new(env!("CARGO_BIN_EXE_modelflow"))
-        .args(["track", "--frames", "0..9", "--scene"])
-        .arg(&scene)
-        .arg("--out")
-        .arg(&run)
-        .output()
-        .unwrap();
-    let err = String::from_utf8_lossy(&o.stderr).to_string();
-    assert!(o.status.success(), "{err}");
+    let err = track_frames_0_to_9(&scene, &run);
     assert!(
         err.contains("warning: frame 5: solved with 1 camera's image a frame ahead of the others'"),
         "{err}"
@@ -1067,20 +1079,9 @@ fn a_camera_taken_a_frame_back_that_catches_up_is_taken_as_it_is_again() {
     let dir = tempfile::tempdir().unwrap();
     let scene = two_camera_cloth_480(dir.path(), 11, 3.0);
     let footage = scene.parent().unwrap();
-    let img = |f: u32| footage.join(format!("images/cam0/{f:04}.png"));
-    for f in 5..8 {
-        std::fs::copy(img(f + 1), img(f)).unwrap();
-    }
+    cam0_a_frame_early(footage, 5..8);
     let run = dir.path().join("run");
-    let o = Command::new(env!("CARGO_BIN_EXE_modelflow"))
-        .args(["track", "--frames", "0..9", "--scene"])
-        .arg(&scene)
-        .arg("--out")
-        .arg(&run)
-        .output()
-        .unwrap();
-    let err = String::from_utf8_lossy(&o.stderr).to_string();
-    assert!(o.status.success(), "{err}");
+    let err = track_frames_0_to_9(&scene, &run);
     assert!(
         err.contains("warning: frame 6: 1 camera runs a frame early since the frame before"),
         "{err}"
@@ -1148,20 +1149,9 @@ fn among_four_cameras_one_running_a_frame_early_is_found_at_a_solution_it_took_n
     };
     let scene = write_dataset(&opts, &dir.path().join("footage"), &|_, _| {}).unwrap();
     let footage = scene.parent().unwrap();
-    let img = |f: u32| footage.join(format!("images/cam0/{f:04}.png"));
-    for f in 5..10 {
-        std::fs::copy(img(f + 1), img(f)).unwrap();
-    }
+    cam0_a_frame_early(footage, 5..10);
     let run = dir.path().join("run");
-    let o = Command::new(env!("CARGO_BIN_EXE_modelflow"))
-        .args(["track", "--frames", "0..9", "--scene"])
-        .arg(&scene)
-        .arg("--out")
-        .arg(&run)
-        .output()
-        .unwrap();
-    let err = String::from_utf8_lossy(&o.stderr).to_string();
-    assert!(o.status.success(), "{err}");
+    let err = track_frames_0_to_9(&scene, &run);
     assert!(
         err.contains("warning: frame 6: 1 camera runs a frame early since the frame before"),
         "{err}"

@@ -212,12 +212,9 @@ fn a_run_stopped_where_a_camera_repeated_or_was_found_late_resumes_to_the_same_f
     }
 }
 
-#[test]
-fn a_run_stopped_where_a_camera_dropped_a_frame_or_was_found_early_resumes_to_the_same_files() {
-    // Camera 0 loses frame 4 without filling it in (its files 4 to 6 show frames 5 to 7): its
-    // view leaps at frame 4, and frame 5 finds it a frame early and leaves it out from then on.
-    // Stopped at either frame, the resumed run must do the same.
-    let dir = tempfile::tempdir().unwrap();
+/// The shaken cloth (two cameras, 480×360, 8 frames) in `dir/footage`, camera 0 losing frame 4:
+/// its files 4 to 6 show frames 5 to 7. The scene file's path.
+fn cloth_with_camera_0_early_from_4(dir: &Path) -> PathBuf {
     let opts = SynthOptions {
         width: 480,
         height: 360,
@@ -225,7 +222,7 @@ fn a_run_stopped_where_a_camera_dropped_a_frame_or_was_found_early_resumes_to_th
         shake: 3.0,
         ..SynthOptions::default()
     };
-    let scene = write_dataset(&opts, &dir.path().join("footage"), &|_, _| {}).unwrap();
+    let scene = write_dataset(&opts, &dir.join("footage"), &|_, _| {}).unwrap();
     let images = scene.parent().unwrap().join("images/cam0");
     for f in 4..7 {
         std::fs::copy(
@@ -234,6 +231,16 @@ fn a_run_stopped_where_a_camera_dropped_a_frame_or_was_found_early_resumes_to_th
         )
         .unwrap();
     }
+    scene
+}
+
+#[test]
+fn a_run_stopped_where_a_camera_dropped_a_frame_or_was_found_early_resumes_to_the_same_files() {
+    // Camera 0 loses frame 4 without filling it in (its files 4 to 6 show frames 5 to 7): its
+    // view leaps at frame 4, and frame 5 finds it a frame early and leaves it out from then on.
+    // Stopped at either frame, the resumed run must do the same.
+    let dir = tempfile::tempdir().unwrap();
+    let scene = cloth_with_camera_0_early_from_4(dir.path());
     // Frames 0 to 6 only (camera 0 has no frame 7 to show).
     let text = std::fs::read_to_string(&scene).unwrap();
     let mut json: serde_json::Value = serde_json::from_str(&text).unwrap();
@@ -268,22 +275,7 @@ fn a_cancelled_step_after_a_camera_was_taken_a_frame_back_steps_again_as_if_neve
     // was taken back, before the solve ends) must leave the tracker so that stepping frame 6
     // again gives what an uncancelled run gives.
     let dir = tempfile::tempdir().unwrap();
-    let opts = SynthOptions {
-        width: 480,
-        height: 360,
-        frames: 8,
-        shake: 3.0,
-        ..SynthOptions::default()
-    };
-    let scene = write_dataset(&opts, &dir.path().join("footage"), &|_, _| {}).unwrap();
-    let images = scene.parent().unwrap().join("images/cam0");
-    for f in 4..7 {
-        std::fs::copy(
-            images.join(format!("{:04}.png", f + 1)),
-            images.join(format!("{f:04}.png")),
-        )
-        .unwrap();
-    }
+    let scene = cloth_with_camera_0_early_from_4(dir.path());
     let s = Scene::load(&scene).unwrap();
     let tracker = || {
         let mut t = Tracker::new(
