@@ -28,8 +28,8 @@ use crate::tracker::patch::{CameraPatches, PatchOptions, PatchSet};
 use crate::tracker::pyramid::Pyramid;
 use crate::tracker::regularise::{self, EdgeSet, FrameContext, Regulariser};
 use crate::tracker::solve::{
-    moved_on, Interpolation, Lag, Loss, Motion, Problem, SolveSummary, SolverOptions, StopReason,
-    VertexConfidence,
+    moved_on, Interpolation, Lag, Loss, Motion, Problem, SolveSummary, SolverOptions, StageRole,
+    StopReason, VertexConfidence,
 };
 use crate::tracker::steady;
 use nalgebra::{Point3, Vector3};
@@ -2046,13 +2046,15 @@ impl Tracker {
             }
         }
         if level == finest {
-            out.cost_before = problem.cost(&self.prev.positions, &sopts);
+            // For the log: from every fourth triangle's pixels (a full pass was 4 % of the
+            // default cloth's frame time).
+            out.cost_before = problem.cost_sampled(&self.prev.positions, &sopts, COST_BEFORE_EVERY);
         }
         // A cancelled solve ends the step: the tracker stays at the previous frame and
         // nothing of this step is kept.
         let last_complete = self.prev.frame;
-        let solve = |x: &[Point3<f64>], lin, o: &SolverOptions, motion, median| {
-            let out = problem.solve_stage(x, lin, o, motion, median);
+        let solve = |x: &[Point3<f64>], lin, o: &SolverOptions, motion, role| {
+            let out = problem.solve_stage(x, lin, o, motion, role);
             if out.1.stop == StopReason::Cancelled {
                 Err(Error::Interrupted { last_complete })
             } else {
@@ -2066,7 +2068,7 @@ impl Tracker {
         // at the finer levels the coarser solution already holds it, and a rigid stage there
         // found next to nothing (0.7 accepted steps per frame, 2 evaluations each).
         if self.opts.rigid_first && level == levels - 1 {
-            let (sol, summary, lin) = solve(x, None, &sopts, Motion::Rigid, false)?;
+            let (sol, summary, lin) = solve(x, None, &sopts, Motion::Rigid, StageRole::default())?;
             // The convex loss catches a large motion, but a template with a plain occluder in
             // it (a black card over half of one camera's view of a limb, gone in this frame)
             // pulls it too, and the whole mesh went 6 % of its size off. The rigid move is kept
@@ -2085,7 +2087,8 @@ impl Tracker {
                 linearised = Some(lin);
                 out.summaries.push(summary);
             } else {
-                let (robust_sol, robust_summary, _) = solve(x, None, &tukey, Motion::Rigid, false)?;
+                let (robust_sol, robust_summary, _) =
+                    solve(x, None, &tukey, Motion::Rigid, StageRole::default())?;
                 out.summaries.push(summary);
                 let at_robust = problem.cost(&robust_sol, &judge);
                 if at_robust < at_convex && at_robust < ROBUST_GAIN * at_start {
@@ -2105,10 +2108,17 @@ impl Tracker {
         }
         // Before a refine, the Huber solve takes the residuals' median at its result as it
         // goes, which sets the refine's threshold without a pass of its own.
-        let (sol, mut summary, mut lin) = solve(x, linearised, &free_opts, Motion::Free, refine)?;
+        // An approach stage ends at its first step that does what its model promised (the
+        // next level or the refine linearises afresh).
+        let role = StageRole {
+            collect_median: refine,
+            approach: approach && self.opts.approach_decrease > 0.0,
+        };
+        let (sol, mut summary, mut lin) = solve(x, linearised, &free_opts, Motion::Free, role)?;
         *x = sol;
         if refine {
-            let (sol, refined, refined_lin) = solve(x, Some(lin), &robust, Motion::Free, false)?;
+            let (sol, refined, refined_lin) =
+                solve(x, Some(lin), &robust, Motion::Free, StageRole::default())?;
             *x = sol;
             lin = refined_lin;
             out.summaries.push(std::mem::replace(&mut summary, refined));
@@ -2145,6 +2155,10 @@ impl Tracker {
 /// Blender hard sample's three frames where the convex stage failed the check, to 0.99 (it
 /// barely moved; taking it there made the mean error 0.2 % worse).
 const ROBUST_GAIN: f64 = 0.9;
+
+/// The frame log's `cost_before` is read from every this many triangles' pixels
+/// ([`Problem::cost_sampled`]).
+const COST_BEFORE_EVERY: usize = 4;
 
 /// `dropped` pixels as a share of those a template took (`kept` + `dropped`); 0 when it took none.
 fn share_of(dropped: usize, kept: usize) -> f64 {
