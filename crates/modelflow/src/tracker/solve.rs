@@ -1570,13 +1570,17 @@ impl Problem<'_> {
                 && accepted
                 && (-change / predicted - 1.0).abs() <= AGREEMENT
                 && NEXT_SHARE * -change <= opts.min_relative_decrease * new_cost;
-            if ends {
+            // An accepted step that decreased the cost by less than the threshold ends the
+            // stage in any case (below): no equations are needed there either.
+            let small = accepted && -change < opts.min_relative_decrease * prev_cost;
+            if ends || (light && small) {
                 std::mem::swap(&mut x, &mut trial);
                 cur.pixels = new_pixels;
                 cur.parts = new_parts;
                 cur.median = new_median;
                 cur.cost = new_cost;
                 cur.current = false;
+                lm = (lm / 3.0).max(1e-7);
                 iterations.push(IterationSummary {
                     iteration: it + 1,
                     cost: cur.cost,
