@@ -1573,29 +1573,8 @@ impl Problem<'_> {
             // An accepted step that decreased the cost by less than the threshold ends the
             // stage in any case (below): no equations are needed there either.
             let small = accepted && -change < opts.min_relative_decrease * prev_cost;
-            if ends || (light && small) {
-                std::mem::swap(&mut x, &mut trial);
-                cur.pixels = new_pixels;
-                cur.parts = new_parts;
-                cur.median = new_median;
-                cur.cost = new_cost;
-                cur.current = false;
-                lm = (lm / 3.0).max(1e-7);
-                iterations.push(IterationSummary {
-                    iteration: it + 1,
-                    cost: cur.cost,
-                    cost_change: change,
-                    model_change: -predicted,
-                    step,
-                    accepted,
-                    damping: lm,
-                    cg_iterations,
-                    seconds: t0.elapsed().as_secs_f64(),
-                });
-                stop = StopReason::Converged;
-                break;
-            }
-            if light && accepted {
+            let ends_light = ends || (light && small);
+            if light && accepted && !ends_light {
                 // The stage goes on from the trial point: its normal equations are needed.
                 let te = Instant::now();
                 new_parts = self
@@ -1606,8 +1585,13 @@ impl Problem<'_> {
             }
             if accepted {
                 std::mem::swap(&mut x, &mut trial);
-                std::mem::swap(&mut cur.a, &mut a_new);
-                std::mem::swap(&mut cur.b, &mut b_new);
+                if ends_light {
+                    // The equations held are the previous point's; nothing reuses them.
+                    cur.current = false;
+                } else {
+                    std::mem::swap(&mut cur.a, &mut a_new);
+                    std::mem::swap(&mut cur.b, &mut b_new);
+                }
                 cur.pixels = new_pixels;
                 cur.parts = new_parts;
                 cur.median = new_median;
@@ -1631,7 +1615,7 @@ impl Problem<'_> {
                 cg_iterations,
                 seconds: t0.elapsed().as_secs_f64(),
             });
-            if accepted && -change < opts.min_relative_decrease * prev_cost {
+            if ends || small {
                 stop = StopReason::Converged;
                 break;
             }
