@@ -658,10 +658,7 @@ impl Problem<'_> {
     }
 
     fn weighted_pixels(&self) -> f64 {
-        self.patches
-            .iter()
-            .map(|p| p.weight as f64 * (p.end - p.start) as f64)
-            .sum()
+        weighted_pixels_of(self.patches)
     }
 
     /// Photometric cost and (optionally) its normal-equation contribution of one triangle.
@@ -1289,11 +1286,7 @@ impl Problem<'_> {
             .with_min_len(16)
             .map_init(Scratch::default, |scratch, (t, r)| {
                 let acc = self.triangle(*t, r, x, opts, false, scratch);
-                let weight: f64 = self.patches[r.clone()]
-                    .iter()
-                    .map(|p| p.weight as f64 * (p.end - p.start) as f64)
-                    .sum();
-                (acc.cost, weight)
+                (acc.cost, weighted_pixels_of(&self.patches[r.clone()]))
             })
             .collect();
         // Summed in triangle order: the same bits whatever the thread count.
@@ -1665,6 +1658,15 @@ pub(crate) struct StageRole {
     /// step is tried without building the normal equations at the trial point (a pass over
     /// the pixels without the Jacobian: about 45 % of one with it).
     pub approach: bool,
+}
+
+/// The pixels of `patches` counted at their patches' weights: what the photometric cost is a
+/// mean over.
+fn weighted_pixels_of(patches: &[Patch]) -> f64 {
+    patches
+        .iter()
+        .map(|p| p.weight as f64 * (p.end - p.start) as f64)
+        .sum()
 }
 
 /// How closely an approach stage's step must lower the cost as its Gauss–Newton model

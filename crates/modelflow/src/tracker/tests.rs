@@ -644,6 +644,24 @@ impl MovedPlane {
     }
 }
 
+/// The regularisers of `mesh`, their frame begun with the mesh at rest (its own positions as the
+/// previous and the predicted shape).
+fn regularisers_at_rest(
+    mesh: &Mesh,
+    edges: &Arc<EdgeSet>,
+    reg: &Regularisation,
+) -> Vec<Box<dyn regularise::Regulariser>> {
+    let mut regularisers = regularise::build(mesh, edges, reg);
+    for r in &mut regularisers {
+        r.begin_frame(&FrameContext {
+            previous: &mesh.positions,
+            predicted: &mesh.positions,
+            information: None,
+        });
+    }
+    regularisers
+}
+
 #[test]
 fn assembled_gradient_matches_finite_differences_of_the_cost() {
     let moved = MovedPlane::new();
@@ -659,14 +677,7 @@ fn assembled_gradient_matches_finite_differences_of_the_cost() {
         bending: 0.0,
         ..Regularisation::default()
     };
-    let mut regularisers = regularise::build(mesh, &edges, &reg);
-    for r in &mut regularisers {
-        r.begin_frame(&FrameContext {
-            previous: &mesh.positions,
-            predicted: &mesh.positions,
-            information: None,
-        });
-    }
+    let regularisers = regularisers_at_rest(mesh, &edges, &reg);
     let problem = frame1_problem(
         mesh,
         &set,
@@ -777,8 +788,8 @@ fn assembled_gradient_matches_finite_differences_of_the_cost() {
         loss: Loss::Huber,
         ..opts
     };
-    // As an approach stage: its last step is tried without the normal equations, and the
-    // median still comes from the pass at its result.
+    // As an approach stage too (from this far off its steps are tried with the normal
+    // equations, as any stage's): the median comes from the pass at its result.
     let role = StageRole {
         collect_median: true,
         approach: true,
@@ -844,14 +855,7 @@ fn an_approach_stage_ends_on_a_step_its_model_predicted() {
     let mut set = frame0_patches(mesh, cams, &src);
     let by_triangle = set.by_triangle();
     let edges = Arc::new(EdgeSet::new(mesh));
-    let mut regularisers = regularise::build(mesh, &edges, &Regularisation::default());
-    for r in &mut regularisers {
-        r.begin_frame(&FrameContext {
-            previous: &mesh.positions,
-            predicted: &mesh.positions,
-            information: None,
-        });
-    }
+    let regularisers = regularisers_at_rest(mesh, &edges, &Regularisation::default());
     let problem = frame1_problem(
         mesh,
         &set,
