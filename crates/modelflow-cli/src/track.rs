@@ -75,6 +75,11 @@ pub struct TrackArgs {
     /// edge length (0 = off; 0 to 1e6).
     #[arg(long, default_value_t = TrackOptions::default().regularisation.membrane)]
     pub membrane: f64,
+    /// Keep the membrane's reference in its own orientation instead of turning it with each
+    /// piece of the mesh: a change of the object's rotation rate is then resisted too (as
+    /// before 2026-12-01; docs/tracker.md, "The membrane follows each piece's turn").
+    #[arg(long)]
+    pub membrane_resists_turns: bool,
     /// Weight of the bending term that keeps the mesh's local shape close to its rest shape up to
     /// rotation (0 = off; 0 to 1e6).
     #[arg(long, default_value_t = TrackOptions::default().regularisation.bending)]
@@ -241,6 +246,7 @@ impl TrackArgs {
                 spring_pull_back: self.spring_pull_back,
                 spring_stretch_share: self.spring_stretch_share,
                 membrane: self.membrane,
+                membrane_turns: !self.membrane_resists_turns,
                 bending: self.bending,
                 bending_yield: self.bending_yield,
                 bending_yield_seen: self.bending_yield_seen,

@@ -22,7 +22,7 @@
 //! few pixels zig-zags in depth (on the Blender sample, ±4 mm from one border vertex to the
 //! next at the last frame), while a border that curls as a whole is not penalised by them.
 
-use super::{FrameContext, Regulariser, System};
+use super::{procrustes, FrameContext, Regulariser, System};
 use crate::base::mesh::EdgeSides;
 use crate::tracker::sparse::{BlockSparse, ScalarSparse};
 use nalgebra::{Matrix3, Point3, Vector3};
@@ -351,24 +351,6 @@ impl Regulariser for BendingTerm {
     fn accumulate(&self, x: &[Point3<f64>], system: Option<System<'_>>) -> f64 {
         self.bending
             .accumulate(x, &self.targets, self.weight, system)
-    }
-}
-
-/// The rotation closest to `m` (polar decomposition via SVD), with `det = +1`.
-fn procrustes(m: &Matrix3<f64>) -> Matrix3<f64> {
-    let svd = m.svd(true, true);
-    let (Some(u), Some(vt)) = (svd.u, svd.v_t) else {
-        return Matrix3::identity();
-    };
-    let mut d = Matrix3::identity();
-    if (u * vt).determinant() < 0.0 {
-        d[(2, 2)] = -1.0;
-    }
-    let r = u * d * vt;
-    if r.iter().all(|v| v.is_finite()) {
-        r
-    } else {
-        Matrix3::identity()
     }
 }
 

@@ -15,7 +15,7 @@ pub(crate) mod springs;
 
 use crate::base::mesh::Mesh;
 use crate::tracker::sparse::BlockSparse;
-use nalgebra::{Point3, Vector3};
+use nalgebra::{Matrix3, Point3, Vector3};
 use serde::{Deserialize, Serialize};
 use std::sync::Arc;
 
@@ -50,6 +50,13 @@ pub struct Regularisation {
     pub spring_stretch_share: f64,
     /// Weight `μ` of the frame-to-frame membrane.
     pub membrane: f64,
+    /// Whether the membrane's reference turns with each connected piece of the mesh (the
+    /// rotation that best maps its edges onto the current ones), so that a piece turning faster
+    /// or slower than predicted is not held back (`membrane::Membrane`). `false`: the reference
+    /// keeps its orientation and such a change of rotation rate is resisted (runs made before
+    /// the option existed, `--membrane-resists-turns`).
+    #[serde(default)]
+    pub membrane_turns: bool,
     /// Weight `β` of the bending term against the rest shape.
     pub bending: f64,
     /// Yield of the bending term, as a fraction of the mean rest edge length: a vertex whose
@@ -88,6 +95,7 @@ impl Default for Regularisation {
             spring_pull_back: 1.0,
             spring_stretch_share: 0.005,
             membrane: 0.002,
+            membrane_turns: true,
             bending: 0.03,
             bending_yield: 0.05,
             bending_yield_seen: 0.01,
@@ -200,6 +208,24 @@ impl EdgeSet {
     }
 }
 
+/// The rotation closest to `m` (polar decomposition via SVD), with `det = +1`.
+pub(crate) fn procrustes(m: &Matrix3<f64>) -> Matrix3<f64> {
+    let svd = m.svd(true, true);
+    let (Some(u), Some(vt)) = (svd.u, svd.v_t) else {
+        return Matrix3::identity();
+    };
+    let mut d = Matrix3::identity();
+    if (u * vt).determinant() < 0.0 {
+        d[(2, 2)] = -1.0;
+    }
+    let r = u * d * vt;
+    if r.iter().all(|v| v.is_finite()) {
+        r
+    } else {
+        Matrix3::identity()
+    }
+}
+
 /// The regularisers `reg` asks for on `mesh` (whose positions are the rest shape), in the order
 /// the solver adds them.
 pub(crate) fn build(
@@ -221,10 +247,11 @@ pub(crate) fn build(
         )));
     }
     if reg.membrane > 0.0 {
-        out.push(Box::new(membrane::Membrane::new(
-            edges.clone(),
-            reg.membrane,
-        )));
+        out.push(Box::new(if reg.membrane_turns {
+            membrane::Membrane::new(edges.clone(), reg.membrane)
+        } else {
+            membrane::Membrane::fixed(edges.clone(), reg.membrane)
+        }));
     }
     if reg.bending > 0.0 {
         let b = bending::Bending::new(&mesh.triangles, &mesh.positions);
@@ -274,6 +301,8 @@ mod tests {
         assert_eq!((r.spring_pull_back, r.spring_stretch_share), (1.0, 0.0));
         // Nor a gated bending yield (before 2026-11-28): its one yield everywhere.
         assert_eq!(r.bending_seen_share, 0.0);
+        // Nor a membrane that turns with the mesh (before 2026-12-01).
+        assert!(!r.membrane_turns);
         // Runs made on 2026-11-26 before the stretch share: pull-back 0 in every frame.
         let day = r#"{"spring_k": 1.0, "spring_t": 0.2, "spring_yield": 0.065,
                       "spring_pull_back": 0.0, "membrane": 0.002, "bending": 0.01,
@@ -282,6 +311,7 @@ mod tests {
         assert_eq!((r.spring_pull_back, r.spring_stretch_share), (0.0, 0.0));
         let d = Regularisation::default();
         assert_eq!((d.spring_pull_back, d.spring_stretch_share), (1.0, 0.005));
+        assert!(d.membrane_turns);
         assert_eq!(
             (d.bending, d.bending_yield_seen, d.bending_seen_share),
             (0.03, 0.01, 0.5)
