@@ -16,7 +16,7 @@
 //! matrix is the same constant one as with `R = I`. [`Membrane::fixed`] keeps `R = I` (runs
 //! recorded before, `--membrane-resists-turns`).
 
-use super::{procrustes, EdgeSet, FrameContext, Regulariser, System};
+use super::{procrustes_if_fixed, EdgeSet, FrameContext, Regulariser, System};
 use nalgebra::{Matrix3, Point3};
 use std::sync::Arc;
 
@@ -71,20 +71,9 @@ impl Membrane {
             let [a, b] = edge.map(|v| v as usize);
             m[k as usize] += (x[b] - x[a]) * (prev[b] - prev[a]).transpose();
         }
-        m.iter()
-            .map(|m| {
-                // Two independent directions fix a rotation (the third follows from them);
-                // fewer leave it free, and the reference then keeps its own orientation.
-                let s = m.singular_values();
-                let mut s = [s[0], s[1], s[2]];
-                s.sort_by(|a, b| b.total_cmp(a));
-                if s[0] > 0.0 && s[1] > 1e-9 * s[0] {
-                    procrustes(m)
-                } else {
-                    Matrix3::identity()
-                }
-            })
-            .collect()
+        // Two independent directions fix a rotation (the third follows from them); fewer leave
+        // it free, and the reference then keeps its own orientation.
+        m.iter().map(procrustes_if_fixed).collect()
     }
 }
 

@@ -210,20 +210,37 @@ impl EdgeSet {
 
 /// The rotation closest to `m` (polar decomposition via SVD), with `det = +1`.
 pub(crate) fn procrustes(m: &Matrix3<f64>) -> Matrix3<f64> {
+    polar(&m.svd(true, true)).unwrap_or_else(Matrix3::identity)
+}
+
+/// [`procrustes`], or the identity where `m` fixes no rotation: where its second largest
+/// singular value is at most `1e-9` of its largest (the directions it was summed from all lie
+/// on one line, or there were none). One SVD for both.
+pub(crate) fn procrustes_if_fixed(m: &Matrix3<f64>) -> Matrix3<f64> {
     let svd = m.svd(true, true);
-    let (Some(u), Some(vt)) = (svd.u, svd.v_t) else {
-        return Matrix3::identity();
-    };
+    let mut s = [
+        svd.singular_values[0],
+        svd.singular_values[1],
+        svd.singular_values[2],
+    ];
+    s.sort_by(|a, b| b.total_cmp(a));
+    if s[0] > 0.0 && s[1] > 1e-9 * s[0] {
+        polar(&svd).unwrap_or_else(Matrix3::identity)
+    } else {
+        Matrix3::identity()
+    }
+}
+
+/// The rotation factor `U·D·Vᵀ` of an SVD (`D` flipping the last axis where `U·Vᵀ` would
+/// reflect), or `None` without its factors or when it is not finite.
+fn polar(svd: &nalgebra::SVD<f64, nalgebra::U3, nalgebra::U3>) -> Option<Matrix3<f64>> {
+    let (u, vt) = (svd.u?, svd.v_t?);
     let mut d = Matrix3::identity();
     if (u * vt).determinant() < 0.0 {
         d[(2, 2)] = -1.0;
     }
     let r = u * d * vt;
-    if r.iter().all(|v| v.is_finite()) {
-        r
-    } else {
-        Matrix3::identity()
-    }
+    r.iter().all(|v| v.is_finite()).then_some(r)
 }
 
 /// The regularisers `reg` asks for on `mesh` (whose positions are the rest shape), in the order
