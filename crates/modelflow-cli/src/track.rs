@@ -120,6 +120,13 @@ pub struct TrackArgs {
     /// from the mesh where each pyramid level starts.
     #[arg(long)]
     pub keep_hidden: bool,
+    /// Keep template pixels whose way into the frame being solved crosses an occluder that
+    /// stands still in front of the surface (a rod, a frame edge: pixels every other camera
+    /// contradicts and the next frame shows unchanged); by default they are left out, the
+    /// previous frame's and the first frame's, since at the occluder's edge they push the
+    /// mesh back toward standing still.
+    #[arg(long)]
+    pub keep_near_occluders: bool,
     /// Track the first mesh as given even when it lies off the surface the cameras agree on (by
     /// default such a mesh, e.g. a visual hull made from silhouettes, has its vertices moved
     /// along their normals onto the surface before tracking; only a warning then).
@@ -234,6 +241,7 @@ impl TrackArgs {
             approach_decrease: self.approach_decrease,
             lent_anchor: self.lent_anchor,
             hidden_ahead: !self.keep_hidden,
+            still_occluders: !self.keep_near_occluders,
             onto_surface: !self.keep_shape,
             steady_cameras: !self.keep_poses,
             blur: self.blur,

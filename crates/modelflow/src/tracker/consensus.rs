@@ -25,6 +25,7 @@
 
 use crate::base::camera::Projection;
 use crate::base::image::RgbImage;
+use crate::tracker::occluder::{Ahead, Limit, StillMarks};
 use crate::tracker::patch::{Patch, PatchSet, PixelSample};
 use nalgebra::Point3;
 use rayon::prelude::*;
@@ -43,8 +44,11 @@ pub(crate) struct ConsensusOptions {
 /// What the check did to one template.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub(crate) struct ConsensusStats {
-    /// Pixels dropped.
+    /// Pixels dropped as contradicted.
     pub dropped: usize,
+    /// Pixels dropped because their way into the frame being solved crosses a still occluder
+    /// (`occluder`; only when asked, with [`drop_contradicted_ahead`]).
+    pub near_still: usize,
 }
 
 /// The statistics (pair gains, median residual) are taken on every `stride`-th pixel of each
@@ -63,6 +67,7 @@ const PATCH_GAIN: f64 = 1.5;
 /// Drops from `set` the pixels every other camera contradicts. `positions` is the template's
 /// mesh, `projections[c]` and `images[c]` camera `c`'s at the template's frame and the set's
 /// level (the patches' `source` indexes them).
+#[cfg(test)]
 pub(crate) fn drop_contradicted(
     set: &mut PatchSet,
     positions: &[Point3<f64>],
@@ -71,7 +76,42 @@ pub(crate) fn drop_contradicted(
     images: &[&RgbImage],
     opts: &ConsensusOptions,
 ) -> ConsensusStats {
-    drop_contradicted_asking(set, positions, triangles, projections, images, opts, false)
+    drop_contradicted_asking(
+        set,
+        positions,
+        triangles,
+        projections,
+        images,
+        opts,
+        false,
+        None,
+    )
+    .0
+}
+
+/// [`drop_contradicted`], and with `ahead` also the pixels whose way into the frame being
+/// solved crosses an occluder that stands still there (`occluder`, judged from this check's
+/// verdict and limit).
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn drop_contradicted_ahead(
+    set: &mut PatchSet,
+    positions: &[Point3<f64>],
+    triangles: &[[u32; 3]],
+    projections: &[Projection],
+    images: &[&RgbImage],
+    opts: &ConsensusOptions,
+    ahead: Option<&Ahead>,
+) -> (ConsensusStats, Option<StillMarks>) {
+    drop_contradicted_asking(
+        set,
+        positions,
+        triangles,
+        projections,
+        images,
+        opts,
+        false,
+        ahead,
+    )
 }
 
 /// [`drop_contradicted`] with every other camera asked about every pixel, the verdict's
@@ -85,9 +125,20 @@ pub(crate) fn drop_contradicted_asking_all(
     images: &[&RgbImage],
     opts: &ConsensusOptions,
 ) -> ConsensusStats {
-    drop_contradicted_asking(set, positions, triangles, projections, images, opts, true)
+    drop_contradicted_asking(
+        set,
+        positions,
+        triangles,
+        projections,
+        images,
+        opts,
+        true,
+        None,
+    )
+    .0
 }
 
+#[allow(clippy::too_many_arguments)]
 fn drop_contradicted_asking(
     set: &mut PatchSet,
     positions: &[Point3<f64>],
@@ -96,10 +147,11 @@ fn drop_contradicted_asking(
     images: &[&RgbImage],
     opts: &ConsensusOptions,
     ask_all: bool,
-) -> ConsensusStats {
+    ahead: Option<&Ahead>,
+) -> (ConsensusStats, Option<StillMarks>) {
     let ncam = projections.len();
     if ncam < 2 || set.patches.is_empty() {
-        return ConsensusStats::default();
+        return (ConsensusStats::default(), None);
     }
     let covered = set.coverage(triangles.len(), ncam);
     let view = View {
@@ -123,21 +175,25 @@ fn drop_contradicted_asking(
     let first = limit(view.median_residual(patches, &sampled, &gains));
     let gains = view.pair_gains(patches, &sampled, Some((&gains, &first)));
     let limit = limit(view.median_residual(patches, &sampled, &gains));
-    let keep: Vec<Vec<bool>> = patches
+    let (mut keep, contradicted): (Vec<Vec<bool>>, Vec<Vec<bool>>) = patches
         .par_iter()
         .map_init(Vec::new, |buf, p| {
             view.verdict(p, &gains, &limit, buf, ask_all)
         })
-        .collect();
-    ConsensusStats {
-        dropped: set.retain_pixels(&keep),
-    }
-}
-
-/// A residual's limit: `d2 + tol2·|∇|²`.
-struct Limit {
-    d2: f32,
-    tol2: f32,
+        .unzip();
+    let marks = ahead.and_then(|a| a.still_marks(set, &contradicted, &limit));
+    let near_still = match (ahead, &marks) {
+        (Some(a), Some(m)) => m.leave_out(set, &mut keep, &a.way),
+        _ => 0,
+    };
+    let all = set.retain_pixels(&keep);
+    (
+        ConsensusStats {
+            dropped: all - near_still,
+            near_still,
+        },
+        marks,
+    )
 }
 
 /// One other camera's sample of a template pixel's surface point: its colour times the pair's
@@ -432,7 +488,8 @@ impl View<'_> {
         }
     }
 
-    /// Which of `p`'s pixels to keep. The other cameras are asked one at a time, and no
+    /// Which of `p`'s pixels to keep, and which every camera that checked it contradicted (the
+    /// pixel's own verdict, whatever its patch's: what `occluder` marks from). The other cameras are asked one at a time, and no
     /// further once every pixel has agreed with one of them: a pixel is dropped only when every
     /// camera that checks it contradicts it, and a patch dropped whole has most of its checked
     /// pixels contradicted, so the cameras not yet asked cannot change the verdict then (on
@@ -445,7 +502,7 @@ impl View<'_> {
         limit: &Limit,
         buf: &mut Vec<Option<Seen>>,
         ask_all: bool,
-    ) -> Vec<bool> {
+    ) -> (Vec<bool>, Vec<bool>) {
         let ncam = self.projections.len();
         let n = (p.end - p.start) as usize;
         let src = p.source as usize;
@@ -487,9 +544,11 @@ impl View<'_> {
         let nc = checked.iter().filter(|&&c| c).count();
         let nd = (0..n).filter(|&i| checked[i] && !agreed[i]).count();
         let whole = 2 * nd > nc;
-        (0..n)
+        let keep = (0..n)
             .map(|i| !checked[i] || (agreed[i] && !whole))
-            .collect()
+            .collect();
+        let contradicted = (0..n).map(|i| checked[i] && !agreed[i]).collect();
+        (keep, contradicted)
     }
 }
 

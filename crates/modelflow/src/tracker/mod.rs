@@ -14,6 +14,7 @@ mod coverage;
 pub(crate) mod fold;
 mod gpu;
 pub(crate) mod health;
+mod occluder;
 mod occlusion;
 mod offset;
 mod options;

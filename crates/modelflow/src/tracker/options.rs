@@ -94,6 +94,13 @@ pub struct TrackOptions {
     /// level starts (`tracker::occlusion`). Off in runs made before it existed.
     #[serde(default)]
     pub hidden_ahead: bool,
+    /// Template pixels, the previous frame's and the anchor's, whose way into the frame being
+    /// solved (from where the previous frame put them to where the prediction puts them)
+    /// crosses an occluder that stands still there (a patch of pixels every other camera
+    /// contradicts and the next frame shows unchanged) are left out (`tracker::occluder`).
+    /// Off in runs made before it existed.
+    #[serde(default)]
+    pub still_occluders: bool,
     /// A first mesh that lies off the surface the cameras agree on (a visual hull made from
     /// silhouettes lies outside it; `tracker::surface_offset`: 1.5 px or more, clearly better
     /// agreement there) has its vertices moved along their normals onto the surface before
@@ -145,6 +152,7 @@ impl Default for TrackOptions {
             approach_decrease: 0.03,
             lent_anchor: 1.0,
             hidden_ahead: true,
+            still_occluders: true,
             onto_surface: true,
             steady_cameras: true,
         }
@@ -498,6 +506,27 @@ mod tests {
         assert_eq!(
             TrackOptions {
                 hidden_ahead: true,
+                ..read
+            },
+            TrackOptions::default()
+        );
+    }
+
+    #[test]
+    fn a_run_recorded_before_still_occluders_were_looked_for_resumes_without() {
+        // Its run.json names no `still_occluders`: it must go on keeping the pixels whose way
+        // crosses a still occluder, while a new run leaves them out.
+        assert!(TrackOptions::default().still_occluders);
+        let mut old = serde_json::to_value(TrackOptions::default()).expect("options as JSON");
+        old.as_object_mut()
+            .expect("an object")
+            .remove("still_occluders")
+            .expect("the field is written");
+        let read: TrackOptions = serde_json::from_value(old).expect("an old run's options");
+        assert!(!read.still_occluders);
+        assert_eq!(
+            TrackOptions {
+                still_occluders: true,
                 ..read
             },
             TrackOptions::default()

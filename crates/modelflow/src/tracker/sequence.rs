@@ -17,10 +17,11 @@ use crate::base::mesh::Mesh;
 use crate::error::{Error, Result};
 use crate::tracker::align;
 use crate::tracker::balance;
-use crate::tracker::consensus::{drop_contradicted, ConsensusOptions};
+use crate::tracker::consensus::{drop_contradicted_ahead, ConsensusOptions};
 use crate::tracker::fold::FoldWatch;
 use crate::tracker::gpu::Gpu;
 use crate::tracker::health;
+use crate::tracker::occluder::{self, Ahead, Way};
 use crate::tracker::occlusion;
 use crate::tracker::offset::{moved_onto_surface, SurfaceMove};
 use crate::tracker::options::{OptionsUsed, TrackOptions};
@@ -70,6 +71,12 @@ pub struct FrameReport {
     /// existed.
     #[serde(default)]
     pub hidden: usize,
+    /// Pixels of the finest level's templates (previous frame and anchor) whose way into this
+    /// frame crosses an occluder that stands still in front of the surface (a rod, a frame
+    /// edge: `tracker::occluder`), left out (`TrackOptions::still_occluders`). 0 in logs
+    /// written before it existed.
+    #[serde(default)]
+    pub near_still: usize,
     /// Pairs of neighbouring triangles that faced within 60° of each other in the first frame's
     /// mesh and face more than 120° apart at the solution: where the mesh has folded over
     /// itself (`tracker::fold`). 0 in logs written before it existed.
@@ -216,6 +223,10 @@ struct TemplatePatches {
     /// `seen[triangle · cameras + camera]`: whether the template sees that triangle in that
     /// camera, whatever was left out for what the pixels show (a blank image, contradiction).
     seen: Vec<bool>,
+    /// The still occluders' marks the cross-camera check found (`occluder`), for the anchor.
+    still: Option<occluder::StillMarks>,
+    /// Pixels left out because their way crosses one of those marks.
+    near_still: usize,
 }
 
 /// Time split of one frame's step, seconds.
@@ -512,7 +523,14 @@ impl Tracker {
         let level = self.opts.finest_level;
         let cb = level == 0 && self.opts.checkerboard;
         let mut set = self
-            .template_patches(&self.prev, None, level, if cb { 2.0 } else { 1.0 }, cb)
+            .template_patches(
+                &self.prev,
+                None,
+                level,
+                if cb { 2.0 } else { 1.0 },
+                cb,
+                None,
+            )
             .set;
         if let Some(anchor) = self.anchor.get(level) {
             merge_into(&mut set, anchor.clone());
@@ -1124,7 +1142,9 @@ impl Tracker {
     /// frames before the template's), a camera that records late or early
     /// (`Camera::time_offset`) is given the surface where it was when that camera saw it: moved
     /// on along its velocity (see `solve::Lag`). Pixels every other camera contradicts are left
-    /// out (`consensus`); their count is returned with the patches.
+    /// out (`consensus`); their count is returned with the patches. With `ahead` (the frame
+    /// being solved: its pyramids and the predicted mesh) and `TrackOptions::still_occluders`,
+    /// so are the pixels whose way there crosses an occluder that stands still (`occluder`).
     fn template_patches(
         &self,
         tpl: &Template,
@@ -1132,6 +1152,7 @@ impl Tracker {
         level: usize,
         weight: f32,
         checkerboard: bool,
+        ahead: Option<(&[Pyramid], &[Point3<f64>])>,
     ) -> TemplatePatches {
         let popts = PatchOptions {
             checkerboard,
@@ -1185,6 +1206,8 @@ impl Tracker {
         let mut set = PatchSet::from_cameras(&per_cam);
         drop(per_cam);
         let mut contradicted = 0;
+        let mut still = None;
+        let mut near_still = 0;
         if self.opts.consensus > 0.0 && self.cameras.len() > 1 {
             let projections: Vec<Projection> = self
                 .cameras
@@ -1193,20 +1216,40 @@ impl Tracker {
                 .collect();
             let images: Vec<&RgbImage> = tpl.pyramids.iter().map(|p| &p.levels[level]).collect();
             let copts = self.consensus_options();
-            contradicted = drop_contradicted(
+            let next: Vec<&RgbImage> = ahead
+                .map(|(next, _)| next.iter().map(|p| &p.levels[level]).collect())
+                .unwrap_or_default();
+            let ahead = ahead
+                .filter(|_| self.opts.still_occluders)
+                .map(|(_, predicted)| Ahead {
+                    way: Way {
+                        from: &tpl.positions,
+                        to: predicted,
+                        triangles: &self.triangles,
+                        projections: &projections,
+                    },
+                    next: &next,
+                    margin: occluder::MARGIN_PX / (1u32 << level) as f64,
+                });
+            let (stats, marks) = drop_contradicted_ahead(
                 &mut set,
                 &tpl.positions,
                 &self.triangles,
                 &projections,
                 &images,
                 &copts,
-            )
-            .dropped;
+                ahead.as_ref(),
+            );
+            contradicted = stats.dropped;
+            near_still = stats.near_still;
+            still = marks;
         }
         TemplatePatches {
             set,
             contradicted,
             seen,
+            still,
+            near_still,
         }
     }
 
@@ -1312,6 +1355,7 @@ impl Tracker {
                     l,
                     2.0 * self.opts.anchor_weight as f32,
                     true,
+                    None,
                 );
                 if l == self.opts.finest_level {
                     share = share_of(dropped, set.pixels.len());
@@ -1474,6 +1518,7 @@ impl Tracker {
             contradicted: 0,
             contradicted_share: 0.0,
             hidden: 0,
+            near_still: 0,
             rejected_share: 0.0,
             stop: StopReason::NoData,
             confidence: Vec::new(),
@@ -1521,7 +1566,7 @@ impl Tracker {
         // the patches are the same whichever thread builds them.
         let build = |level: usize| {
             let tp = Instant::now();
-            let built = this.previous_template(level);
+            let built = this.previous_template(level, Some((&next, &predicted_shape)));
             (built, tp.elapsed().as_secs_f64())
         };
         let mut ahead = None;
@@ -1536,7 +1581,11 @@ impl Tracker {
                 out.contradicted = template.contradicted;
                 out.contradicted_share = share_of(template.contradicted, template.set.pixels.len());
             }
-            let (mut set, stereo_x0) = self.level_patches(frame, level, template, &x, &next);
+            let (mut set, stereo_x0, near_still) =
+                self.level_patches(frame, level, template, &x, &next, &predicted_shape);
+            if level == finest {
+                out.near_still = near_still;
+            }
             if next_left_out.iter().any(|&b| b) {
                 // A camera whose image of this frame is blank or repeated is compared with
                 // nothing.
@@ -1765,6 +1814,7 @@ impl Tracker {
             contradicted_share: out.contradicted_share,
             contradicted_at_first: self.contradicted_at_first,
             hidden: out.hidden,
+            near_still: out.near_still,
             folded,
             information_share,
             suspect: false,
@@ -1855,7 +1905,11 @@ impl Tracker {
     /// The previous frame's template at `level` (the checkerboard at full resolution, at twice
     /// the weight, when the options say so), and how many of its pixels the other cameras
     /// contradicted (left out).
-    fn previous_template(&self, level: usize) -> TemplatePatches {
+    fn previous_template(
+        &self,
+        level: usize,
+        ahead: Option<(&[Pyramid], &[Point3<f64>])>,
+    ) -> TemplatePatches {
         let cb = level == 0 && self.opts.checkerboard;
         let weight = if cb { 2.0 } else { 1.0 };
         let before = self.before_prev.as_deref().map(|b| {
@@ -1864,7 +1918,7 @@ impl Tracker {
                 self.prev.frame.saturating_sub(self.before_frame).max(1) as f64,
             )
         });
-        self.template_patches(&self.prev, before, level, weight, cb)
+        self.template_patches(&self.prev, before, level, weight, cb, ahead)
     }
 
     /// The cross-camera check on the current solution, taken as the next frame's finest
@@ -1876,7 +1930,7 @@ impl Tracker {
             set,
             contradicted: dropped,
             ..
-        } = self.previous_template(self.opts.finest_level);
+        } = self.previous_template(self.opts.finest_level, None);
         (
             share_of(dropped, set.pixels.len()),
             self.contradicted_at_first,
@@ -1884,9 +1938,11 @@ impl Tracker {
     }
 
     /// A level's patches: the previous frame's `template`, the first frame's anchor where the
-    /// previous frame still sees its triangles, and, with `--stereo` at the levels it is
-    /// compared at, the cameras compared with each other at `x` (the mesh where this level
-    /// starts; returned too, since the solve's moving source needs it).
+    /// previous frame still sees its triangles (less its pixels whose way to `predicted`
+    /// crosses a still occluder the template's check marked), and, with `--stereo` at the
+    /// levels it is compared at, the cameras compared with each other at `x` (the mesh where
+    /// this level starts; returned too, since the solve's moving source needs it). Also
+    /// returned: the pixels left out near still occluders, the template's and the anchor's.
     fn level_patches(
         &self,
         frame: u32,
@@ -1894,10 +1950,13 @@ impl Tracker {
         template: TemplatePatches,
         x: &[Point3<f64>],
         next: &[Pyramid],
-    ) -> (PatchSet, Option<Vec<Point3<f64>>>) {
+        predicted: &[Point3<f64>],
+    ) -> (PatchSet, Option<Vec<Point3<f64>>>, usize) {
         let TemplatePatches {
             mut set,
             seen: cover,
+            still,
+            mut near_still,
             ..
         } = template;
         let ncam = self.cameras.len();
@@ -1907,13 +1966,32 @@ impl Tracker {
             // the first frame); seen, whatever its pixels showed: where an occluder covered it
             // in the previous frame, or its image was blank or a repeat, the first frame's view is what is
             // left to hold it (the robust loss rejects an occluder still there).
-            set.pixels.reserve(anchor.pixels.len());
-            set.patches.reserve(anchor.patches.len());
+            let mut seen = PatchSet::default();
+            seen.pixels.reserve(anchor.pixels.len());
+            seen.patches.reserve(anchor.patches.len());
             for p in &anchor.patches {
                 if cover[p.triangle as usize * ncam + p.camera as usize] {
-                    set.push_copy(anchor, *p);
+                    seen.push_copy(anchor, *p);
                 }
             }
+            if let Some(marks) = &still {
+                // The anchor's pixels next to a still occluder pull toward standing still as
+                // the previous frame's do, and harder: their way is all the surface went since
+                // the first frame. Judged where the previous frame put them.
+                let projections: Vec<Projection> = self
+                    .cameras
+                    .iter()
+                    .map(|c| level_projection(c.at(self.prev.frame), level))
+                    .collect();
+                let way = Way {
+                    from: &self.prev.positions,
+                    to: predicted,
+                    triangles: &self.triangles,
+                    projections: &projections,
+                };
+                near_still += marks.remove_from(&mut seen, &way);
+            }
+            merge_into(&mut set, seen);
             if self.opts.lent_anchor > 0.0 {
                 self.lend_anchor(anchor, &cover, &mut set);
             }
@@ -1922,11 +2000,11 @@ impl Tracker {
             && ncam > 1
             && stereo_levels(self.opts.levels, self.opts.finest_level).contains(&level);
         if !stereo {
-            return (set, None);
+            return (set, None, near_still);
         }
         let x0 = x.to_vec();
         merge_into(&mut set, self.stereo_patches(&x0, frame, level, next));
-        (set, Some(x0))
+        (set, Some(x0), near_still)
     }
 
     /// Leaves out of a level's patches the pixels at the mesh's own depth edges in the frame
@@ -2199,6 +2277,7 @@ struct Outcome {
     contradicted: usize,
     contradicted_share: f64,
     hidden: usize,
+    near_still: usize,
     rejected_share: f64,
     stop: StopReason,
     confidence: Vec<VertexConfidence>,
