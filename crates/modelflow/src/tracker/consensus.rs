@@ -66,32 +66,9 @@ const PATCH_GAIN: f64 = 1.5;
 
 /// Drops from `set` the pixels every other camera contradicts. `positions` is the template's
 /// mesh, `projections[c]` and `images[c]` camera `c`'s at the template's frame and the set's
-/// level (the patches' `source` indexes them).
-#[cfg(test)]
-pub(crate) fn drop_contradicted(
-    set: &mut PatchSet,
-    positions: &[Point3<f64>],
-    triangles: &[[u32; 3]],
-    projections: &[Projection],
-    images: &[&RgbImage],
-    opts: &ConsensusOptions,
-) -> ConsensusStats {
-    drop_contradicted_asking(
-        set,
-        positions,
-        triangles,
-        projections,
-        images,
-        opts,
-        false,
-        None,
-    )
-    .0
-}
-
-/// [`drop_contradicted`], and with `ahead` also the pixels whose way into the frame being
-/// solved crosses an occluder that stands still there (`occluder`, judged from this check's
-/// verdict and limit).
+/// level (the patches' `source` indexes them). With `ahead`, also the pixels whose way into
+/// the frame being solved crosses an occluder that stands still there (`occluder`, judged from
+/// this check's verdict and limit), and the marks it found, for the anchor.
 #[allow(clippy::too_many_arguments)]
 pub(crate) fn drop_contradicted_ahead(
     set: &mut PatchSet,
@@ -114,32 +91,10 @@ pub(crate) fn drop_contradicted_ahead(
     )
 }
 
-/// [`drop_contradicted`] with every other camera asked about every pixel, the verdict's
-/// early end left out: what it must give the same result as.
-#[cfg(test)]
-pub(crate) fn drop_contradicted_asking_all(
-    set: &mut PatchSet,
-    positions: &[Point3<f64>],
-    triangles: &[[u32; 3]],
-    projections: &[Projection],
-    images: &[&RgbImage],
-    opts: &ConsensusOptions,
-) -> ConsensusStats {
-    drop_contradicted_asking(
-        set,
-        positions,
-        triangles,
-        projections,
-        images,
-        opts,
-        true,
-        None,
-    )
-    .0
-}
-
+/// [`drop_contradicted_ahead`]; `ask_all` asks every other camera about every pixel, the
+/// verdict's early end left out (tests: what it must give the same result as).
 #[allow(clippy::too_many_arguments)]
-fn drop_contradicted_asking(
+pub(crate) fn drop_contradicted_asking(
     set: &mut PatchSet,
     positions: &[Point3<f64>],
     triangles: &[[u32; 3]],

@@ -490,18 +490,26 @@ impl TrackOptions {
 mod tests {
     use super::*;
 
+    /// The default options as a run made before `fields` existed reads them back from its
+    /// run.json (the fields left out of the JSON).
+    fn read_without(fields: &[&str]) -> TrackOptions {
+        let mut old = serde_json::to_value(TrackOptions::default()).expect("options as JSON");
+        for f in fields {
+            old.as_object_mut()
+                .expect("an object")
+                .remove(*f)
+                .unwrap_or_else(|| panic!("the field {f} is written"));
+        }
+        serde_json::from_value(old).expect("an old run's options")
+    }
+
     #[test]
     fn a_run_recorded_before_hidden_pixels_were_left_out_resumes_keeping_them() {
         // `--resume` reads the options from run.json: one written before `hidden_ahead` existed
         // names no such field and must go on as it was made (hidden pixels kept), while a new
         // run leaves them out.
         assert!(TrackOptions::default().hidden_ahead);
-        let mut old = serde_json::to_value(TrackOptions::default()).expect("options as JSON");
-        old.as_object_mut()
-            .expect("an object")
-            .remove("hidden_ahead")
-            .expect("the field is written");
-        let read: TrackOptions = serde_json::from_value(old).expect("an old run's options");
+        let read = read_without(&["hidden_ahead"]);
         assert!(!read.hidden_ahead);
         assert_eq!(
             TrackOptions {
@@ -517,12 +525,7 @@ mod tests {
         // Its run.json names no `still_occluders`: it must go on keeping the pixels whose way
         // crosses a still occluder, while a new run leaves them out.
         assert!(TrackOptions::default().still_occluders);
-        let mut old = serde_json::to_value(TrackOptions::default()).expect("options as JSON");
-        old.as_object_mut()
-            .expect("an object")
-            .remove("still_occluders")
-            .expect("the field is written");
-        let read: TrackOptions = serde_json::from_value(old).expect("an old run's options");
+        let read = read_without(&["still_occluders"]);
         assert!(!read.still_occluders);
         assert_eq!(
             TrackOptions {
@@ -559,20 +562,9 @@ mod tests {
         // defaults.
         let d = TrackOptions::default();
         assert_eq!((d.stereo, d.stereo_stride), (0.25, 4));
-        let mut old = serde_json::to_value(d).expect("options as JSON");
-        let fields = old.as_object_mut().expect("an object");
-        fields
-            .remove("stereo_stride")
-            .expect("the field is written");
-        let read: TrackOptions =
-            serde_json::from_value(old.clone()).expect("a run's options from before the stride");
+        let read = read_without(&["stereo_stride"]);
         assert_eq!((read.stereo, read.stereo_stride), (0.25, 1));
-        old.as_object_mut().unwrap().remove("stereo").unwrap();
-        old.as_object_mut()
-            .unwrap()
-            .remove("stereo_neighbours")
-            .unwrap();
-        let read: TrackOptions = serde_json::from_value(old).expect("an old run's options");
+        let read = read_without(&["stereo_stride", "stereo", "stereo_neighbours"]);
         assert_eq!((read.stereo, read.stereo_stride), (0.0, 1));
         // Runs made before the neighbours were chosen compared every other camera.
         assert_eq!(read.stereo_neighbours, 0);
@@ -593,12 +585,7 @@ mod tests {
         // before the tracker moved a mesh off the surface onto it must rebuild them from the
         // mesh as given, as it was made, while a new run moves it.
         assert!(TrackOptions::default().onto_surface);
-        let mut old = serde_json::to_value(TrackOptions::default()).expect("options as JSON");
-        old.as_object_mut()
-            .expect("an object")
-            .remove("onto_surface")
-            .expect("the field is written");
-        let read: TrackOptions = serde_json::from_value(old).expect("an old run's options");
+        let read = read_without(&["onto_surface"]);
         assert!(!read.onto_surface);
         assert_eq!(
             TrackOptions {

@@ -1597,13 +1597,15 @@ fn asking_the_other_cameras_only_until_every_pixel_agreed_changes_no_verdict() {
         &images,
         &opts,
     );
-    let dropped_early = crate::tracker::consensus::drop_contradicted(
-        &mut early, args.0, args.1, args.2, args.3, args.4,
+    let dropped_early = crate::tracker::consensus::drop_contradicted_ahead(
+        &mut early, args.0, args.1, args.2, args.3, args.4, None,
     )
+    .0
     .dropped;
-    let dropped_all = crate::tracker::consensus::drop_contradicted_asking_all(
-        &mut all, args.0, args.1, args.2, args.3, args.4,
+    let dropped_all = crate::tracker::consensus::drop_contradicted_asking(
+        &mut all, args.0, args.1, args.2, args.3, args.4, true, None,
     )
+    .0
     .dropped;
     eprintln!("{dropped_early} of {} pixels dropped", set.pixels.len());
     assert!(dropped_early > 500, "{dropped_early} dropped");
@@ -1649,13 +1651,14 @@ fn assert_the_rod_alone_is_dropped(rig: &Rig, exposure_1: f32) {
         let mut set = frame0_patches(&mesh, &cams, &pyr);
         let before = set.clone();
         let images: Vec<&RgbImage> = pyr.iter().map(|p| &p.levels[0]).collect();
-        crate::tracker::consensus::drop_contradicted(
+        crate::tracker::consensus::drop_contradicted_ahead(
             &mut set,
             &mesh.positions,
             &mesh.triangles,
             &projections,
             &images,
             &opts,
+            None,
         );
         let columns = |set: &PatchSet| under_and_clear_of_rod(set, &mesh, &projections[0]);
         (
