@@ -254,27 +254,42 @@ mod tests {
         );
     }
 
+    /// `t` begun at rest on `rest` (the previous frame and the prediction both there).
+    fn begun_at(mut t: Membrane, rest: &[Point3<f64>]) -> Membrane {
+        t.begin_frame(&FrameContext {
+            previous: rest,
+            predicted: rest,
+            information: None,
+        });
+        t
+    }
+
+    /// The term's cost at `x` and its normal equations `(A, b)`.
+    fn normal_equations(
+        t: &Membrane,
+        edges: &EdgeSet,
+        x: &[Point3<f64>],
+    ) -> (f64, BlockSparse, Vec<Vector3<f64>>) {
+        let mut a = BlockSparse::new(x.len(), &edges.edges);
+        let mut b = vec![Vector3::zeros(); x.len()];
+        let c = t.accumulate(x, Some((&mut a, &mut b[..])));
+        (c, a, b)
+    }
+
     #[test]
     fn the_turning_membranes_gradient_is_its_costs() {
         // The rotations are refitted at every x but minimise the term's own energy, so the
         // gradient taken with them held (−2·b) is the cost's: checked by central differences.
         let (mesh, turned) = two_pieces();
         let edges = Arc::new(EdgeSet::new(&mesh));
-        let mut t = Membrane::new(edges.clone(), 0.7);
-        t.begin_frame(&FrameContext {
-            previous: &mesh.positions,
-            predicted: &mesh.positions,
-            information: None,
-        });
+        let t = begun_at(Membrane::new(edges.clone(), 0.7), &mesh.positions);
         // Turned and bent a little: not at the minimum.
         let x: Vec<_> = turned
             .iter()
             .enumerate()
             .map(|(i, p)| p + Vector3::new(0.0, 0.01 * (i % 5) as f64, -0.02 * (i % 3) as f64))
             .collect();
-        let mut a = BlockSparse::new(x.len(), &edges.edges);
-        let mut b = vec![Vector3::zeros(); x.len()];
-        t.accumulate(&x, Some((&mut a, &mut b[..])));
+        let (_, _, b) = normal_equations(&t, &edges, &x);
         let h = 1e-6;
         let mut worst = 0.0f64;
         let scale = b.iter().map(|v| v.amax()).fold(0.0, f64::max);
@@ -298,21 +313,14 @@ mod tests {
         let edges = Arc::new(EdgeSet::new(&m));
         // With the reference held in its orientation (with it turning, the cost is quadratic
         // only up to the rotations' change).
-        let mut t = Membrane::fixed(edges.clone(), 0.7);
-        t.begin_frame(&FrameContext {
-            previous: &m.positions,
-            predicted: &m.positions,
-            information: None,
-        });
+        let t = begun_at(Membrane::fixed(edges.clone(), 0.7), &m.positions);
         let x: Vec<_> = m
             .positions
             .iter()
             .enumerate()
             .map(|(i, p)| p + Vector3::new(0.01 * i as f64, 0.0, -0.02))
             .collect();
-        let mut a = BlockSparse::new(x.len(), &edges.edges);
-        let mut b = vec![Vector3::zeros(); x.len()];
-        let c0 = t.accumulate(&x, Some((&mut a, &mut b[..])));
+        let (c0, a, b) = normal_equations(&t, &edges, &x);
         let delta: Vec<Vector3<f64>> = (0..x.len())
             .map(|i| Vector3::new(0.003 * i as f64, -0.002, 0.001 * (i % 3) as f64))
             .collect();
