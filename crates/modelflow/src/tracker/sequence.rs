@@ -25,7 +25,7 @@ use crate::tracker::occluder::{self, Ahead, Way};
 use crate::tracker::occlusion;
 use crate::tracker::offset::{moved_onto_surface, SurfaceMove};
 use crate::tracker::options::{OptionsUsed, TrackOptions};
-use crate::tracker::patch::{CameraPatches, PatchOptions, PatchSet};
+use crate::tracker::patch::{CameraPatches, Patch, PatchOptions, PatchSet};
 use crate::tracker::pyramid::Pyramid;
 use crate::tracker::regularise::{self, EdgeSet, FrameContext, Regulariser};
 use crate::tracker::solve::{
@@ -1966,18 +1966,15 @@ impl Tracker {
             // the first frame); seen, whatever its pixels showed: where an occluder covered it
             // in the previous frame, or its image was blank or a repeat, the first frame's view is what is
             // left to hold it (the robust loss rejects an occluder still there).
-            let mut seen = PatchSet::default();
-            seen.pixels.reserve(anchor.pixels.len());
-            seen.patches.reserve(anchor.patches.len());
-            for p in &anchor.patches {
-                if cover[p.triangle as usize * ncam + p.camera as usize] {
-                    seen.push_copy(anchor, *p);
-                }
-            }
+            let seen = |p: &&Patch| cover[p.triangle as usize * ncam + p.camera as usize];
             if let Some(marks) = &still {
                 // The anchor's pixels next to a still occluder pull toward standing still as
                 // the previous frame's do, and harder: their way is all the surface went since
                 // the first frame. Judged where the previous frame put them.
+                let mut kept = PatchSet::default();
+                for p in anchor.patches.iter().filter(seen) {
+                    kept.push_copy(anchor, *p);
+                }
                 let projections: Vec<Projection> = self
                     .cameras
                     .iter()
@@ -1989,9 +1986,15 @@ impl Tracker {
                     triangles: &self.triangles,
                     projections: &projections,
                 };
-                near_still += marks.remove_from(&mut seen, &way);
+                near_still += marks.remove_from(&mut kept, &way);
+                merge_into(&mut set, kept);
+            } else {
+                set.pixels.reserve(anchor.pixels.len());
+                set.patches.reserve(anchor.patches.len());
+                for p in anchor.patches.iter().filter(seen) {
+                    set.push_copy(anchor, *p);
+                }
             }
-            merge_into(&mut set, seen);
             if self.opts.lent_anchor > 0.0 {
                 self.lend_anchor(anchor, &cover, &mut set);
             }
