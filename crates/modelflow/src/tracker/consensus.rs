@@ -25,7 +25,7 @@
 
 use crate::base::camera::Projection;
 use crate::base::image::RgbImage;
-use crate::tracker::occluder::{Ahead, Limit, StillMarks};
+use crate::tracker::occluder::{Ahead, StillMarks};
 use crate::tracker::patch::{Patch, PatchSet, PixelSample};
 use nalgebra::Point3;
 use rayon::prelude::*;
@@ -133,7 +133,7 @@ pub(crate) fn drop_contradicted_asking(
     let (mut keep, contradicted): (Vec<Vec<bool>>, Vec<Vec<bool>>) = patches
         .par_iter()
         .map_init(Vec::new, |buf, p| {
-            view.verdict(p, &gains, &limit, buf, ask_all)
+            view.verdict(p, &gains, &limit, buf, ask_all, ahead.is_some())
         })
         .unzip();
     let marks = ahead.and_then(|a| a.still_marks(set, &contradicted, &limit));
@@ -149,6 +149,26 @@ pub(crate) fn drop_contradicted_asking(
         },
         marks,
     )
+}
+
+/// A residual's limit: `d2 + tol2·|∇|²` on its squared RGB size.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct Limit {
+    pub d2: f32,
+    pub tol2: f32,
+}
+
+impl Limit {
+    fn admits(&self, e2: f32, g2: f32) -> bool {
+        e2 <= self.d2 + self.tol2 * g2
+    }
+
+    /// Whether template pixel `a` matches the bilinear sample `b` (`RgbImage::sample_exact`'s
+    /// layout) of the same camera, no gain between them: what `occluder` asks of the next frame.
+    pub(crate) fn matches(&self, a: &PixelSample, b: &[f32; 9]) -> bool {
+        let seen = Seen::new(b, &[1.0; 3]);
+        self.admits(residual2(a, &seen, 1.0), seen.g2)
+    }
 }
 
 /// One other camera's sample of a template pixel's surface point: its colour times the pair's
@@ -443,8 +463,9 @@ impl View<'_> {
         }
     }
 
-    /// Which of `p`'s pixels to keep, and which every camera that checked it contradicted (the
-    /// pixel's own verdict, whatever its patch's: what `occluder` marks from). The other cameras are asked one at a time, and no
+    /// Which of `p`'s pixels to keep, and, with `contradictions`, which every camera that checked
+    /// it contradicted (the pixel's own verdict, whatever its patch's: what `occluder` marks
+    /// from; empty without). The other cameras are asked one at a time, and no
     /// further once every pixel has agreed with one of them: a pixel is dropped only when every
     /// camera that checks it contradicts it, and a patch dropped whole has most of its checked
     /// pixels contradicted, so the cameras not yet asked cannot change the verdict then (on
@@ -457,6 +478,7 @@ impl View<'_> {
         limit: &Limit,
         buf: &mut Vec<Option<Seen>>,
         ask_all: bool,
+        contradictions: bool,
     ) -> (Vec<bool>, Vec<bool>) {
         let ncam = self.projections.len();
         let n = (p.end - p.start) as usize;
@@ -481,9 +503,7 @@ impl View<'_> {
             // Fitted on all pixels, then again on those that fit.
             let s0 = own_gain(px, buf, 1, 0, 1, None);
             let fits = |i: usize, s: f32| {
-                buf[i].is_some_and(|seen| {
-                    residual2(&px[i], &seen, s) <= limit.d2 + limit.tol2 * seen.g2
-                })
+                buf[i].is_some_and(|seen| limit.admits(residual2(&px[i], &seen, s), seen.g2))
             };
             let s = own_gain(px, buf, 1, 0, 1, Some(&|i| fits(i, s0)));
             for i in 0..n {
@@ -502,7 +522,11 @@ impl View<'_> {
         let keep = (0..n)
             .map(|i| !checked[i] || (agreed[i] && !whole))
             .collect();
-        let contradicted = (0..n).map(|i| checked[i] && !agreed[i]).collect();
+        let contradicted = if contradictions {
+            (0..n).map(|i| checked[i] && !agreed[i]).collect()
+        } else {
+            Vec::new()
+        };
         (keep, contradicted)
     }
 }

@@ -30,6 +30,7 @@
 
 use crate::base::camera::Projection;
 use crate::base::image::RgbImage;
+use crate::tracker::consensus::Limit;
 use crate::tracker::patch::{Patch, PatchSet, PixelSample};
 use nalgebra::{Point2, Point3};
 use rayon::prelude::*;
@@ -43,26 +44,6 @@ pub(crate) const MARGIN_PX: f64 = 2.0;
 pub(crate) const DENSE_SHARE: f64 = 0.3;
 /// The half-width of that window, pixels of the level.
 const DENSE_R: usize = 2;
-
-/// The consensus check's limit on a squared RGB residual: `d2 + tol2·|∇|²`.
-#[derive(Clone, Copy, Debug)]
-pub(crate) struct Limit {
-    pub d2: f32,
-    pub tol2: f32,
-}
-
-impl Limit {
-    /// Whether colour `a` matches the bilinear sample `b` (colour, then its x and y
-    /// derivatives, as `RgbImage::sample_exact` lays them out).
-    fn matches(&self, a: &[f32; 3], b: &[f32; 9]) -> bool {
-        let (mut e2, mut g2) = (0.0f32, 0.0f32);
-        for ch in 0..3 {
-            e2 += (b[ch] - a[ch]).powi(2);
-            g2 += b[3 + ch] * b[3 + ch] + b[6 + ch] * b[6 + ch];
-        }
-        e2 <= self.d2 + self.tol2 * g2
-    }
-}
 
 /// Where template pixels go: from the surface point on `from` (the template's mesh) to the same
 /// point on `to` (the prediction of the frame being solved), seen by `projections` (the
@@ -231,7 +212,7 @@ impl Ahead<'_> {
                 };
                 if !img
                     .sample_exact(q.x, q.y)
-                    .is_some_and(|b| limit.matches(&s.color, &b))
+                    .is_some_and(|b| limit.matches(s, &b))
                 {
                     // It changed: what stood there moved on.
                     continue;
