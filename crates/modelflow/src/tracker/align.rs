@@ -32,6 +32,7 @@
 use crate::base::camera::{Camera, Projection};
 use crate::base::image::RgbImage;
 use crate::base::mesh::{centroid, rms_radius, Mesh};
+use crate::base::raster::IndexBuffer;
 use crate::error::{Error, Result};
 use crate::tracker::outline;
 use crate::tracker::patch::{CameraPatches, Patch, PatchOptions, PatchSet};
@@ -436,22 +437,45 @@ pub(crate) fn cross_patches(
     popts: &PatchOptions,
     neighbours: usize,
 ) -> PatchSet {
-    let ncam = projections.len();
-    let per_cam: Vec<CameraPatches> = (0..ncam)
+    cross_patches_in(x, triangles, projections, images, None, popts, neighbours)
+}
+
+/// [`cross_patches`], with `buffers` each camera's index buffer of `x` (`rasterize` at
+/// `projections[c]` in `images[c]`) when it was rasterised once for other uses of the same view
+/// too (the tracker's hidden-surface check); rasterised here otherwise.
+pub(crate) fn cross_patches_in(
+    x: &[Point3<f64>],
+    triangles: &[[u32; 3]],
+    projections: &[Projection],
+    images: &[&RgbImage],
+    buffers: Option<&[IndexBuffer]>,
+    popts: &PatchOptions,
+    neighbours: usize,
+) -> PatchSet {
+    let per_cam: Vec<CameraPatches> = (0..projections.len())
         .into_par_iter()
         .map(|c| {
-            CameraPatches::new(
-                x,
-                triangles,
-                &projections[c],
-                images[c],
-                c as u16,
-                1.0,
-                popts,
-                None,
-            )
+            let (proj, image, camera) = (&projections[c], images[c], c as u16);
+            match buffers {
+                Some(b) => CameraPatches::in_buffer(
+                    &b[c], x, triangles, proj, image, camera, 1.0, popts, None,
+                ),
+                None => CameraPatches::new(x, triangles, proj, image, camera, 1.0, popts, None),
+            }
         })
         .collect();
+    compared_across(x, triangles, projections, per_cam, neighbours)
+}
+
+/// Each camera's patches (`per_cam`) listed once per other camera it is compared with.
+fn compared_across(
+    x: &[Point3<f64>],
+    triangles: &[[u32; 3]],
+    projections: &[Projection],
+    per_cam: Vec<CameraPatches>,
+    neighbours: usize,
+) -> PatchSet {
+    let ncam = projections.len();
     // Every camera's pixels in one allocation; each source patch is then listed once per other
     // camera it is warped into (the same pixel range).
     let sources = PatchSet::from_cameras(&per_cam);

@@ -36,7 +36,9 @@ const TOLERANCE_EDGES: f64 = 2.0;
 /// Drops from `set` the pixels whose surface point, with the mesh at `positions`, lies at one of
 /// the mesh's own depth edges in its camera (see the module documentation); `projections[c]` and
 /// `sizes[c]` are camera `c`'s at the level solved, `reach` the distance (pixels) from an edge
-/// within which a point is left out. Returns how many pixels were dropped.
+/// within which a point is left out; `buffers`, when given, each camera's index buffer of
+/// `positions` at that level (`rasterize`), already made for another use of the same view.
+/// Returns how many pixels were dropped.
 pub(crate) fn drop_at_depth_edges(
     set: &mut PatchSet,
     positions: &[Point3<f64>],
@@ -44,6 +46,7 @@ pub(crate) fn drop_at_depth_edges(
     projections: &[Projection],
     sizes: &[(usize, usize)],
     reach: usize,
+    buffers: Option<Vec<IndexBuffer>>,
 ) -> usize {
     if set.patches.is_empty() {
         return 0;
@@ -52,11 +55,19 @@ pub(crate) fn drop_at_depth_edges(
     if tolerance.is_nan() || tolerance <= 0.0 {
         return 0;
     }
-    let views: Vec<View> = projections
-        .par_iter()
-        .zip(sizes)
-        .map(|(p, &(w, h))| View::new(rasterize(positions, triangles, p, w, h), tolerance, reach))
-        .collect();
+    let views: Vec<View> = match buffers {
+        Some(b) => b
+            .into_par_iter()
+            .map(|ib| View::new(ib, tolerance, reach))
+            .collect(),
+        None => projections
+            .par_iter()
+            .zip(sizes)
+            .map(|(p, &(w, h))| {
+                View::new(rasterize(positions, triangles, p, w, h), tolerance, reach)
+            })
+            .collect(),
+    };
     let keep = keep_of(
         set,
         positions,

@@ -66,9 +66,21 @@ pub(crate) fn trackable_pixels(
     opts: &PatchOptions,
 ) -> (IndexBuffer, Vec<bool>) {
     let ib = rasterize(positions, triangles, proj, w, h);
-    let usable = usable_triangles(positions, triangles, proj, opts.two_sided, opts.min_cos);
-    let mask = trackable_mask(&ib, triangles, &usable, opts.margin, opts.checkerboard);
+    let mask = trackable_in(&ib, positions, triangles, proj, opts);
     (ib, mask)
+}
+
+/// Which pixels of `ib` (the index buffer of `positions` seen through `proj`) may be compared
+/// (`opts`; over the buffer's window): [`trackable_pixels`] on a buffer already rasterised.
+fn trackable_in(
+    ib: &IndexBuffer,
+    positions: &[Point3<f64>],
+    triangles: &[[u32; 3]],
+    proj: &Projection,
+    opts: &PatchOptions,
+) -> Vec<bool> {
+    let usable = usable_triangles(positions, triangles, proj, opts.two_sided, opts.min_cos);
+    trackable_mask(ib, triangles, &usable, opts.margin, opts.checkerboard)
 }
 
 /// All patches of a problem, ordered by triangle, with their pixels.
@@ -114,8 +126,29 @@ impl<'a> CameraPatches<'a> {
         opts: &PatchOptions,
         only: Option<&dyn Fn(u32) -> bool>,
     ) -> Self {
-        let (w, h) = (image.width(), image.height());
-        let (ib, mask) = trackable_pixels(positions, triangles, proj, (w, h), opts);
+        let ib = rasterize(positions, triangles, proj, image.width(), image.height());
+        Self::in_buffer(
+            &ib, positions, triangles, proj, image, camera, weight, opts, only,
+        )
+    }
+
+    /// [`CameraPatches::new`] on `ib`, the index buffer of `positions` seen through `proj` in
+    /// `image` (rasterised once for several uses: the cameras compared with each other and the
+    /// hidden-surface check of the same level and mesh).
+    #[allow(clippy::too_many_arguments)]
+    pub(crate) fn in_buffer(
+        ib: &IndexBuffer,
+        positions: &[Point3<f64>],
+        triangles: &[[u32; 3]],
+        proj: &Projection,
+        image: &'a RgbImage,
+        camera: u16,
+        weight: f32,
+        opts: &PatchOptions,
+        only: Option<&dyn Fn(u32) -> bool>,
+    ) -> Self {
+        debug_assert_eq!((ib.width, ib.height), (image.width(), image.height()));
+        let mask = trackable_in(ib, positions, triangles, proj, opts);
         let owners = ib.owners();
         // Counting sort of the kept pixels by owner triangle (indices into the index buffer's
         // window, which holds every covered pixel, row-major: the image's order).

@@ -14,6 +14,7 @@
 use crate::base::camera::{Camera, Projection};
 use crate::base::image::{BlockMeans, RgbImage};
 use crate::base::mesh::Mesh;
+use crate::base::raster::{rasterize, IndexBuffer};
 use crate::error::{Error, Result};
 use crate::tracker::align;
 use crate::tracker::balance;
@@ -1264,7 +1265,7 @@ impl Tracker {
         frame: u32,
         level: usize,
         next: &[Pyramid],
-    ) -> PatchSet {
+    ) -> (PatchSet, Vec<IndexBuffer>) {
         let images: Vec<&RgbImage> = next.iter().map(|p| &p.levels[level]).collect();
         let projections: Vec<Projection> = self
             .cameras
@@ -1288,11 +1289,19 @@ impl Tracker {
             ..popts
         };
         let cbw = if popts.checkerboard { 2.0 } else { 1.0 } * popts.stride as f64;
-        let mut set = align::cross_patches(
+        // Each camera's view of `x` at this level, kept for the hidden-surface check of the
+        // same level (`leave_out_hidden`), which looks at the same mesh.
+        let buffers: Vec<IndexBuffer> = projections
+            .par_iter()
+            .zip(&images)
+            .map(|(p, im)| rasterize(x, &self.triangles, p, im.width(), im.height()))
+            .collect();
+        let mut set = align::cross_patches_in(
             x,
             &self.triangles,
             &projections,
             &images,
+            Some(&buffers),
             &popts,
             self.opts.stereo_neighbours as usize,
         );
@@ -1310,7 +1319,7 @@ impl Tracker {
             set.patches[i..j].iter_mut().for_each(|p| p.weight = w);
             i = j;
         }
-        set
+        (set, buffers)
     }
 
     /// The anchor's patches, every level it is compared at ([`anchored_levels`]), from the first frame's template `first` (none when
@@ -1581,7 +1590,7 @@ impl Tracker {
                 out.contradicted = template.contradicted;
                 out.contradicted_share = share_of(template.contradicted, template.set.pixels.len());
             }
-            let (mut set, stereo_x0, near_still) =
+            let (mut set, stereo_x0, near_still, buffers) =
                 self.level_patches(frame, level, template, &x, &next, &predicted_shape);
             if level == finest {
                 out.near_still = near_still;
@@ -1596,12 +1605,14 @@ impl Tracker {
             if self.opts.hidden_ahead {
                 // At the coarsest level the mesh has not moved yet: judged at the
                 // constant-velocity prediction (the previous shape when none is known).
-                let at = if level == levels - 1 {
-                    &predicted_shape
+                // Elsewhere at `x`, whose views the cameras compared with each other were found
+                // from (the same buffers).
+                let (at, buffers) = if level == levels - 1 {
+                    (&predicted_shape, None)
                 } else {
-                    &x
+                    (&x, buffers)
                 };
-                let hidden = self.leave_out_hidden(&mut set, frame, level, at, &next);
+                let hidden = self.leave_out_hidden(&mut set, frame, level, at, &next, buffers);
                 if level == finest {
                     out.hidden = hidden;
                 }
@@ -1942,7 +1953,9 @@ impl Tracker {
     /// crosses a still occluder the template's check marked), and, with `--stereo` at the
     /// levels it is compared at, the cameras compared with each other at `x` (the mesh where
     /// this level starts; returned too, since the solve's moving source needs it). Also
-    /// returned: the pixels left out near still occluders, the template's and the anchor's.
+    /// returned: the pixels left out near still occluders, the template's and the anchor's, and
+    /// with `--stereo` each camera's index buffer of `x` at this level (for `leave_out_hidden`).
+    #[allow(clippy::type_complexity)]
     fn level_patches(
         &self,
         frame: u32,
@@ -1951,7 +1964,12 @@ impl Tracker {
         x: &[Point3<f64>],
         next: &[Pyramid],
         predicted: &[Point3<f64>],
-    ) -> (PatchSet, Option<Vec<Point3<f64>>>, usize) {
+    ) -> (
+        PatchSet,
+        Option<Vec<Point3<f64>>>,
+        usize,
+        Option<Vec<IndexBuffer>>,
+    ) {
         let TemplatePatches {
             mut set,
             seen: cover,
@@ -2003,11 +2021,12 @@ impl Tracker {
             && ncam > 1
             && stereo_levels(self.opts.levels, self.opts.finest_level).contains(&level);
         if !stereo {
-            return (set, None, near_still);
+            return (set, None, near_still, None);
         }
         let x0 = x.to_vec();
-        merge_into(&mut set, self.stereo_patches(&x0, frame, level, next));
-        (set, Some(x0), near_still)
+        let (stereo, buffers) = self.stereo_patches(&x0, frame, level, next);
+        merge_into(&mut set, stereo);
+        (set, Some(x0), near_still, Some(buffers))
     }
 
     /// Leaves out of a level's patches the pixels at the mesh's own depth edges in the frame
@@ -2024,6 +2043,7 @@ impl Tracker {
         level: usize,
         at: &[Point3<f64>],
         next: &[Pyramid],
+        buffers: Option<Vec<IndexBuffer>>,
     ) -> usize {
         let reach = if level + 1 == self.opts.levels {
             0
@@ -2039,7 +2059,15 @@ impl Tracker {
             .iter()
             .map(|p| (p.levels[level].width(), p.levels[level].height()))
             .collect();
-        occlusion::drop_at_depth_edges(set, at, &self.triangles, &projections, &sizes, reach)
+        occlusion::drop_at_depth_edges(
+            set,
+            at,
+            &self.triangles,
+            &projections,
+            &sizes,
+            reach,
+            buffers,
+        )
     }
 
     /// Solves one level of a frame from `x` (moved to the level's solution): the prediction
