@@ -455,26 +455,19 @@ pub(crate) fn cross_patches_in(
     let per_cam: Vec<CameraPatches> = (0..projections.len())
         .into_par_iter()
         .map(|c| {
-            let (proj, image, camera) = (&projections[c], images[c], c as u16);
-            match buffers {
-                Some(b) => CameraPatches::in_buffer(
-                    &b[c], x, triangles, proj, image, camera, 1.0, popts, None,
-                ),
-                None => CameraPatches::new(x, triangles, proj, image, camera, 1.0, popts, None),
-            }
+            CameraPatches::new(
+                x,
+                triangles,
+                &projections[c],
+                images[c],
+                c as u16,
+                1.0,
+                popts,
+                None,
+                buffers.map(|b| &b[c]),
+            )
         })
         .collect();
-    compared_across(x, triangles, projections, per_cam, neighbours)
-}
-
-/// Each camera's patches (`per_cam`) listed once per other camera it is compared with.
-fn compared_across(
-    x: &[Point3<f64>],
-    triangles: &[[u32; 3]],
-    projections: &[Projection],
-    per_cam: Vec<CameraPatches>,
-    neighbours: usize,
-) -> PatchSet {
     let ncam = projections.len();
     // Every camera's pixels in one allocation; each source patch is then listed once per other
     // camera it is warped into (the same pixel range).

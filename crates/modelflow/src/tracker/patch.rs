@@ -114,7 +114,9 @@ pub(crate) struct CameraPatches<'a> {
 
 impl<'a> CameraPatches<'a> {
     /// The pixels of `positions` seen through `proj` in `image` that `opts` trusts, for the
-    /// triangles `only` accepts (all without it).
+    /// triangles `only` accepts (all without it). `buffer`, when given, is that view's index
+    /// buffer already rasterised for another use of it (the cameras compared with each other
+    /// and the hidden-surface check of the same level and mesh); rasterised here otherwise.
     #[allow(clippy::too_many_arguments)]
     pub(crate) fn new(
         positions: &[Point3<f64>],
@@ -125,28 +127,16 @@ impl<'a> CameraPatches<'a> {
         weight: f32,
         opts: &PatchOptions,
         only: Option<&dyn Fn(u32) -> bool>,
+        buffer: Option<&IndexBuffer>,
     ) -> Self {
-        let ib = rasterize(positions, triangles, proj, image.width(), image.height());
-        Self::in_buffer(
-            &ib, positions, triangles, proj, image, camera, weight, opts, only,
-        )
-    }
-
-    /// [`CameraPatches::new`] on `ib`, the index buffer of `positions` seen through `proj` in
-    /// `image` (rasterised once for several uses: the cameras compared with each other and the
-    /// hidden-surface check of the same level and mesh).
-    #[allow(clippy::too_many_arguments)]
-    pub(crate) fn in_buffer(
-        ib: &IndexBuffer,
-        positions: &[Point3<f64>],
-        triangles: &[[u32; 3]],
-        proj: &Projection,
-        image: &'a RgbImage,
-        camera: u16,
-        weight: f32,
-        opts: &PatchOptions,
-        only: Option<&dyn Fn(u32) -> bool>,
-    ) -> Self {
+        let made;
+        let ib = match buffer {
+            Some(b) => b,
+            None => {
+                made = rasterize(positions, triangles, proj, image.width(), image.height());
+                &made
+            }
+        };
         debug_assert_eq!((ib.width, ib.height), (image.width(), image.height()));
         let mask = trackable_in(ib, positions, triangles, proj, opts);
         let owners = ib.owners();
@@ -258,7 +248,7 @@ impl PatchSet {
         only: Option<&dyn Fn(u32) -> bool>,
     ) {
         let c = CameraPatches::new(
-            positions, triangles, proj, image, camera, weight, opts, only,
+            positions, triangles, proj, image, camera, weight, opts, only, None,
         );
         let offset = self.pixels.len();
         self.pixels

@@ -1184,6 +1184,7 @@ impl Tracker {
                     weight,
                     &popts,
                     None,
+                    None,
                 )
             })
             .collect();
@@ -1590,8 +1591,9 @@ impl Tracker {
                 out.contradicted = template.contradicted;
                 out.contradicted_share = share_of(template.contradicted, template.set.pixels.len());
             }
-            let (mut set, stereo_x0, near_still, buffers) =
+            let (mut set, near_still, stereo) =
                 self.level_patches(frame, level, template, &x, &next, &predicted_shape);
+            let (stereo_x0, buffers) = stereo.unzip();
             if level == finest {
                 out.near_still = near_still;
             }
@@ -1954,8 +1956,8 @@ impl Tracker {
     /// levels it is compared at, the cameras compared with each other at `x` (the mesh where
     /// this level starts; returned too, since the solve's moving source needs it). Also
     /// returned: the pixels left out near still occluders, the template's and the anchor's, and
-    /// with `--stereo` each camera's index buffer of `x` at this level (for `leave_out_hidden`).
-    #[allow(clippy::type_complexity)]
+    /// with `--stereo` each camera's index buffer of `x` at this level (beside `x`, for
+    /// `leave_out_hidden`).
     fn level_patches(
         &self,
         frame: u32,
@@ -1964,12 +1966,7 @@ impl Tracker {
         x: &[Point3<f64>],
         next: &[Pyramid],
         predicted: &[Point3<f64>],
-    ) -> (
-        PatchSet,
-        Option<Vec<Point3<f64>>>,
-        usize,
-        Option<Vec<IndexBuffer>>,
-    ) {
+    ) -> (PatchSet, usize, Option<StereoView>) {
         let TemplatePatches {
             mut set,
             seen: cover,
@@ -2021,12 +2018,12 @@ impl Tracker {
             && ncam > 1
             && stereo_levels(self.opts.levels, self.opts.finest_level).contains(&level);
         if !stereo {
-            return (set, None, near_still, None);
+            return (set, near_still, None);
         }
         let x0 = x.to_vec();
         let (stereo, buffers) = self.stereo_patches(&x0, frame, level, next);
         merge_into(&mut set, stereo);
-        (set, Some(x0), near_still, Some(buffers))
+        (set, near_still, Some((x0, buffers)))
     }
 
     /// Leaves out of a level's patches the pixels at the mesh's own depth edges in the frame
@@ -2282,6 +2279,10 @@ fn share_of(dropped: usize, kept: usize) -> f64 {
         0.0
     }
 }
+
+/// The mesh a level's cameras are compared with each other at (`--stereo`), and each camera's
+/// index buffer of it at that level.
+type StereoView = (Vec<Point3<f64>>, Vec<IndexBuffer>);
 
 /// What one level's solve needs besides the tracker: the frame, its patches and images, and the
 /// cameras' lag.
