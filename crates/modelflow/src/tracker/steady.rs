@@ -19,7 +19,8 @@
 //! anyway, sampled on a grid of about [`SAMPLES`] background pixels (a quarter as many at the
 //! coarser levels). It reads a turn only from a
 //! background with texture: at least [`TEXTURED_SHARE`] of the samples must show a gradient,
-//! spread over the image ([`TEXTURE_SPREAD`]), and the turn must be held to a tenth of a pixel
+//! spread in every direction at least [`TEXTURE_SPREAD`] as widely as the background itself,
+//! and the turn must be held to a tenth of a pixel
 //! (a plain studio wall gives no reading; a rod crossing a plain wall does not pass for the
 //! room). Written for this project: no crate aligns
 //! images by a camera's rotation with robust weights.
