@@ -73,7 +73,8 @@ class Tracker:
     def first_mesh_moved(self) -> Optional[Dict[str, Any]]:
         """When the scene's mesh lay off the surface the cameras agree on and was moved onto
         it before tracking (option "onto_surface", on by default): {"found": {"pixels",
-        "length", "ratio", "at_limit", "closed"}, "median", "max"}, as run.json's
+        "length", "ratio", "at_limit", "closed", "compared", "texture_kept"}, "median",
+        "max"}, as run.json's
         `first_mesh_moved`; else None."""
 
 def track_scene(
@@ -118,7 +119,11 @@ def first_mesh_check(
     """What `modelflow track` checks before tracking, at the first frame, for the scene's mesh
     (or the same triangles at `positions`, (V, 3)): {"surface": how far along its normals the
     cameras agree best (or None), "placement": how far `align` would move the mesh (or None;
-    only for a mesh on the surface), "surface_off": bool, "misplaced": bool}."""
+    only for a mesh on the surface), "surface_off": bool, "misplaced": bool}. Both findings
+    carry "compared" (pixels the cameras compare where the mesh is) and "texture_kept" (their
+    texture where the finding would put the mesh, over that where it is); a finding from fewer
+    than 200 pixels, or one that keeps less than a quarter of the texture (the pixels moved onto
+    a plain background), is not off."""
 
 def coverage(scene: Scene, options: Optional[Dict[str, Any]] = None) -> Dict[str, float]:
     """How much of the mesh's surface (by area, at the first frame) is seen by two or more

@@ -324,8 +324,9 @@ impl Tracker {
 
     /// When the scene's mesh lay off the surface the cameras agree on and was moved onto it
     /// before tracking (option "onto_surface", on by default): a dict with "found" (the
-    /// check's "pixels", "length", "ratio", "at_limit", "closed") and how far the vertices
-    /// moved ("median", "max", scene units), as `run.json`'s `first_mesh_moved`; else None.
+    /// check's "pixels", "length", "ratio", "at_limit", "closed", "compared", "texture_kept")
+    /// and how far the vertices moved ("median", "max", scene units), as `run.json`'s
+    /// `first_mesh_moved`; else None.
     #[getter]
     fn first_mesh_moved<'py>(&self, py: Python<'py>) -> PyResult<Option<Bound<'py, PyAny>>> {
         self.inner
@@ -522,8 +523,11 @@ fn scene_mesh(
 /// "length", "ratio", "at_limit", "closed"; None when no two cameras see a common triangle) and
 /// "placement" (how far `align` would move it: "rms", "fraction" of its size, "degrees",
 /// "translation", with the "loose_left_out" motions the images hold loosely, such as a nearly
-/// round object's spin, left out; only for a mesh on the surface, else None); "surface_off" and
-/// "misplaced" say whether either is worth a warning. `positions` ((V, 3)): another placement
+/// round object's spin, left out; only for a mesh on the surface, else None); both with
+/// "compared" (pixels compared where the mesh is) and "texture_kept" (their texture where the
+/// finding puts the mesh, over that where it is); "surface_off" and "misplaced" say whether
+/// either is worth a warning (not from fewer than 200 pixels, nor keeping under a quarter of
+/// the texture). `positions` ((V, 3)): another placement
 /// of the scene's mesh.
 #[pyfunction]
 #[pyo3(signature = (scene, positions=None))]

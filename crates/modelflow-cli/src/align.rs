@@ -204,6 +204,13 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     } else {
         eprintln!("level  rounds  iterations  cost before → after    pixels  last move (px)");
         for l in &a.levels {
+            if l.rounds == 0 {
+                eprintln!(
+                    "{:>5}  skipped: the cameras compare {} pixels here, too few to hold a pose",
+                    l.level, l.pixels
+                );
+                continue;
+            }
             eprintln!(
                 "{:>5}  {:>6}  {:>10}  {:>10.3e} → {:<10.3e} {:>8}  {:>8.3}  ({:?})",
                 l.level,

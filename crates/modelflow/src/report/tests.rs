@@ -399,6 +399,8 @@ fn frames_the_tracker_doubts_are_listed_shaded_plotted_and_drawn() {
             ratio: 12.8,
             at_limit: false,
             closed: true,
+            compared: 41_200.0,
+            texture_kept: 1.1,
         },
         median: 0.0181,
         max: 0.0266,

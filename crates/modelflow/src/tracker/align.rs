@@ -135,6 +135,8 @@ pub struct AlignLevel {
     pub cost_before: f64,
     pub cost_after: f64,
     /// Pixels compared in the last round (each source pixel once per camera it is warped into).
+    /// A coarse level that compares fewer than 200 where it starts is skipped (0 rounds): so
+    /// few hold no pose.
     pub pixels: usize,
     /// The largest vertex motion of the last round, in this level's pixels.
     pub last_move_px: f64,
@@ -189,15 +191,32 @@ pub struct Placement {
     /// object's spin, a flat sheet's slide) were left out of the figures above: along those,
     /// where `align` ends is the images' noise, not the user's misplacement.
     pub loose_left_out: usize,
+    /// Pixels the cameras compare with each other where the mesh is (at the resolution
+    /// compared).
+    #[serde(default)]
+    pub compared: f64,
+    /// The texture of the pixels compared where `align` ends over that where the mesh is
+    /// (`offset::texture`'s measure): near 0 when the move only puts the pixels compared on a
+    /// plain background, which every camera sees alike.
+    #[serde(default)]
+    pub texture_kept: f64,
 }
 
 impl Placement {
     /// Off by enough to matter: [`PLACEMENT_WARN`] of the mesh's size or more (`align` from the
-    /// true placement moves our clips by 0.01–0.32 %: its noise, not a misplacement).
+    /// true placement moves our clips by 0.01–0.32 %: its noise, not a misplacement), found
+    /// from at least `offset::MIN_COMPARED` pixels compared, where they keep at least
+    /// `offset::MIN_TEXTURE_KEPT` of their texture (as the surface check's verdict).
     pub fn is_off(&self) -> bool {
         self.fraction >= PLACEMENT_WARN
+            && self.compared >= crate::tracker::offset::MIN_COMPARED
+            && self.texture_kept >= crate::tracker::offset::MIN_TEXTURE_KEPT
     }
 }
+
+/// The fewest pixels a coarse level of [`align`] must compare to be solved at (the finest is
+/// always solved); the same bound as the surface check's (`offset::MIN_COMPARED`).
+const MIN_LEVEL_PIXELS: f64 = crate::tracker::offset::MIN_COMPARED;
 
 /// The misplacement, as a fraction of the mesh's size, worth a warning.
 pub const PLACEMENT_WARN: f64 = 0.01;
@@ -245,12 +264,32 @@ pub fn placement(
             .collect();
         (small, cams)
     });
-    let aligned = |opts: &AlignOptions| match &small {
-        None => align(mesh, cameras, frame, images, opts).ok(),
-        Some((small, cams)) => align(mesh, cams, 0, small, opts).ok(),
+    let (imgs, cams, at) = match &small {
+        None => (images, cameras, frame),
+        Some((small, cams)) => (&small[..], &cams[..], 0),
+    };
+    let aligned = |opts: &AlignOptions| align(mesh, cams, at, imgs, opts).ok();
+    // What the cameras compare where the mesh is, and how much of its texture is left where
+    // `align` ends: two cameras that share only a rim over a plain background agree best with
+    // the rim moved onto the background (the blob's or the limb's two cameras: "moved by
+    // 20–42 % of its size").
+    let (compared, texture) = crate::tracker::offset::compared_texture(mesh, cams, at, imgs)?;
+    let verdict = |a: &Alignment| {
+        let kept = crate::tracker::offset::compared_texture(
+            &mesh.with_positions(a.positions.clone()),
+            cams,
+            at,
+            imgs,
+        )
+        .map_or(0.0, |(_, t)| if texture > 0.0 { t / texture } else { 1.0 });
+        Placement {
+            compared,
+            texture_kept: kept,
+            ..placement_of(mesh, a)
+        }
     };
     let a = aligned(&AlignOptions::default())?;
-    let found = placement_of(mesh, &a);
+    let found = verdict(&a);
     // A pose the coarsest level alone draws away is not one the images hold: on a body with an
     // arm crossing in front of it at 480×360, the coarsest level compared 114 pixels of thin
     // limbs, moved the mesh 10 % of its size off its true place, and the finer levels stayed
@@ -262,7 +301,7 @@ pub fn placement(
             ..AlignOptions::default()
         };
         if let Some(b) = aligned(&fewer) {
-            let again = placement_of(mesh, &b);
+            let again = verdict(&b);
             if again.fraction < found.fraction {
                 return Some(again);
             }
@@ -300,6 +339,8 @@ fn placement_of(mesh: &Mesh, a: &Alignment) -> Placement {
         degrees: cos.acos().to_degrees(),
         translation: moved_centroid.norm(),
         loose_left_out: a.loose_twists.len(),
+        compared: 0.0,
+        texture_kept: 1.0,
     }
 }
 
@@ -786,6 +827,14 @@ pub fn align(
         for round in 0..opts.rounds {
             let x0 = x.clone();
             let mut set = cross_patches(&x0, &triangles, &projections, &targets, &popts, 0);
+            // A coarse level that compares only a few pixels (two cameras that share only a
+            // rim: 0–33 at the coarser levels of the limb's two cameras at 480×360) holds no
+            // pose; followed, it turned the limb 142°. The finer levels start where it began.
+            if level > 0 && round == 0 && (set.compared_pixels() as f64) < MIN_LEVEL_PIXELS {
+                summary.pixels = set.compared_pixels();
+                summary.stop = StopReason::NoData;
+                break;
+            }
             let by_triangle = set.by_triangle();
             let problem = Problem {
                 moving_source: Some(&x0),

@@ -33,13 +33,25 @@ pub struct SurfaceOffset {
     pub at_limit: bool,
     /// Whether the mesh is closed (its normals point outward, `Mesh::facing_outward`).
     pub closed: bool,
+    /// Pixels compared between cameras where the mesh is (at the level compared).
+    #[serde(default)]
+    pub compared: f64,
+    /// The texture of the pixels compared at the best offset over that where the mesh is
+    /// ([`texture`]'s measure): near 0 when moving the mesh there only moves its pixels onto a
+    /// plain background, which every camera sees alike.
+    #[serde(default)]
+    pub texture_kept: f64,
 }
 
 impl SurfaceOffset {
     /// An offset worth a warning: at least `MIN_PX` pixels, where the cameras agree clearly
-    /// better (`MIN_RATIO`) than where the mesh is.
+    /// better (`MIN_RATIO`) than where the mesh is, found from at least `MIN_COMPARED` pixels,
+    /// and where the pixels compared keep at least `MIN_TEXTURE_KEPT` of their texture.
     pub fn is_off(&self) -> bool {
-        self.pixels.abs() >= MIN_PX && self.ratio >= MIN_RATIO
+        self.pixels.abs() >= MIN_PX
+            && self.ratio >= MIN_RATIO
+            && self.compared >= MIN_COMPARED
+            && self.texture_kept >= MIN_TEXTURE_KEPT
     }
 }
 
@@ -47,6 +59,15 @@ impl SurfaceOffset {
 pub const MIN_PX: f64 = 1.5;
 /// Nor offsets where the cameras agree less than this much better than at the mesh.
 pub const MIN_RATIO: f64 = 1.5;
+/// Nor offsets found from fewer pixels compared than this: two cameras that share only a few
+/// pixels of a rim (the crossing preset's two cameras share 29 at 480×360) tell nothing.
+pub const MIN_COMPARED: f64 = 200.0;
+/// Nor offsets at which the pixels compared keep less than this share of the texture they have
+/// where the mesh is. Two cameras that share only the object's rim, over a plain background:
+/// moved outward, the rim's pixels land on the background, which both see alike, and the cost
+/// falls to nothing (the blob seen by two cameras at 480×360: from 1.4·10⁻³ to 2·10⁻¹⁶, 59 mm
+/// out, the texture kept ~0); a mesh outside the surface moved onto it gains texture instead.
+pub const MIN_TEXTURE_KEPT: f64 = 0.25;
 /// The range searched, whole pixels either way (of the level compared).
 const RANGE: i32 = 10;
 /// The widest image [`surface_offset`] compares at full size; wider ones at a coarser level.
@@ -63,9 +84,54 @@ struct Frame<'a> {
     involving: Option<u16>,
 }
 
-/// One offset's comparison: the mean cost per pixel over every triangle, and per triangle its
-/// cost and compared pixels (weighted).
-type Scanned = Option<(f64, Vec<(u32, f64, f64)>)>;
+/// One offset's comparison (`None` where no two cameras see a common triangle).
+type Scanned = Option<Scan>;
+
+/// What the cameras' comparison gives at one offset.
+struct Scan {
+    /// The mean cost per pixel over every triangle.
+    cost: f64,
+    /// Per triangle: its index, cost and compared pixels (weighted).
+    per_triangle: Vec<(u32, f64, f64)>,
+    /// The pixels compared.
+    pixels: f64,
+    /// Their texture ([`texture`]).
+    texture: f64,
+}
+
+/// The texture of a comparison's pixels: per patch, the mean squared deviation of its source
+/// colours from their mean, averaged over the pixels. What a plain background lacks.
+fn texture(set: &crate::tracker::patch::PatchSet) -> f64 {
+    let (mut sum, mut n) = (0.0f64, 0usize);
+    for p in &set.patches {
+        let px = &set.pixels[p.start as usize..p.end as usize];
+        if px.is_empty() {
+            continue;
+        }
+        let mut mean = [0.0f64; 3];
+        for s in px {
+            for (m, c) in mean.iter_mut().zip(s.color) {
+                *m += c as f64;
+            }
+        }
+        let k = px.len() as f64;
+        let mean = mean.map(|m| m / k);
+        for s in px {
+            sum += s
+                .color
+                .iter()
+                .zip(mean)
+                .map(|(&c, m)| (c as f64 - m).powi(2))
+                .sum::<f64>();
+        }
+        n += px.len();
+    }
+    if n > 0 {
+        sum / n as f64
+    } else {
+        0.0
+    }
+}
 
 impl Frame<'_> {
     /// For offsets `center`−RANGE..=`center`+RANGE pixels of `x` along `normals`: what the
@@ -116,7 +182,12 @@ impl Frame<'_> {
                     .zip(&parts)
                     .map(|((t, _), a)| (*t, a.cost, a.weight))
                     .collect();
-                Some((cost, per_triangle))
+                Some(Scan {
+                    cost,
+                    per_triangle,
+                    pixels: set.compared_pixels() as f64,
+                    texture: texture(&set),
+                })
             })
             .collect()
     }
@@ -250,6 +321,51 @@ pub(crate) fn cross_scan(
     f.scan(x, &still, triangles, edges, closed, 0..=0)
         .pop()
         .flatten()
+        .map(|s| (s.cost, s.per_triangle))
+}
+
+/// How many pixels the cameras compare with each other about `mesh` at `frame` (full
+/// resolution, each camera's pixels warped into every other camera that sees the triangle; the
+/// cameras with a blank image left out), and their texture ([`texture`]); `None` when no two
+/// cameras see a common triangle. What a verdict about the mesh's placement rests on.
+pub(crate) fn compared_texture(
+    mesh: &Mesh,
+    cameras: &[Camera],
+    frame: u32,
+    images: &[RgbImage],
+) -> Option<(f64, f64)> {
+    let blank = crate::base::image::blank_images(images);
+    let (m, _) = tracked_mesh(mesh);
+    let seen = |c: &usize| !blank.get(*c).copied().unwrap_or(false);
+    let f = Frame {
+        targets: (0..images.len()).filter(seen).map(|c| &images[c]).collect(),
+        projections: (0..cameras.len())
+            .filter(seen)
+            .map(|c| cameras[c].at(frame).clone())
+            .collect(),
+        per_unit: 1.0,
+        opts: SolverOptions {
+            loss: Loss::Huber,
+            ..SolverOptions::default()
+        },
+        involving: None,
+    };
+    if f.targets.len() < 2 {
+        return None;
+    }
+    let still = vec![Vector3::zeros(); m.positions.len()];
+    let s = f
+        .scan(
+            &m.positions,
+            &still,
+            &m.triangles,
+            &m.edges(),
+            m.is_closed(),
+            0..=0,
+        )
+        .pop()
+        .flatten()?;
+    Some((s.pixels, s.texture))
 }
 
 fn pyramids(images: &[RgbImage], levels: usize) -> Vec<Pyramid> {
@@ -296,11 +412,29 @@ pub fn surface_offset(
             center - RANGE..=center + RANGE,
         )
         .into_iter()
-        .map(|s| s.map_or(f64::INFINITY, |(c, _)| c))
+        .map(|s| s.map_or(f64::INFINITY, |s| s.cost))
         .collect()
     };
-    let costs = costs_of(&f, 0);
-    let at_zero = costs[RANGE as usize];
+    // What is compared at offset `k` alone.
+    let here = |f: &Frame<'_>, k: i32| {
+        f.scan(&m.positions, &normals, &m.triangles, &edges, closed, k..=k)
+            .pop()
+            .flatten()
+    };
+    let mut first = f.scan(
+        &m.positions,
+        &normals,
+        &m.triangles,
+        &edges,
+        closed,
+        -RANGE..=RANGE,
+    );
+    let costs: Vec<f64> = first
+        .iter()
+        .map(|s| s.as_ref().map_or(f64::INFINITY, |s| s.cost))
+        .collect();
+    let at_mesh = first.swap_remove(RANGE as usize)?;
+    let at_zero = at_mesh.cost;
     if !at_zero.is_finite() {
         return None;
     }
@@ -339,12 +473,23 @@ pub fn surface_offset(
             }
         }
     }
+    // The verdict's check: what is compared at the offset found still has the texture it has
+    // where the mesh is (`MIN_TEXTURE_KEPT`). Checked only here, not along the scans: a mesh far
+    // outside the surface compares mostly background where it is, and its way to the surface
+    // would be lost if the scans were weighed by texture.
+    let texture_kept = match here(&f, pixels.round() as i32) {
+        Some(s) if at_mesh.texture > 0.0 => s.texture / at_mesh.texture,
+        Some(_) => 1.0,
+        None => 0.0,
+    };
     Some(SurfaceOffset {
         pixels: pixels * scale,
         length: pixels / f.per_unit,
         ratio: if c > 0.0 { at_zero / c } else { 1.0 },
         at_limit,
         closed,
+        compared: at_mesh.pixels,
+        texture_kept,
     })
 }
 
@@ -486,8 +631,8 @@ pub fn onto_surface(
         let mut cost = vec![0.0; nv * n];
         let mut weight = vec![0.0; nv * n];
         for (k, s) in scans.iter().enumerate() {
-            let Some((_, tris)) = s else { continue };
-            for &(t, c, w) in tris {
+            let Some(s) = s else { continue };
+            for &(t, c, w) in &s.per_triangle {
                 for &v in &m.triangles[t as usize] {
                     cost[v as usize * n + k] += c;
                     weight[v as usize * n + k] += w;

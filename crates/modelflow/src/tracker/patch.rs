@@ -285,6 +285,15 @@ impl PatchSet {
         }
     }
 
+    /// The pixels its patches compare (a pixel warped into two cameras counts twice; pixels no
+    /// patch lists, not at all).
+    pub(crate) fn compared_pixels(&self) -> usize {
+        self.patches
+            .iter()
+            .map(|p| (p.end - p.start) as usize)
+            .sum()
+    }
+
     /// Sorts patches by triangle (stable) and returns, for each triangle that has patches, the
     /// range of its patches.
     pub fn by_triangle(&mut self) -> Vec<(u32, std::ops::Range<usize>)> {
