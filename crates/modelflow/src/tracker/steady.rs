@@ -661,15 +661,7 @@ fn correlation(
     cutoff: f64,
 ) -> f64 {
     let (mut n, mut sv, mut si, mut svv, mut sii, mut svi) = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0);
-    for (ray, v) in samples {
-        let p = k * (r * ray);
-        if p.z <= 0.0 {
-            continue;
-        }
-        let Some((i, _, _)) = img.sample(p.x / p.z, p.y / p.z) else {
-            continue;
-        };
-        let (v, i) = (*v as f64, i as f64);
+    for (v, i) in landed(samples, img, k, r) {
         if (i - gain * v - offset).abs() > cutoff {
             continue;
         }
@@ -747,6 +739,24 @@ fn background_samples(
     }
 }
 
+/// Each of `samples` (rays and reference values) that turn `r` puts inside `img`: its reference
+/// value and `img`'s value there (bilinear).
+fn landed<'a>(
+    samples: &'a [(Vector3<f64>, f32)],
+    img: &'a Grey,
+    k: &'a Matrix3<f64>,
+    r: &'a Matrix3<f64>,
+) -> impl Iterator<Item = (f64, f64)> + 'a {
+    samples.iter().filter_map(move |(ray, v)| {
+        let p = k * (r * ray);
+        if p.z <= 0.0 {
+            return None;
+        }
+        let (i, _, _) = img.sample(p.x / p.z, p.y / p.z)?;
+        Some((*v as f64, i as f64))
+    })
+}
+
 /// The median absolute residual of `samples` (rays and reference values) against `img` with
 /// turn `r`, `gain` and `offset`; `None` when fewer than [`MIN_TEXTURED`] land in the image.
 fn median_residual(
@@ -759,15 +769,7 @@ fn median_residual(
     residuals: &mut Vec<f64>,
 ) -> Option<f64> {
     residuals.clear();
-    for (ray, v) in samples {
-        let p = k * (r * ray);
-        if p.z <= 0.0 {
-            continue;
-        }
-        if let Some((i, _, _)) = img.sample(p.x / p.z, p.y / p.z) {
-            residuals.push((i as f64 - gain * *v as f64 - offset).abs());
-        }
-    }
+    residuals.extend(landed(samples, img, k, r).map(|(v, i)| (i - gain * v - offset).abs()));
     if residuals.len() < MIN_TEXTURED {
         return None;
     }
