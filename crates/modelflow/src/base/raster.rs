@@ -391,68 +391,156 @@ pub fn trackable_mask(
     let mut mask = vec![false; win.len()];
     let m = margin as isize;
     let step = if checkerboard { 2 } else { 1 };
+    let owner = &ib.owner[..];
+    // Whether neighbour `o` at `(xx, yy)` (inside the image, not `t` itself) shows the same
+    // surface as triangle `t` (corners `tv`).
+    let same = |t: u32, tv: &[u32; 3], o: u32, xx: usize, yy: usize| {
+        if o == t {
+            return true;
+        }
+        if o == NONE {
+            return false;
+        }
+        if triangles[o as usize].iter().any(|v| tv.contains(v)) {
+            return true;
+        }
+        // Not a mesh neighbour: the same surface only if the depth seen there lies on this
+        // triangle's plane (within the tolerance).
+        let [a, b, c] = ib.planes[t as usize];
+        let z = ib.depth_at(xx, yy) as f64;
+        let inv = a * xx as f64 + b * yy as f64 + c;
+        inv > 0.0 && (1.0 / inv - z).abs() <= CONTINUOUS_PX * ib.footprint * z
+    };
+    let side = 2 * margin + 1;
+    // `level[i]`: the `side` owners of pixel `i`'s row centred on it are all the same (false
+    // within `margin` of the window's sides). Computed once per row, in a pass the compiler
+    // vectorises, it lets a pixel inside a triangle pass with one test per row.
+    let mut level = vec![false; win.len()];
+    if win.width > 2 * margin {
+        for (o, l) in owner
+            .chunks_exact(win.width)
+            .zip(level.chunks_exact_mut(win.width))
+        {
+            let l = &mut l[margin..win.width - margin];
+            if margin == 1 {
+                for (l, w) in l.iter_mut().zip(o.windows(3)) {
+                    *l = (w[0] == w[1]) & (w[2] == w[1]);
+                }
+            } else {
+                for (l, w) in l.iter_mut().zip(o.windows(side)) {
+                    *l = w.iter().all(|&v| v == w[margin]);
+                }
+            }
+        }
+    }
     for y in win.y0..win.y0 + win.height {
         let row = (y - win.y0) * win.width;
+        let rows_inside = y >= win.y0 + margin && y + margin < win.y0 + win.height;
         // The checkerboard keeps the pixels with even x + y of the image.
         let first = if checkerboard {
             win.x0 + (win.x0 + y) % 2
         } else {
             win.x0
         };
-        for x in (first..win.x0 + win.width).step_by(step) {
-            let t = ib.owner[row + x - win.x0];
+        // The last two triangles found to be mesh neighbours of `cached_for` (which is one
+        // itself): pixels along an edge meet the same neighbour again and again, and whether
+        // two triangles share a corner depends on them alone.
+        let (mut cached_for, mut near) = (NONE, [NONE; 2]);
+        let mut x = first;
+        while x < win.x0 + win.width {
+            let i = row + x - win.x0;
+            let t = owner[i];
+            x += step;
             if t == NONE || !usable[t as usize] {
                 continue;
             }
             let tv = triangles[t as usize];
-            // Whether neighbour `(xx, yy)` (inside the image) shows the same surface as `t`.
-            let same = |o: u32, xx: usize, yy: usize| {
-                if o == t {
-                    return true;
-                }
-                if o == NONE {
-                    return false;
-                }
-                if triangles[o as usize].iter().any(|v| tv.contains(v)) {
-                    return true;
-                }
-                // Not a mesh neighbour: the same surface only if the depth seen there lies
-                // on this triangle's plane (within the tolerance).
-                let [a, b, c] = ib.planes[t as usize];
-                let z = ib.depth_at(xx, yy) as f64;
-                let inv = a * xx as f64 + b * yy as f64 + c;
-                inv > 0.0 && (1.0 / inv - z).abs() <= CONTINUOUS_PX * ib.footprint * z
-            };
-            let ok = if x >= win.x0 + margin
-                && x + margin < win.x0 + win.width
-                && y >= win.y0 + margin
-                && y + margin < win.y0 + win.height
-            {
+            let xc = x - step;
+            let ok = if rows_inside && xc >= win.x0 + margin && xc + margin < win.x0 + win.width {
                 // The whole neighbourhood lies in the window (so in the image): read the
                 // owners by offset, row by row, and look closer only where one differs.
-                (y - margin..=y + margin).all(|yy| {
-                    let r = (yy - win.y0) * win.width;
-                    ib.owner[r + x - margin - win.x0..=r + x + margin - win.x0]
-                        .iter()
-                        .zip(x - margin..)
-                        .all(|(&o, xx)| o == t || same(o, xx, yy))
-                })
+                if cached_for != t {
+                    (cached_for, near) = (t, [t, t]);
+                }
+                let corner = i - margin * win.width - margin;
+                let inside = (0..side).all(|r| {
+                    let j = corner + margin + r * win.width;
+                    level[j] && owner[j] == t
+                });
+                let neighbour =
+                    |o: u32| o != NONE && triangles[o as usize].iter().any(|v| tv.contains(v));
+                let deep =
+                    |r: usize, c: usize, o: u32| same(t, &tv, o, xc - margin + c, y - margin + r);
+                let block = Block {
+                    corner,
+                    width: win.width,
+                    t,
+                };
+                match margin {
+                    _ if inside => true,
+                    // The same test, unrolled by the compiler for the usual margins.
+                    1 => rows_show(owner, &block, 3, &mut near, neighbour, deep),
+                    2 => rows_show(owner, &block, 5, &mut near, neighbour, deep),
+                    _ => rows_show(owner, &block, side, &mut near, neighbour, deep),
+                }
             } else {
                 (-m..=m).all(|dy| {
                     (-m..=m).all(|dx| {
-                        let (xx, yy) = (x as isize + dx, y as isize + dy);
+                        let (xx, yy) = (xc as isize + dx, y as isize + dy);
                         if xx < 0 || yy < 0 || xx >= w as isize || yy >= h as isize {
                             return false;
                         }
                         let (xx, yy) = (xx as usize, yy as usize);
-                        same(ib.owner_at(xx, yy), xx, yy)
+                        same(t, &tv, ib.owner_at(xx, yy), xx, yy)
                     })
                 })
             };
-            mask[row + x - win.x0] = ok;
+            mask[i] = ok;
         }
     }
     mask
+}
+
+/// A square of an index buffer's window: its top-left index, the window's row length, and
+/// the triangle whose neighbourhood it is.
+struct Block {
+    corner: usize,
+    width: usize,
+    t: u32,
+}
+
+/// Whether every pixel of the `side`×`side` square `b` of `owner` shows the surface of
+/// triangle `b.t`: owned by it, by one of `near` (triangles already found to be its mesh
+/// neighbours; one found by `neighbour` is put there), or accepted by `deep(row, column,
+/// owner)`. A row owned by `b.t` alone, the common case inside a triangle, is one pass of
+/// compares. Inlined always, so that a constant `side` unrolls the rows.
+#[inline(always)]
+fn rows_show(
+    owner: &[u32],
+    b: &Block,
+    side: usize,
+    near: &mut [u32; 2],
+    neighbour: impl Fn(u32) -> bool,
+    deep: impl Fn(usize, usize, u32) -> bool,
+) -> bool {
+    for r in 0..side {
+        let start = b.corner + r * b.width;
+        let row = &owner[start..start + side];
+        if row.iter().all(|&o| o == b.t) {
+            continue;
+        }
+        for (c, &o) in row.iter().enumerate() {
+            if o == near[0] || o == near[1] {
+                continue;
+            }
+            if neighbour(o) {
+                *near = [o, near[0]];
+            } else if !deep(r, c, o) {
+                return false;
+            }
+        }
+    }
+    true
 }
 
 #[cfg(test)]
