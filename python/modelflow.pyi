@@ -121,9 +121,11 @@ def first_mesh_check(
     cameras agree best (or None), "placement": how far `align` would move the mesh (or None;
     only for a mesh on the surface), "surface_off": bool, "misplaced": bool}. Both findings
     carry "compared" (pixels the cameras compare where the mesh is) and "texture_kept" (their
-    texture where the finding would put the mesh, over that where it is); a finding from fewer
-    than 200 pixels, or one that keeps less than a quarter of the texture (the pixels moved onto
-    a plain background), is not off."""
+    texture where the finding would put the mesh, over that where it is), the placement also
+    "agreement_gain" (the cameras' cost where the mesh is over that where `align` ends); a
+    finding from fewer than 200 pixels, or one that keeps less than a quarter of the texture
+    (the pixels moved onto a plain background), or a placement where the cameras agree less than
+    1.05 times better, is not off."""
 
 def coverage(scene: Scene, options: Optional[Dict[str, Any]] = None) -> Dict[str, float]:
     """How much of the mesh's surface (by area, at the first frame) is seen by two or more
@@ -140,4 +142,6 @@ def align(
     "scale", "angle_deg", "levels", "loose" (motions the images hold loosely; those with
     stiffness below 1e-6 were kept as placed) and "outline" (with `outline=True`: those motions
     set from the contrast across the mesh's border, for a sheet whose border is its visible
-    edge)."""
+    edge) and "agreement" ({"before", "after": the cameras' mean cost compared with each other
+    as placed and where the solve ended; "kept_given": where it ended they agree no better, so
+    the placement given was returned}, or None)."""

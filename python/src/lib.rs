@@ -471,6 +471,7 @@ fn align<'py>(
     d.set_item("levels", to_py(py, &a.levels)?)?;
     d.set_item("loose", to_py(py, &a.loose)?)?;
     d.set_item("outline", to_py(py, &a.outline)?)?;
+    d.set_item("agreement", to_py(py, &a.agreement)?)?;
     Ok(d)
 }
 
@@ -525,9 +526,11 @@ fn scene_mesh(
 /// "translation", with the "loose_left_out" motions the images hold loosely, such as a nearly
 /// round object's spin, left out; only for a mesh on the surface, else None); both with
 /// "compared" (pixels compared where the mesh is) and "texture_kept" (their texture where the
-/// finding puts the mesh, over that where it is); "surface_off" and "misplaced" say whether
-/// either is worth a warning (not from fewer than 200 pixels, nor keeping under a quarter of
-/// the texture). `positions` ((V, 3)): another placement
+/// finding puts the mesh, over that where it is), and the placement "agreement_gain" (the
+/// cameras' cost where the mesh is over that where `align` ends); "surface_off" and
+/// "misplaced" say whether either is worth a warning (not from fewer than 200 pixels, nor
+/// keeping under a quarter of the texture, nor a placement where the cameras agree less than
+/// 1.05 times better). `positions` ((V, 3)): another placement
 /// of the scene's mesh.
 #[pyfunction]
 #[pyo3(signature = (scene, positions=None))]

@@ -193,6 +193,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             "levels": a.levels,
             "loose": a.loose,
             "outline": a.outline,
+            "agreement": a.agreement,
             "error_before_pct": errors.map(|e| e.0),
             "error_after_pct": errors.map(|e| e.1),
             "surface_error_before_pct": errors.and_then(|e| e.2),
@@ -235,6 +236,13 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             },
             seconds
         );
+        if let Some(g) = a.agreement.filter(|g| g.kept_given) {
+            eprintln!(
+                "kept as placed: where the solve ended the cameras agree no better with each other \
+                 (mean cost {:.3e} there, {:.3e} as placed)",
+                g.after, g.before
+            );
+        }
         if let Some(o) = &a.outline {
             eprintln!(
                 "outline: the border moved by up to {:.2} px along the free motions; contrast across it {:.3e} → {:.3e}",

@@ -67,12 +67,13 @@ fn misplaced_meshes_are_brought_back_within_a_tenth_of_a_percent() {
 }
 
 #[test]
-fn a_nearly_round_surface_in_noisy_footage_is_not_called_misplaced_for_its_loose_spin() {
+fn a_nearly_round_surface_in_noisy_footage_is_kept_where_it_is_and_not_called_misplaced() {
     // The limb (a capsule) in footage with 2 % noise: `align` from the true placement spins it
-    // about its axis, which the images hold loosely (the noise decides where it ends: 0.1–4.7 %
-    // of its size over noise 0.02–0.04 and four seeds, 0.015–0.067 % with the spin left out).
-    // `track`'s placement check must not call that a misplacement; moved 3 % of its size
-    // across the axis, the mesh is misplaced, and named.
+    // about its axis, which the images hold loosely, to where the noise puts it (1.3 % of its
+    // size here), and there the cameras agree *worse* with each other than where it was (1 %;
+    // 10 of 12 noise levels and seeds tried end worse). So `align` keeps the placement given,
+    // and `track`'s placement check does not call it misplaced. Moved 3 % of its size across
+    // the axis, the mesh is misplaced, and named.
     let syn = Synthetic::generate(&SynthOptions {
         preset: Preset::Limb,
         width: 320,
@@ -93,18 +94,16 @@ fn a_nearly_round_surface_in_noisy_footage_is_not_called_misplaced_for_its_loose
         &AlignOptions::default(),
     )
     .unwrap();
-    let spun = rms_pct(&a.positions, &syn.mesh.positions, size);
-    assert!(
-        spun > 1.0,
-        "the case this guards: align moved it {spun:.2} %"
-    );
+    let g = a.agreement.expect("the cameras compare the mesh");
+    assert!(g.kept_given && g.after > g.before, "{g:?}");
+    assert_eq!(a.positions, syn.mesh.positions);
     assert!(
         a.loose.iter().any(|m| m.kind == MotionKind::Rotation),
         "{:?}",
         a.loose
     );
     let p = placement(&syn.mesh, &syn.cameras, 0, &images).unwrap();
-    assert!(!p.is_off() && p.loose_left_out >= 1, "{p:?}");
+    assert!(!p.is_off() && p.fraction < 1e-9, "{p:?}");
     let axis = Vector3::from(a.loose[0].axis);
     let across = axis.cross(&Vector3::z()).normalize();
     let moved = syn.mesh.with_positions(
@@ -116,6 +115,41 @@ fn a_nearly_round_surface_in_noisy_footage_is_not_called_misplaced_for_its_loose
     );
     let p = placement(&moved, &syn.cameras, 0, &images).unwrap();
     assert!(p.is_off() && (p.fraction - 0.03).abs() < 0.006, "{p:?}");
+    assert!(p.agreement_gain > 1.3, "{p:?}");
+}
+
+#[test]
+fn two_noisy_cameras_that_share_a_rim_do_not_call_a_true_mesh_misplaced() {
+    // The irregular blob seen by two cameras that share 4 % of its surface, in 10 % noise:
+    // `align` from the true placement moves it 2.2 % of its size to where the cameras agree
+    // only 2.6 % better, within what the changing set of pixels compared gives by itself.
+    // The check wanted the user to line up a true mesh (and `align` would have moved it off).
+    let syn = Synthetic::generate(&SynthOptions {
+        preset: Preset::Irregular,
+        cameras: Some(2),
+        width: 480,
+        height: 360,
+        frames: 15,
+        noise: 0.1,
+        ..SynthOptions::default()
+    })
+    .unwrap();
+    // As `synth` writes them: 8-bit PNGs.
+    let images: Vec<_> = (0..syn.cameras.len())
+        .map(|c| {
+            let mut img = syn.render(c, 0);
+            for px in img.pixels_mut() {
+                *px = px.map(|v| (v.clamp(0.0, 1.0) * 255.0).round() / 255.0);
+            }
+            img
+        })
+        .collect();
+    let p = placement(&syn.mesh, &syn.cameras, 0, &images).unwrap();
+    assert!(
+        p.fraction > 0.01 && p.agreement_gain < modelflow::tracker::PLACEMENT_MIN_GAIN,
+        "the case this guards: {p:?}"
+    );
+    assert!(!p.is_off(), "{p:?}");
 }
 
 #[test]

@@ -33,8 +33,9 @@ pub(crate) mod warp;
 mod tests;
 
 pub use align::{
-    align, first_mesh_check, perturb, placement, AlignLevel, AlignOptions, Alignment,
-    FirstMeshCheck, LooseMotion, MotionKind, OutlineSummary, Placement, LOOSE, PLACEMENT_WARN,
+    align, first_mesh_check, perturb, placement, Agreement, AlignLevel, AlignOptions, Alignment,
+    FirstMeshCheck, LooseMotion, MotionKind, OutlineSummary, Placement, LOOSE, PLACEMENT_MIN_GAIN,
+    PLACEMENT_WARN,
 };
 pub use coverage::{coverage, Coverage};
 pub use gpu::{Gpu, GpuStats};

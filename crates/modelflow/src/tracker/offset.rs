@@ -324,16 +324,16 @@ pub(crate) fn cross_scan(
         .map(|s| (s.cost, s.per_triangle))
 }
 
-/// How many pixels the cameras compare with each other about `mesh` at `frame` (full
-/// resolution, each camera's pixels warped into every other camera that sees the triangle; the
-/// cameras with a blank image left out), and their texture ([`texture`]); `None` when no two
-/// cameras see a common triangle. What a verdict about the mesh's placement rests on.
+/// What the cameras' comparison with each other gives about `mesh` at `frame`
+/// ([`Compared`]: full resolution, each camera's pixels warped into every other camera that
+/// sees the triangle, the convex loss; the cameras with a blank image left out); `None` when
+/// no two cameras see a common triangle. What a verdict about the mesh's placement rests on.
 pub(crate) fn compared_texture(
     mesh: &Mesh,
     cameras: &[Camera],
     frame: u32,
     images: &[RgbImage],
-) -> Option<(f64, f64)> {
+) -> Option<Compared> {
     let blank = crate::base::image::blank_images(images);
     let (m, _) = tracked_mesh(mesh);
     let seen = |c: &usize| !blank.get(*c).copied().unwrap_or(false);
@@ -365,7 +365,22 @@ pub(crate) fn compared_texture(
         )
         .pop()
         .flatten()?;
-    Some((s.pixels, s.texture))
+    Some(Compared {
+        pixels: s.pixels,
+        texture: s.texture,
+        cost: s.cost,
+    })
+}
+
+/// What [`compared_texture`] finds where a mesh is.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(crate) struct Compared {
+    /// The pixels the cameras compare with each other.
+    pub pixels: f64,
+    /// Their texture ([`texture`]).
+    pub texture: f64,
+    /// Their mean cost per pixel.
+    pub cost: f64,
 }
 
 fn pyramids(images: &[RgbImage], levels: usize) -> Vec<Pyramid> {
