@@ -236,12 +236,20 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             },
             seconds
         );
-        if let Some(g) = a.agreement.filter(|g| g.kept_given) {
-            eprintln!(
+        match a.agreement {
+            Some(g) if g.kept_given => eprintln!(
                 "kept as placed: where the solve ended the cameras agree no better with each other \
                  (mean cost {:.3e} there, {:.3e} as placed)",
                 g.after, g.before
-            );
+            ),
+            Some(g) => eprintln!(
+                "the cameras agree {:.2} times better with each other as aligned (mean cost {:.3e}, \
+                 {:.3e} as placed)",
+                g.before / g.after,
+                g.after,
+                g.before
+            ),
+            None => {}
         }
         if let Some(o) = &a.outline {
             eprintln!(

@@ -375,7 +375,9 @@ fn first_mesh_checks(
     }
     let len = modelflow::base::Length::of(scene.units);
     let off = modelflow::tracker::surface_offset(&scene.mesh, &scene.cameras, scene.first, &images);
-    if let Some(off) = off.filter(|o| o.is_off()) {
+    // Farther off than the tracker moves a mesh onto the surface, it is misplaced: the
+    // placement check below names it.
+    if let Some(off) = off.filter(|o| o.is_off_within(scene.mesh.bbox_diagonal())) {
         // A mesh off the surface pulls the pose the cameras agree on: no placement check.
         if !keep_shape {
             return Ok(());
@@ -405,8 +407,13 @@ fn first_mesh_checks(
             1 => ", leaving out a motion the images hold loosely".to_string(),
             n => format!(", leaving out {n} motions the images hold loosely"),
         };
+        let gain = if p.agreement_gain < 1e6 {
+            format!("; they agree {:.2} times better there", p.agreement_gain)
+        } else {
+            String::new()
+        };
         eprintln!(
-            "warning: at frame {}, the cameras agree best with the mesh moved as a whole by {} {} RMS ({:.1} % of its size; turned {:.1}°, its centre moved {} {}{loose}): it is not placed where the images put it, and the tracker will keep it that far off in every frame. Line it up first: modelflow align --scene {} --out aligned.obj (with the same --mesh and --frames), then track with --mesh aligned.obj (docs/tracker.md, \"Lining up the first mesh\").",
+            "warning: at frame {}, the cameras agree best with the mesh moved as a whole by {} {} RMS ({:.1} % of its size; turned {:.1}°, its centre moved {} {}{loose}{gain}): it is not placed where the images put it, and the tracker will keep it that far off in every frame. Line it up first: modelflow align --scene {} --out aligned.obj (with the same --mesh and --frames), then track with --mesh aligned.obj (docs/tracker.md, \"Lining up the first mesh\").",
             scene.first,
             len.show(p.rms),
             len.unit(),

@@ -373,3 +373,27 @@ fn align_refuses_what_it_cannot_do() {
         .to_string();
     assert!(err.contains("the camera's size"), "{err}");
 }
+
+#[test]
+fn a_mesh_misplaced_so_far_that_it_reads_far_off_the_surface_is_named() {
+    // The blob turned 5° and moved 3 % of its size (640×480, four cameras): the surface check
+    // reads it 29 % of its size off along its normals, farther than `track` moves a mesh onto
+    // the surface, so it was neither moved nor checked for its placement: no warning at all.
+    let syn = Synthetic::generate(&SynthOptions {
+        preset: Preset::Blob,
+        frames: 1,
+        ..SynthOptions::default()
+    })
+    .unwrap();
+    let images: Vec<_> = (0..syn.cameras.len()).map(|c| syn.render(c, 0)).collect();
+    let size = syn.mesh.bbox_diagonal();
+    let moved = syn.mesh.with_positions(perturb(&syn.mesh, 0.03, 5.0, 8));
+    let c = modelflow::tracker::first_mesh_check(&moved, &syn.cameras, 0, &images);
+    let s = c.surface.expect("the cameras compare the mesh");
+    assert!(
+        s.is_off() && !s.is_off_within(size),
+        "the case this guards: {s:?}"
+    );
+    let p = c.placement.expect("its placement is checked");
+    assert!(p.is_off() && (p.fraction - 0.034).abs() < 0.005, "{p:?}");
+}

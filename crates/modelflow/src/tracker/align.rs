@@ -402,7 +402,9 @@ pub struct FirstMeshCheck {
     /// cameras see a common triangle.
     pub surface: Option<crate::tracker::SurfaceOffset>,
     /// How far `align` would move the mesh ([`placement`]); only for a mesh on the surface (one
-    /// off it pulls the pose), `None` otherwise or when it cannot tell.
+    /// off it pulls the pose) or farther off it than `track` would move it onto it
+    /// ([`crate::tracker::SurfaceOffset::is_off_within`]: misplaced, not a visual hull), `None`
+    /// otherwise or when it cannot tell.
     pub placement: Option<Placement>,
 }
 
@@ -417,7 +419,7 @@ pub fn first_mesh_check(
 ) -> FirstMeshCheck {
     let surface = crate::tracker::surface_offset(mesh, cameras, frame, images);
     let placement = match surface {
-        Some(s) if s.is_off() => None,
+        Some(s) if s.is_off_within(mesh.bbox_diagonal()) => None,
         _ => placement(mesh, cameras, frame, images),
     };
     FirstMeshCheck { surface, placement }

@@ -53,6 +53,15 @@ impl SurfaceOffset {
             && self.compared >= MIN_COMPARED
             && self.texture_kept >= MIN_TEXTURE_KEPT
     }
+
+    /// Off the surface ([`SurfaceOffset::is_off`]) by at most [`MAX_MOVE`] of the size
+    /// (bounding-box diagonal) of the mesh checked: what [`moved_onto_surface`] moves onto it.
+    /// Farther off, the mesh is not a visual hull outside the surface but misplaced (a blob
+    /// turned 5° and moved 3 % of its size read as 142 px outside it, a quarter of its size),
+    /// which the placement check names.
+    pub fn is_off_within(&self, size: f64) -> bool {
+        self.is_off() && self.length.abs() <= MAX_MOVE * size
+    }
 }
 
 /// Offsets below this many pixels are not reported.
@@ -577,7 +586,7 @@ pub fn moved_onto_surface(
     // Farther off than a quarter of its size, the mesh is not a visual hull outside the
     // surface: it is misplaced (`align`), or what the cameras agree on there is not the object
     // (a black card over half of one camera's first frame drew a limb 61 % of its size inward).
-    if !found.is_off() || found.length.abs() > MAX_MOVE * mesh.bbox_diagonal() {
+    if !found.is_off_within(mesh.bbox_diagonal()) {
         return None;
     }
     let moved = onto_surface(mesh, cameras, frame, images, ROUNDS, Some(&found));
