@@ -144,5 +144,6 @@ def align(
     stiffness below 1e-6 were kept as placed) and "outline" (with `outline=True`: those motions
     set from the contrast across the mesh's border, for a sheet whose border is its visible
     edge) and "agreement" ({"before", "after": the cameras' mean cost compared with each other
-    as placed and where the solve ended; "kept_given": where it ended they agree no better, so
-    the placement given was returned}, or None)."""
+    as placed and where the solve ended; "pixels_before", "texture_before", "texture_after": the
+    pixels compared as placed and their texture there and where it ended; "kept_given": where it
+    ended they agree no better, so the placement given was returned}, or None)."""

@@ -179,6 +179,13 @@ pub struct Agreement {
     pub after: f64,
     /// The placement given was kept: the cameras agree no better where the solve ended.
     pub kept_given: bool,
+    /// The pixels compared at the placement given.
+    pub pixels_before: f64,
+    /// Their texture (per patch, the mean squared deviation of its source colours from their
+    /// mean, averaged over the pixels: what a plain background lacks) at the placement given
+    /// and where the solve ended.
+    pub texture_before: f64,
+    pub texture_after: f64,
 }
 
 /// What the outline fit did (see [`AlignOptions::outline`]).
@@ -305,41 +312,30 @@ pub fn placement(
     };
     let aligned = |opts: &AlignOptions| align(mesh, cams, at, imgs, opts).ok();
     // What the cameras compare where the mesh is, and how much of its texture is left where
-    // `align` ends: two cameras that share only a rim over a plain background agree best with
-    // the rim moved onto the background (the blob's or the limb's two cameras: "moved by
-    // 20–42 % of its size").
-    let here = crate::tracker::offset::compared_texture(mesh, cams, at, imgs)?;
-    let (compared, texture) = (here.pixels, here.texture);
+    // `align` ends (`Alignment::agreement`): two cameras that share only a rim over a plain
+    // background agree best with the rim moved onto the background (the blob's or the limb's
+    // two cameras: "moved by 20–42 % of its size").
     let verdict = |a: &Alignment| {
-        let there = crate::tracker::offset::compared_texture(
-            &mesh.with_positions(a.positions.clone()),
-            cams,
-            at,
-            imgs,
-        );
-        let kept = there.map_or(0.0, |t| {
-            if texture > 0.0 {
-                t.texture / texture
-            } else {
-                1.0
-            }
-        });
-        let gain = there.map_or(0.0, |t| {
-            if t.cost > 0.0 {
-                here.cost / t.cost
-            } else {
-                f64::MAX
-            }
-        });
-        Placement {
-            compared,
+        let g = a.agreement?;
+        let kept = if g.texture_before > 0.0 {
+            g.texture_after / g.texture_before
+        } else {
+            1.0
+        };
+        let gain = if g.after > 0.0 {
+            g.before / g.after
+        } else {
+            f64::MAX
+        };
+        Some(Placement {
+            compared: g.pixels_before,
             texture_kept: kept,
             agreement_gain: gain,
             ..placement_of(mesh, a)
-        }
+        })
     };
     let a = aligned(&AlignOptions::default())?;
-    let found = verdict(&a);
+    let found = verdict(&a)?;
     // A pose the coarsest level alone draws away is not one the images hold: on a body with an
     // arm crossing in front of it at 480×360, the coarsest level compared 114 pixels of thin
     // limbs, moved the mesh 10 % of its size off its true place, and the finer levels stayed
@@ -350,8 +346,7 @@ pub fn placement(
             levels: a.levels.len() - 1,
             ..AlignOptions::default()
         };
-        if let Some(b) = aligned(&fewer) {
-            let again = verdict(&b);
+        if let Some(again) = aligned(&fewer).as_ref().and_then(verdict) {
             if again.fraction < found.fraction {
                 return Some(again);
             }
@@ -1042,14 +1037,16 @@ fn agreement(
             frame,
             images,
         )
-        .map(|c| c.cost)
-        .filter(|c| c.is_finite())
+        .filter(|c| c.cost.is_finite())
     };
     let (before, after) = (at(start)?, at(end)?);
     Some(Agreement {
-        before,
-        after,
-        kept_given: after >= before,
+        before: before.cost,
+        after: after.cost,
+        kept_given: after.cost >= before.cost,
+        pixels_before: before.pixels,
+        texture_before: before.texture,
+        texture_after: after.texture,
     })
 }
 
