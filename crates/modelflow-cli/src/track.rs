@@ -407,7 +407,7 @@ fn first_mesh_checks(
             1 => ", leaving out a motion the images hold loosely".to_string(),
             n => format!(", leaving out {n} motions the images hold loosely"),
         };
-        // `f64::MAX`: not measured (a run folder written before it was).
+        // `f64::MAX`: no ratio to give (the cameras agree perfectly where `align` ends).
         let gain = if p.agreement_gain < f64::MAX {
             format!("; they agree {:.2} times better there", p.agreement_gain)
         } else {
