@@ -93,7 +93,7 @@ def track_scene(
     solution, the mesh saw next to none of its texture, folded over itself or leapt away, or a
     camera's image was blank or repeated the frame before) and "checks": every frame to look at, as {"frame": N, "concerns": [{"kind":
     "stalled" | "contradicted" | "started_contradicted" | "little_texture" | "folded" |
-    "blank" | "repeated" | "late" | "early" | "ahead" | "rejoined" | "moved" | "jumped", ...their figures}]}."""
+    "blank" | "repeated" | "late" | "early" | "ahead" | "rejoined" | "moved" | "disagree" | "jumped", ...their figures}]}."""
 
 def evaluate(scene: Scene, run: _Path) -> Dict[str, Any]:
     """Scores a run folder against the scene's ground truth (per-frame and mean RMS error)."""
@@ -101,7 +101,7 @@ def evaluate(scene: Scene, run: _Path) -> Dict[str, Any]:
 def frames_to_check(scene: Scene, run: _Path) -> Optional[List[Dict[str, Any]]]:
     """The frames of the scene's range that the tracker's own checks flag in the run folder, and
     why: [{"frame": N, "concerns": [{"kind": "stalled" | "contradicted" |
-    "started_contradicted" | "little_texture" | "folded" | "blank" | "repeated" | "late" | "early" | "ahead" | "rejoined" | "moved" | "jumped", ...their figures}]}], as
+    "started_contradicted" | "little_texture" | "folded" | "blank" | "repeated" | "late" | "early" | "ahead" | "rejoined" | "moved" | "disagree" | "jumped", ...their figures}]}], as
     `track` warned and the
     report lists them; [] when none is; None when the folder has no tracker log (the
     baseline's)."""

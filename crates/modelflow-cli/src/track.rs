@@ -627,17 +627,28 @@ pub fn run_scene(
     let total = (scene.last - scene.first) as u64;
     let progress = Progress::new("track", total);
     let mut checks = modelflow::tracker::Checks::default();
+    // A run of disagreement is flagged at every frame it lasts, and warned about once.
+    let mut warned_since = None;
     let result = track_scene(scene, opts, out, run, &mut |f| {
         let r = f.model_flow();
         // The concerns this line adds (a slip shows in the next frame's report, so some are
         // about the frame before), one warning each; "started from a contradicted solution"
         // goes without saying after the warning about that solution.
         if let Some(r) = r {
-            for (frame, c) in checks.add(f.frame, scene.first, r) {
+            let added = checks.add(f.frame, scene.first, r);
+            let disagreeing = checks.disagreeing();
+            for (frame, c) in added {
                 use modelflow::tracker::Concern;
                 // Which cameras: a dead one shows frame after frame under its name.
                 let cameras = match c {
                     Concern::StartedContradicted { .. } => continue,
+                    Concern::Disagree { since, .. } => {
+                        if warned_since == Some(since) {
+                            continue;
+                        }
+                        warned_since = Some(since);
+                        Some(&disagreeing)
+                    }
                     Concern::Blank { .. } => Some(&r.blank_cameras),
                     Concern::Repeated { .. } => Some(&r.repeated_cameras),
                     Concern::Late { .. } => Some(&r.late_cameras),

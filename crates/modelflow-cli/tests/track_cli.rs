@@ -1162,6 +1162,76 @@ fn among_four_cameras_one_running_a_frame_early_is_found_at_a_solution_it_took_n
 }
 
 #[test]
+fn a_camera_knocked_in_front_of_a_plain_background_is_named_by_its_disagreement_with_the_others() {
+    // `synth --preset blob --bump 1:3:0.5`: camera 1 of four turned 0.5° (about 2.5 px at
+    // 320×240) from frame 3 on, in front of the flat grey background, which shows no turn to
+    // `tracker::steady`. The mesh ends 0.76 % of its size off against 0.20 % unknocked, and
+    // the rig's contradicted share stays under its threshold: before 2026-12-03 `track` said
+    // nothing. Cameras 0 and 1, which share camera 1's part of the surface, each see 5–8 % more
+    // of their own pixels contradicted at every frame after the knock.
+    let dir = tempfile::tempdir().unwrap();
+    let clip = |name: &str, bump: Option<&str>| {
+        let footage = dir.path().join(name);
+        let mut cmd = Command::new(env!("CARGO_BIN_EXE_modelflow"));
+        cmd.args([
+            "synth", "--preset", "blob", "--width", "320", "--height", "240",
+        ])
+        .args(["--frames", "10", "--shake", "4", "--out"])
+        .arg(&footage);
+        if let Some(b) = bump {
+            cmd.args(["--bump", b]);
+        }
+        let o = cmd.output().unwrap();
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        track_ok(
+            &footage.join("scene.json"),
+            &dir.path().join(format!("run-{name}")),
+        )
+    };
+    let err = clip("knocked", Some("1:3:0.5"));
+    assert!(
+        err.contains("cameras' views have disagreed with the other cameras' about where the surface is at every frame since frame 3"),
+        "{err}"
+    );
+    assert!(
+        err.contains("recalibrate or leave out (--cameras) the one that moved (cam0, cam1)")
+            || err.contains("the one that moved (cam1)"),
+        "{err}"
+    );
+    assert_eq!(
+        err.matches("views have disagreed").count(),
+        1,
+        "warned once: {err}"
+    );
+    assert!(
+        err.contains("SUSPECT") && err.contains("frames 3, 4, 5, 6, 7, 8)"),
+        "{err}"
+    );
+    // The log has each camera's share, and the run folder's frames to check name the concern.
+    let run = dir.path().join("run-knocked");
+    let checks = modelflow::run::frames_to_check(&run, 0, 9)
+        .unwrap()
+        .unwrap();
+    assert!(
+        checks.iter().any(|c| c.frame == 5
+            && c.concerns
+                .iter()
+                .any(|k| matches!(k, modelflow::tracker::Concern::Disagree { since: 3, .. }))),
+        "{checks:?}"
+    );
+    let log = modelflow::run::read_frame_log(&run).unwrap();
+    let r = log[6].model_flow().unwrap();
+    assert_eq!(r.contradicted_by_camera.len(), 4);
+    assert!(
+        r.contradicted_by_camera[1] > r.contradicted_by_camera_at_first[1] + 0.05,
+        "{r:?}"
+    );
+    // Unknocked, the same clip is not named.
+    let err = clip("steady", None);
+    assert!(!err.contains("disagreed"), "{err}");
+}
+
+#[test]
 fn a_camera_knocked_off_its_calibration_is_found_from_its_background_and_turned_with_it() {
     // `synth --backdrop --bump 0:4:0.3`: a textured wall behind the shaken cloth, and camera 0
     // turned 0.3° about its own centre from frame 4 on while the scene file keeps its

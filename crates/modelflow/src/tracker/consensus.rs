@@ -42,13 +42,38 @@ pub(crate) struct ConsensusOptions {
 }
 
 /// What the check did to one template.
-#[derive(Clone, Copy, Debug, Default, PartialEq)]
+#[derive(Clone, Debug, Default, PartialEq)]
 pub(crate) struct ConsensusStats {
     /// Pixels dropped as contradicted.
     pub dropped: usize,
     /// Pixels dropped because their way into the frame being solved crosses a still occluder
     /// (`occluder`; only when asked, with [`drop_contradicted_ahead`]).
     pub near_still: usize,
+    /// Per camera (the patches' `source`), the pixels of its own that were dropped as
+    /// contradicted and the pixels it took: what tells one camera's disagreement with the
+    /// others from the whole rig's (`health`'s cameras that disagree). Empty when nothing was
+    /// checked (one camera, no patches).
+    pub by_camera: Vec<CameraShare>,
+}
+
+/// One camera's part of a template's cross-camera check.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub(crate) struct CameraShare {
+    /// Its pixels dropped as contradicted.
+    pub dropped: usize,
+    /// Its pixels the template took, before the check.
+    pub taken: usize,
+}
+
+impl CameraShare {
+    /// `dropped` as a share of `taken` (0 when it took none).
+    pub fn share(&self) -> f64 {
+        if self.taken > 0 {
+            self.dropped as f64 / self.taken as f64
+        } else {
+            0.0
+        }
+    }
 }
 
 /// The statistics (pair gains, median residual) are taken on every `stride`-th pixel of each
@@ -136,6 +161,14 @@ pub(crate) fn drop_contradicted_asking(
             view.verdict(p, &gains, &limit, buf, ask_all, ahead.is_some())
         })
         .unzip();
+    // Counted before the still occluders' pixels are left out: those are not contradicted.
+    let mut by_camera = vec![CameraShare::default(); ncam];
+    for (p, k) in patches.iter().zip(&keep) {
+        let n = (p.end - p.start) as usize;
+        let c = &mut by_camera[p.source as usize];
+        c.taken += n;
+        c.dropped += n - k.iter().filter(|&&k| k).count();
+    }
     let marks = ahead.and_then(|a| a.still_marks(set, &contradicted, &limit));
     let near_still = match (ahead, &marks) {
         (Some(a), Some(m)) => m.leave_out(set, &mut keep, &a.way),
@@ -146,6 +179,7 @@ pub(crate) fn drop_contradicted_asking(
         ConsensusStats {
             dropped: all - near_still,
             near_still,
+            by_camera,
         },
         marks,
     )

@@ -18,7 +18,7 @@ use crate::base::raster::{rasterize, IndexBuffer};
 use crate::error::{Error, Result};
 use crate::tracker::align;
 use crate::tracker::balance;
-use crate::tracker::consensus::{drop_contradicted_ahead, ConsensusOptions};
+use crate::tracker::consensus::{drop_contradicted_ahead, CameraShare, ConsensusOptions};
 use crate::tracker::fold::FoldWatch;
 use crate::tracker::gpu::Gpu;
 use crate::tracker::health;
@@ -65,6 +65,17 @@ pub struct FrameReport {
     /// footage's own level of disagreement between cameras.
     #[serde(default)]
     pub contradicted_at_first: f64,
+    /// `contradicted_share` camera by camera: per camera, the share of its own pixels in that
+    /// template that the other cameras contradicted. A camera knocked off its calibration in
+    /// front of a plain background (where `moved_cameras` has nothing to see it by) raises the
+    /// shares of the cameras whose view of the surface only it checks, frame after frame, while
+    /// the rig's share stays within its footage's level ([`health::DISAGREE_RISE`]). Absent
+    /// with one camera and in logs written before 2026-12-03.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub contradicted_by_camera: Vec<f64>,
+    /// The same per camera at the first frame, where the mesh is given lined up.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub contradicted_by_camera_at_first: Vec<f64>,
     /// Pixels of the finest level's templates (previous frame and anchor) whose surface point
     /// another part of the mesh hides in this frame, or lies at one of the mesh's depth edges
     /// here, judged from the mesh where that level started (an arm in front of the body, a fold
@@ -221,6 +232,8 @@ struct TemplatePatches {
     set: PatchSet,
     /// Pixels the other cameras contradicted, left out.
     contradicted: usize,
+    /// Per camera, its pixels contradicted and taken (empty when nothing was checked).
+    by_camera: Vec<CameraShare>,
     /// `seen[triangle · cameras + camera]`: whether the template sees that triangle in that
     /// camera, whatever was left out for what the pixels show (a blank image, contradiction).
     seen: Vec<bool>,
@@ -276,6 +289,8 @@ pub struct Tracker {
     /// The share of the first frame's finest template that the other cameras contradict
     /// (`FrameReport::contradicted_at_first`).
     contradicted_at_first: f64,
+    /// The same per camera (`FrameReport::contradicted_by_camera_at_first`).
+    contradicted_by_camera_at_first: Vec<f64>,
     /// What the first frame's own images give its mesh (`FrameReport::information_share`).
     information_at_first: f64,
     /// The first frame (where the anchor was taken).
@@ -463,6 +478,7 @@ impl Tracker {
             gpu: None,
             anchor: Vec::new(),
             contradicted_at_first: 0.0,
+            contradicted_by_camera_at_first: Vec::new(),
             information_at_first: 0.0,
             anchor_frame: frame,
             prev: Template {
@@ -512,7 +528,11 @@ impl Tracker {
             .collect();
         t.turns = vec![Vector3::zeros(); t.cameras.len()];
         t.moved_at = vec![None; t.cameras.len()];
-        (t.anchor, t.contradicted_at_first) = t.anchor_patches(&t.prev, None);
+        (
+            t.anchor,
+            t.contradicted_at_first,
+            t.contradicted_by_camera_at_first,
+        ) = t.anchor_patches(&t.prev, None);
         t.information_at_first = t.information_at_first();
         Ok(t)
     }
@@ -639,8 +659,11 @@ impl Tracker {
         let first_next = first_next.map(|n| self.merged(n));
         if let Some(n) = &first_next {
             if self.prev.frame == self.anchor_frame && self.before_prev.is_none() {
-                (self.anchor, self.contradicted_at_first) =
-                    self.anchor_patches(&self.prev, Some((n, 1.0)));
+                (
+                    self.anchor,
+                    self.contradicted_at_first,
+                    self.contradicted_by_camera_at_first,
+                ) = self.anchor_patches(&self.prev, Some((n, 1.0)));
             }
         }
         // Left out as the run left them: blank, or (`Prepared::with_repeated`) a repeat.
@@ -1208,6 +1231,7 @@ impl Tracker {
         let mut set = PatchSet::from_cameras(&per_cam);
         drop(per_cam);
         let mut contradicted = 0;
+        let mut by_camera = Vec::new();
         let mut still = None;
         let mut near_still = 0;
         if self.opts.consensus > 0.0 && self.cameras.len() > 1 {
@@ -1243,12 +1267,14 @@ impl Tracker {
                 ahead.as_ref(),
             );
             contradicted = stats.dropped;
+            by_camera = stats.by_camera;
             near_still = stats.near_still;
             still = marks;
         }
         TemplatePatches {
             set,
             contradicted,
+            by_camera,
             seen,
             still,
             near_still,
@@ -1329,14 +1355,14 @@ impl Tracker {
     /// frame's velocity `(next − first)/gap`. The anchor keeps every other pixel (checkerboard)
     /// at twice the weight: the same total pull for half the work.
     /// The anchor patches per level, and the share of the finest one's pixels that the other
-    /// cameras contradicted (0 without anchors).
+    /// cameras contradicted, all cameras' and each one's (0 and none without anchors).
     fn anchor_patches(
         &self,
         first: &Template,
         next: Option<(&[Point3<f64>], f64)>,
-    ) -> (Vec<PatchSet>, f64) {
+    ) -> (Vec<PatchSet>, f64, Vec<f64>) {
         if self.opts.anchor_weight <= 0.0 {
-            return (Vec::new(), 0.0);
+            return (Vec::new(), 0.0, Vec::new());
         }
         // `template_patches` moves along `positions − before`: the forward difference here.
         let before: Option<Vec<Point3<f64>>> = next.map(|(n, _)| {
@@ -1349,6 +1375,7 @@ impl Tracker {
         });
         let before = before.as_deref().zip(next.map(|(_, gap)| gap));
         let mut share = 0.0;
+        let mut by_camera = Vec::new();
         let sets = (0..anchored_levels(self.opts.levels, self.opts.finest_level))
             .map(|l| {
                 if l < self.opts.finest_level {
@@ -1358,6 +1385,7 @@ impl Tracker {
                 let TemplatePatches {
                     set,
                     contradicted: dropped,
+                    by_camera: cams,
                     ..
                 } = self.template_patches(
                     first,
@@ -1369,11 +1397,12 @@ impl Tracker {
                 );
                 if l == self.opts.finest_level {
                     share = share_of(dropped, set.pixels.len());
+                    by_camera = cams.iter().map(CameraShare::share).collect();
                 }
                 set
             })
             .collect();
-        (sets, share)
+        (sets, share, by_camera)
     }
 
     /// Solves for `frame` given its images (one per camera) and makes it the new template.
@@ -1527,6 +1556,7 @@ impl Tracker {
             pixels: 0,
             contradicted: 0,
             contradicted_share: 0.0,
+            contradicted_by_camera: Vec::new(),
             hidden: 0,
             near_still: 0,
             rejected_share: 0.0,
@@ -1590,6 +1620,8 @@ impl Tracker {
             if level == finest {
                 out.contradicted = template.contradicted;
                 out.contradicted_share = share_of(template.contradicted, template.set.pixels.len());
+                out.contradicted_by_camera =
+                    template.by_camera.iter().map(CameraShare::share).collect();
             }
             let (mut set, near_still, stereo) =
                 self.level_patches(frame, level, template, &x, &next, &predicted_shape);
@@ -1800,8 +1832,11 @@ impl Tracker {
                 // early saw the surface moved along it, so their anchor pixels are taken again
                 // where they saw it.
                 let gap = frame.saturating_sub(old.frame).max(1) as f64;
-                (self.anchor, self.contradicted_at_first) =
-                    self.anchor_patches(&old, Some((&self.prev.positions, gap)));
+                (
+                    self.anchor,
+                    self.contradicted_at_first,
+                    self.contradicted_by_camera_at_first,
+                ) = self.anchor_patches(&old, Some((&self.prev.positions, gap)));
             }
             self.before_prev = Some(old.positions);
             self.before_frame = old.frame;
@@ -1826,6 +1861,8 @@ impl Tracker {
             contradicted: out.contradicted,
             contradicted_share: out.contradicted_share,
             contradicted_at_first: self.contradicted_at_first,
+            contradicted_by_camera: out.contradicted_by_camera,
+            contradicted_by_camera_at_first: self.contradicted_by_camera_at_first.clone(),
             hidden: out.hidden,
             near_still: out.near_still,
             folded,
@@ -2308,6 +2345,7 @@ struct Outcome {
     pixels: usize,
     contradicted: usize,
     contradicted_share: f64,
+    contradicted_by_camera: Vec<f64>,
     hidden: usize,
     near_still: usize,
     rejected_share: f64,
