@@ -119,8 +119,11 @@ def first_mesh_check(
     """What `modelflow track` checks before tracking, at the first frame, for the scene's mesh
     (or the same triangles at `positions`, (V, 3)): {"surface": how far along its normals the
     cameras agree best (or None), "placement": how far `align` would move the mesh (or None;
-    only for a mesh on the surface or off it by more than a quarter of its size),
-    "surface_off": bool, "misplaced": bool}. Both findings
+    only for a mesh on the surface, off it by more than a quarter of its size, or off it by
+    less where `align`'s rigid move makes the cameras agree better than the move along the
+    normals does: misplaced, not off the surface), "surface_off": bool, "misplaced": bool}.
+    `track` moves the mesh onto the surface when "surface_off" holds within a quarter of its
+    size and "placement" is None. Both findings
     carry "compared" (pixels the cameras compare where the mesh is) and "texture_kept" (their
     texture where the finding would put the mesh, over that where it is), the placement also
     "agreement_gain" (the cameras' cost where the mesh is over that where `align` ends); a

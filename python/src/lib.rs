@@ -524,8 +524,9 @@ fn scene_mesh(
 /// "length", "ratio", "at_limit", "closed"; None when no two cameras see a common triangle) and
 /// "placement" (how far `align` would move it: "rms", "fraction" of its size, "degrees",
 /// "translation", with the "loose_left_out" motions the images hold loosely, such as a nearly
-/// round object's spin, left out; only for a mesh on the surface or off it by more than
-/// a quarter of its size, which `track` does not move onto it, else None); both with
+/// round object's spin, left out; only for a mesh on the surface, off it by more than a
+/// quarter of its size, which `track` does not move onto it, or off it by less where the rigid
+/// move explains the cameras better than the move along the normals, else None); both with
 /// "compared" (pixels compared where the mesh is) and "texture_kept" (their texture where the
 /// finding puts the mesh, over that where it is), and the placement "agreement_gain" (the
 /// cameras' cost where the mesh is over that where `align` ends); "surface_off" and

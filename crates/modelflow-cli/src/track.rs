@@ -374,10 +374,11 @@ fn first_mesh_checks(
         );
     }
     let len = modelflow::base::Length::of(scene.units);
-    let off = modelflow::tracker::surface_offset(&scene.mesh, &scene.cameras, scene.first, &images);
-    // Farther off than the tracker moves a mesh onto the surface, it is misplaced: the
-    // placement check below names it.
-    if let Some(off) = off.filter(|o| o.is_off_within(scene.mesh.bbox_diagonal())) {
+    let check =
+        modelflow::tracker::first_mesh_check(&scene.mesh, &scene.cameras, scene.first, &images);
+    // Farther off than the tracker moves a mesh onto the surface, or better explained by a
+    // rigid move, it is misplaced: the placement check below names it.
+    if let Some(off) = check.off_surface(scene.mesh.bbox_diagonal()) {
         // A mesh off the surface pulls the pose the cameras agree on: no placement check.
         if !keep_shape {
             return Ok(());
@@ -398,8 +399,7 @@ fn first_mesh_checks(
         );
         return Ok(());
     }
-    let placed = modelflow::tracker::placement(&scene.mesh, &scene.cameras, scene.first, &images);
-    if let Some(p) = placed.filter(|p| p.is_off()) {
+    if let Some(p) = check.placement.filter(|p| p.is_off()) {
         // Along what the images hold loosely (a nearly round object's spin) `align` follows
         // their noise: those motions are not counted (`Placement::loose_left_out`).
         let loose = match p.loose_left_out {

@@ -39,7 +39,10 @@ pub use align::{
 };
 pub use coverage::{coverage, Coverage};
 pub use gpu::{Gpu, GpuStats};
-pub use health::{check_reports, Checks, Concern, FrameCheck, INFORMATION_FLOOR, SUSPECT_RISE};
+pub use health::{
+    check_reports, Checks, Concern, FrameCheck, DISAGREE_FRAMES, DISAGREE_RISE, INFORMATION_FLOOR,
+    SUSPECT_RISE,
+};
 pub use offset::{
     moved_onto_surface, onto_surface, surface_offset, SurfaceMove, SurfaceOffset,
     MIN_PX as SURFACE_MIN_PX,

@@ -589,6 +589,11 @@ pub fn moved_onto_surface(
     if !found.is_off_within(mesh.bbox_diagonal()) {
         return None;
     }
+    // Misplaced as a whole, it reads off along its normals too: left as it is, for the
+    // placement check to name, rather than reshaped.
+    if crate::tracker::align::misplaced_instead(&found, mesh, cameras, frame, images).is_some() {
+        return None;
+    }
     let moved = onto_surface(mesh, cameras, frame, images, ROUNDS, Some(&found));
     let mut d: Vec<f64> = moved
         .iter()
