@@ -28,7 +28,9 @@ pub const SUSPECT_RISE: f64 = 0.1;
 /// How far one camera's own share of the previous frame's finest template that the other
 /// cameras contradict (`FrameReport::contradicted_by_camera`) may rise above its share at the
 /// first frame, frame after frame ([`DISAGREE_FRAMES`]), before its view is named as
-/// disagreeing with the others' ([`Concern::Disagree`]). A camera knocked 0.5° off its
+/// disagreeing with the others' ([`Concern::Disagree`]). Judged in rigs of three cameras or
+/// more, and not when every camera rises at once (that is the rig's disagreement with the
+/// mesh, which [`SUSPECT_RISE`] judges; two cameras always rise together). A camera knocked 0.5° off its
 /// calibration in front of a flat grey background (the blob, 4 cameras: 2.5 px at 320×240, 4
 /// px at 480×360) raised the two cameras that share its part of the surface by 0.053–0.081
 /// and 0.08–0.14 at every frame after; the rig's share rose by 0.03–0.07, under
@@ -491,17 +493,24 @@ impl Checks {
     /// solution the run judged is flagged, and each later one while it lasts.
     fn disagreement(&mut self, frame: u32, first: u32, r: &FrameReport) -> Vec<(u32, Concern)> {
         let n = r.contradicted_by_camera.len();
-        if n < 2 || r.contradicted_by_camera_at_first.len() != n {
-            // One camera, or a log written before the field existed: nothing to compare.
+        if n < 3 || r.contradicted_by_camera_at_first.len() != n {
+            // Two cameras rise together (each one's pixels are contradicted by the other alone):
+            // the rig's share judges them. One camera, or a log written before the field
+            // existed: nothing to compare.
             self.disagree_run.clear();
             self.disagree_since = None;
             return Vec::new();
         }
         self.disagree_run.resize(n, 0);
+        let rises: Vec<f64> = (0..n)
+            .map(|c| r.contradicted_by_camera[c] - r.contradicted_by_camera_at_first[c])
+            .collect();
+        // Every camera up at once is the rig's disagreement with the mesh, not some cameras'
+        // with the others: `SUSPECT_RISE` judges that.
+        let all_up = rises.iter().all(|&d| d > DISAGREE_RISE);
         let mut rise: f64 = 0.0;
-        for c in 0..n {
-            let d = r.contradicted_by_camera[c] - r.contradicted_by_camera_at_first[c];
-            if d > DISAGREE_RISE {
+        for (c, &d) in rises.iter().enumerate() {
+            if d > DISAGREE_RISE && !all_up {
                 self.disagree_run[c] += 1;
             } else {
                 self.disagree_run[c] = 0;
@@ -865,10 +874,14 @@ mod tests {
         assert!(check_reports(0, reps.iter().map(|(f, r)| (*f, r))).is_empty());
         // At the threshold itself a camera agrees; and one camera, or a log written before
         // the field existed, has nothing to compare.
-        let at = by_camera(&[DISAGREE_RISE, 0.0]);
+        let at = by_camera(&[DISAGREE_RISE, 0.0, 0.0]);
         let one = by_camera(&[0.5]);
         let old = report(0.05, 0.8, false);
-        for r in [&at, &one, &old] {
+        // Two cameras rise together whatever happens (the rig's share judges them), and every
+        // camera up at once is the rig's disagreement with the mesh, not some cameras'.
+        let two = by_camera(&[0.08, 0.08]);
+        let all = by_camera(&[0.08, 0.07, 0.09]);
+        for r in [&at, &one, &old, &two, &all] {
             let reps: Vec<(u32, &FrameReport)> = (1..20).map(|f| (f, r)).collect();
             assert!(check_reports(0, reps).is_empty());
         }
