@@ -24,6 +24,9 @@ pub(super) struct Figures {
     /// Whether the tracker's own measures were plotted (`checks_information`,
     /// `checks_contradicted`): some run has a tracker log.
     pub checks_plotted: bool,
+    /// Whether each camera's own contradicted share was plotted (`checks_cameras`): some run's
+    /// log has it for three cameras or more.
+    pub cameras_plotted: bool,
 }
 
 /// Rows of the "Frames to check" table shown per run; the rest are counted.
@@ -31,7 +34,8 @@ const CHECK_ROWS: usize = 40;
 
 /// The tracker's own checks: per run, the frames to look at and why, and the plots of the two
 /// measures behind them.
-fn checks_section(o: &mut String, runs: &[RunSummary], plotted: bool, len: Length) {
+fn checks_section(o: &mut String, runs: &[RunSummary], figs: &Figures, len: Length) {
+    let plotted = figs.checks_plotted;
     if runs.iter().all(|r| r.checks.is_none()) {
         return;
     }
@@ -123,6 +127,13 @@ fn checks_section(o: &mut String, runs: &[RunSummary], plotted: bool, len: Lengt
         let _ = writeln!(
             o,
             "<figure><img src=\"checks_contradicted.png\" alt=\"rise of the contradicted share per frame, one line per run\"><figcaption>The share of each frame's finest template (taken from the previous frame's solution) that the other cameras contradict, less that share at the first frame (<code>contradicted_share − contradicted_at_first</code>); above the dashed line the previous frame's solution, and this frame, are suspect. Also as <a href=\"checks_contradicted.svg\">SVG</a>.</figcaption></figure>"
+        );
+    }
+    if figs.cameras_plotted {
+        let _ = writeln!(
+            o,
+            "<figure><img src=\"checks_cameras.png\" alt=\"rise of each camera's own contradicted share per frame, one line per camera\"><figcaption>The same share camera by camera: of each camera's own template pixels, those the other cameras contradict, less that camera's share at the first frame (<code>contradicted_by_camera − contradicted_by_camera_at_first</code>, the first run whose log has them). Cameras above the dashed line for {} frames running, and not all at once, are named as disagreeing with the others: a camera knocked off its calibration in front of a plain background raises the two cameras that share its part of the surface, frame after frame. Also as <a href=\"checks_cameras.svg\">SVG</a>.</figcaption></figure>",
+            crate::tracker::DISAGREE_FRAMES
         );
     }
 }
@@ -391,7 +402,7 @@ pub(super) fn page(
             .join(", ")
     );
 
-    checks_section(&mut o, runs, figs.checks_plotted, len);
+    checks_section(&mut o, runs, figs, len);
 
     let frame_list = frames
         .iter()

@@ -369,8 +369,10 @@ pub fn write_report(
     files.push(plot_png.clone());
     files.push(plot_svg.clone());
     let checks_plotted = health.iter().any(Option::is_some);
+    let mut cameras_plotted = false;
     if checks_plotted {
-        for (stem, plot) in health_plots(&loaded, &health, &plot, bands) {
+        for (stem, plot) in health_plots(scene, &loaded, &health, &plot, bands) {
+            cameras_plotted |= stem == CAMERAS_PLOT;
             let png = out_dir.join(format!("{stem}.png"));
             let svg = out_dir.join(format!("{stem}.svg"));
             imageio::write_png(&png, &plot.render())?;
@@ -499,6 +501,7 @@ pub fn write_report(
     }
     let index = out_dir.join("index.html");
     figures.checks_plotted = checks_plotted;
+    figures.cameras_plotted = cameras_plotted;
     let page = html::page(scene, &summaries, &frames, plot_stem, &figures, opts);
     fsutil::write_atomic(&index, page.as_bytes())?;
     Ok(ReportSummary {
@@ -596,6 +599,9 @@ struct Health {
     /// Per logged frame: the information share and the contradicted share's rise over the first
     /// frame's, both as they are logged (shares, 0 to 1).
     measures: Vec<(u32, f64, f64)>,
+    /// Per logged frame with each camera's own contradicted share (`contradicted_by_camera`),
+    /// each camera's rise over its first frame's (shares); empty in logs without them.
+    by_camera: Vec<(u32, Vec<f64>)>,
 }
 
 /// The tracker's checks on the scene's frames (`run::frames_to_check`) and its measures per
@@ -607,6 +613,7 @@ fn read_health(scene: &Scene, dir: &Path) -> Result<Option<Health>> {
         return Ok(None);
     };
     let mut by_frame = std::collections::BTreeMap::new();
+    let mut cameras = std::collections::BTreeMap::new();
     for l in &lines {
         if let Some(r) = l.model_flow().filter(|_| scene.frames().contains(&l.frame)) {
             by_frame.insert(
@@ -616,10 +623,24 @@ fn read_health(scene: &Scene, dir: &Path) -> Result<Option<Health>> {
                     r.contradicted_share - r.contradicted_at_first,
                 ),
             );
+            let (now, first) = (
+                &r.contradicted_by_camera,
+                &r.contradicted_by_camera_at_first,
+            );
+            if !now.is_empty() && now.len() == first.len() {
+                let rise = now.iter().zip(first).map(|(n, f)| n - f).collect();
+                cameras.insert(l.frame, rise);
+            } else {
+                cameras.remove(&l.frame);
+            }
         }
     }
     let measures = by_frame.into_iter().map(|(f, (i, c))| (f, i, c)).collect();
-    Ok(Some(Health { checks, measures }))
+    Ok(Some(Health {
+        checks,
+        measures,
+        by_camera: cameras.into_iter().collect(),
+    }))
 }
 
 /// The scene's cameras as the first of `runs` whose tracker found a camera turned on its mount
@@ -684,13 +705,16 @@ fn check_bands(health: &[Option<Health>]) -> Vec<Band> {
 
 /// The tracker's own measures per frame, one line per run with a log, each with the threshold
 /// past which a frame is suspect: how much the images constrain the mesh, and how much the
-/// cameras contradict where the previous frame left the surface.
+/// cameras contradict where the previous frame left the surface; and, for the first run whose
+/// log has them in a rig of three cameras or more, the same per camera
+/// ([`CAMERAS_PLOT`], one line per camera, with the level a camera is named above).
 fn health_plots(
+    scene: &Scene,
     loaded: &[Run],
     health: &[Option<Health>],
     like: &LinePlot,
     bands: Vec<Band>,
-) -> [(&'static str, LinePlot); 2] {
+) -> Vec<(&'static str, LinePlot)> {
     let series = |value: fn(&(u32, f64, f64)) -> f64| -> Vec<Series> {
         loaded
             .iter()
@@ -711,7 +735,51 @@ fn health_plots(
     };
     let floor = 100.0 * crate::tracker::INFORMATION_FLOOR;
     let rise = 100.0 * crate::tracker::SUSPECT_RISE;
-    [
+    let per_camera = loaded.iter().zip(health).find_map(|(r, h)| {
+        let h = h.as_ref()?;
+        let n = h.by_camera.first()?.1.len();
+        (n >= 3).then_some((r, h, n))
+    });
+    let cameras = per_camera.map(|(run, h, n)| {
+        let named = 100.0 * crate::tracker::DISAGREE_RISE;
+        let series = (0..n)
+            .map(|c| Series {
+                name: scene
+                    .cameras
+                    .get(c)
+                    .map_or_else(|| format!("camera {c}"), |k| k.name.clone()),
+                colour: colormap::run_colour(c),
+                points: h
+                    .by_camera
+                    .iter()
+                    .filter(|(_, v)| v.len() == n)
+                    .map(|(f, v)| [*f as f64, 100.0 * v[c]])
+                    .collect(),
+            })
+            .collect();
+        (
+            CAMERAS_PLOT,
+            LinePlot {
+                title: format!(
+                    "Each camera's own pixels the others contradict ({})",
+                    run.name
+                ),
+                y_label: "contradicted pixels of the camera, rise over its first frame (points)"
+                    .into(),
+                series,
+                bands: bands.clone(),
+                levels: vec![(
+                    named,
+                    format!(
+                        "named above {named:.0} points for {} frames",
+                        crate::tracker::DISAGREE_FRAMES
+                    ),
+                )],
+                ..like.clone()
+            },
+        )
+    });
+    let mut plots = vec![
         (
             "checks_information",
             LinePlot {
@@ -734,8 +802,13 @@ fn health_plots(
                 ..like.clone()
             },
         ),
-    ]
+    ];
+    plots.extend(cameras);
+    plots
 }
+
+/// The file stem of the per-camera plot of [`health_plots`].
+pub(crate) const CAMERAS_PLOT: &str = "checks_cameras";
 
 /// Median wall time per solved frame (image reading included) from a run folder's log;
 /// `None` if there is no log or no line.

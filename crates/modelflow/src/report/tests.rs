@@ -450,4 +450,80 @@ fn frames_the_tracker_doubts_are_listed_shaded_plotted_and_drawn() {
     assert!(svg.contains(">suspect frames</text>") && svg.contains(">stalled frames</text>"));
     let svg = std::fs::read_to_string(out.join("checks_contradicted.svg")).unwrap();
     assert!(svg.contains(">suspect above 10 points</text>"));
+    // Two cameras have no per-camera plot (their logs have no per-camera shares here, and two
+    // cameras rise together anyway).
+    assert!(!out.join("checks_cameras.png").exists());
+    assert!(!html.contains("checks_cameras"));
+}
+
+#[test]
+fn each_cameras_own_disagreement_is_plotted_and_a_camera_named_by_it_is_listed() {
+    // The real board's four cameras, runs made from the truth; the tracker's log has camera 1
+    // (and camera 0, which shares its view) rising 8 points above its first frame's share from
+    // frame 6 on, as a knocked camera does, while the rig's share stays low.
+    let scene = Scene::load(Path::new(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../../fixtures/caliscope-board-sample/scene.json"
+    )))
+    .unwrap();
+    let tmp = tempfile::tempdir().unwrap();
+    let (run, out) = (tmp.path().join("knocked"), tmp.path().join("report"));
+    make_run(&scene, &run, 0.0, None);
+    let log: String = (1..=19u32)
+        .map(|f| {
+            let up = if f >= 6 { 0.08 } else { 0.0 };
+            format!(
+                "{{\"frame\": {f}, \"seconds\": 0.1, \"load_seconds\": 0, \"wall_seconds\": 0.1, \
+                 \"method\": \"model_flow\", \"iterations\": 9, \"cost_before\": 1e-3, \
+                 \"cost_after\": 1e-4, \"pixels\": 5000, \"contradicted_share\": 0.04, \
+                 \"contradicted_at_first\": 0.02, \"information_share\": 0.7, \
+                 \"contradicted_by_camera\": [{}, {}, 0.02, 0.02], \
+                 \"contradicted_by_camera_at_first\": [0.02, 0.02, 0.02, 0.02], \
+                 \"stop\": \"converged\", \"predicted\": false, \"stalled\": false, \
+                 \"timing\": {{\"pyramids\": 0, \"patches\": 0, \"solve\": 0.1}}, \"levels\": []}}\n",
+                0.02 + up,
+                0.02 + up
+            )
+        })
+        .collect();
+    std::fs::write(run.join("log.jsonl"), log).unwrap();
+    let opts = ReportOptions {
+        flipbook: false,
+        ..ReportOptions::default()
+    };
+    let summary = write_report(&scene, &[("knocked".into(), run)], &opts, &out).unwrap();
+    let html = std::fs::read_to_string(&summary.index).unwrap();
+    let links = check_links(&out, &html);
+    assert!(
+        links.contains(&"checks_cameras.png".to_string()),
+        "{links:?}"
+    );
+    assert!(
+        links.contains(&"checks_cameras.svg".to_string()),
+        "{links:?}"
+    );
+    let svg = std::fs::read_to_string(out.join("checks_cameras.svg")).unwrap();
+    assert_well_formed(&svg);
+    for name in ["cam0", "cam1", "cam2", "cam3"] {
+        assert!(
+            svg.contains(&format!(">{name}</text>")),
+            "{name} not in the legend"
+        );
+    }
+    assert!(svg.contains(">named above 5 points for 5 frames</text>"));
+    // Reports 6..=10 rise: the fifth names frames 5..=9 (the solutions they judged), and every
+    // later one the frame before it.
+    let frames: Vec<u32> = summary.runs[0]
+        .checks
+        .as_ref()
+        .unwrap()
+        .iter()
+        .map(|c| c.frame)
+        .collect();
+    assert_eq!(frames, (5..=18).collect::<Vec<u32>>());
+    assert!(html.contains(
+        "2 cameras&#39; views have disagreed with the other cameras&#39; about where the surface is at every frame since frame 5"
+    ) || html.contains(
+        "2 cameras' views have disagreed with the other cameras' about where the surface is at every frame since frame 5"
+    ), "{html}");
 }
