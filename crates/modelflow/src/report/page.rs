@@ -628,7 +628,12 @@ fn read_health(scene: &Scene, dir: &Path) -> Result<Option<Health>> {
                 &r.contradicted_by_camera_at_first,
             );
             if !now.is_empty() && now.len() == first.len() {
-                let rise = now.iter().zip(first).map(|(n, f)| n - f).collect();
+                // A camera not measured in either is a gap in its line.
+                let rise = now
+                    .iter()
+                    .zip(first)
+                    .map(|(n, f)| n.zip(*f).map_or(f64::NAN, |(n, f)| n - f))
+                    .collect();
                 cameras.insert(l.frame, rise);
             } else {
                 cameras.remove(&l.frame);
@@ -752,7 +757,7 @@ fn health_plots(
                 points: h
                     .by_camera
                     .iter()
-                    .filter(|(_, v)| v.len() == n)
+                    .filter(|(_, v)| v.len() == n && v[c].is_finite())
                     .map(|(f, v)| [*f as f64, 100.0 * v[c]])
                     .collect(),
             })

@@ -66,13 +66,10 @@ pub(crate) struct CameraShare {
 }
 
 impl CameraShare {
-    /// `dropped` as a share of `taken` (0 when it took none).
-    pub fn share(&self) -> f64 {
-        if self.taken > 0 {
-            self.dropped as f64 / self.taken as f64
-        } else {
-            0.0
-        }
+    /// `dropped` as a share of `taken`; `None` when it took none (left out, blank, out of view):
+    /// not measured.
+    pub fn share(&self) -> Option<f64> {
+        (self.taken > 0).then(|| self.dropped as f64 / self.taken as f64)
     }
 }
 

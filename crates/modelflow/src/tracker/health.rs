@@ -424,9 +424,10 @@ pub fn own_concerns(r: &FrameReport) -> Vec<Concern> {
 #[derive(Clone, Debug, Default)]
 pub struct Checks {
     list: Vec<FrameCheck>,
-    /// Per camera, how many reports running (the last ones added) showed its own contradicted
-    /// share more than [`DISAGREE_RISE`] above its first frame's.
-    disagree_run: Vec<usize>,
+    /// Per camera, how many reports running (the last ones added that measured it) showed its
+    /// own contradicted share more than [`DISAGREE_RISE`] above its first frame's, and the
+    /// frame of the first of them.
+    disagree_run: Vec<(usize, u32)>,
     /// The first frame whose solution the current run of disagreement judged (the frame
     /// before the run's first report), while some camera's run is long enough to be named.
     disagree_since: Option<u32>,
@@ -479,43 +480,51 @@ impl Checks {
         Some((frame, c))
     }
 
-    /// The cameras whose own contradicted share has risen past [`DISAGREE_RISE`] for
-    /// [`DISAGREE_FRAMES`] reports running, as of the last report added (by index).
-    pub fn disagreeing(&self) -> Vec<u16> {
-        (0..self.disagree_run.len())
-            .filter(|&c| self.disagree_run[c] >= DISAGREE_FRAMES)
-            .map(|c| c as u16)
-            .collect()
-    }
-
     /// The per-camera rule ([`Concern::Disagree`]) for report `frame`, which judges the
     /// previous frame's solution: once a camera's run reaches [`DISAGREE_FRAMES`], every
     /// solution the run judged is flagged, and each later one while it lasts.
     fn disagreement(&mut self, frame: u32, first: u32, r: &FrameReport) -> Vec<(u32, Concern)> {
         let n = r.contradicted_by_camera.len();
-        if n < 3 || r.contradicted_by_camera_at_first.len() != n {
-            // Two cameras rise together (each one's pixels are contradicted by the other alone):
-            // the rig's share judges them. One camera, or a log written before the field
-            // existed: nothing to compare.
-            self.disagree_run.clear();
-            self.disagree_since = None;
+        if n == 0 {
+            // Nothing checked at this report (a template without patches: the mesh out of
+            // view), or a log written before the field existed: the run stands as it was.
             return Vec::new();
         }
-        self.disagree_run.resize(n, 0);
-        let rises: Vec<f64> = (0..n)
-            .map(|c| r.contradicted_by_camera[c] - r.contradicted_by_camera_at_first[c])
+        let at_first = &r.contradicted_by_camera_at_first;
+        // Per camera, its rise; `None` where it was not measured now or at the first frame
+        // (left out, blank, out of view): it neither counts nor breaks its run.
+        let rises: Vec<Option<f64>> = (0..n)
+            .map(|c| {
+                let now = r.contradicted_by_camera[c]?;
+                Some(now - at_first.get(c).copied().flatten()?)
+            })
             .collect();
+        let measured = rises.iter().flatten().count();
+        if measured < 3 || self.disagree_run.len() != n {
+            // Two cameras rise together (each one's pixels are contradicted by the other alone):
+            // the rig's share judges them; a rig whose camera count changed starts afresh.
+            self.disagree_run = vec![(0, frame); n];
+            self.disagree_since = None;
+            if measured < 3 {
+                return Vec::new();
+            }
+        }
         // Every camera up at once is the rig's disagreement with the mesh, not some cameras'
         // with the others: `SUSPECT_RISE` judges that.
-        let all_up = rises.iter().all(|&d| d > DISAGREE_RISE);
+        let all_up = rises.iter().flatten().all(|&d| d > DISAGREE_RISE);
         let mut rise: f64 = 0.0;
-        for (c, &d) in rises.iter().enumerate() {
+        for (c, d) in rises.iter().enumerate() {
+            let Some(d) = *d else { continue };
+            let run = &mut self.disagree_run[c];
             if d > DISAGREE_RISE && !all_up {
-                self.disagree_run[c] += 1;
+                if run.0 == 0 {
+                    run.1 = frame;
+                }
+                run.0 += 1;
             } else {
-                self.disagree_run[c] = 0;
+                *run = (0, frame);
             }
-            if self.disagree_run[c] >= DISAGREE_FRAMES {
+            if run.0 >= DISAGREE_FRAMES {
                 rise = rise.max(d);
             }
         }
@@ -530,26 +539,53 @@ impl Checks {
         let frames: Vec<u32> = match self.disagree_since {
             Some(_) => vec![judged],
             None => {
-                // The run's first report judged the solution DISAGREE_FRAMES − 1 frames back
-                // (never the given mesh).
-                let longest = (0..n).map(|c| self.disagree_run[c]).max().unwrap_or(0);
-                let since = (frame - longest as u32).max(first + 1);
+                // The run's first report judged the frame before it (never the given mesh).
+                let start = self
+                    .disagree_run
+                    .iter()
+                    .filter(|r| r.0 >= DISAGREE_FRAMES)
+                    .map(|r| r.1)
+                    .min()
+                    .unwrap_or(frame);
+                let since = start.saturating_sub(1).max(first + 1);
                 self.disagree_since = Some(since);
                 (since..=judged).collect()
             }
         };
         let since = self.disagree_since.unwrap_or(judged);
-        frames
+        let c = Concern::Disagree {
+            cameras,
+            rise,
+            since,
+        };
+        // One disagreement per frame (a run that ended and began again flags no frame twice).
+        let frames: Vec<u32> = frames
             .into_iter()
-            .map(|f| {
-                let c = Concern::Disagree {
-                    cameras,
-                    rise,
-                    since,
-                };
-                self.push(f, c);
-                (f, c)
-            })
+            .filter(|&f| !self.flagged_disagreeing(f))
+            .collect();
+        for &f in &frames {
+            self.push(f, c);
+        }
+        frames.into_iter().map(|f| (f, c)).collect()
+    }
+
+    /// Whether `frame` is flagged for [`Concern::Disagree`] already.
+    fn flagged_disagreeing(&self, frame: u32) -> bool {
+        let at = self.list.partition_point(|f| f.frame < frame);
+        self.list.get(at).is_some_and(|f| {
+            f.frame == frame
+                && f.concerns
+                    .iter()
+                    .any(|c| matches!(c, Concern::Disagree { .. }))
+        })
+    }
+
+    /// The cameras whose own contradicted share has risen past [`DISAGREE_RISE`] for
+    /// [`DISAGREE_FRAMES`] reports running, as of the last report added (by index).
+    pub fn disagreeing(&self) -> Vec<u16> {
+        (0..self.disagree_run.len())
+            .filter(|&c| self.disagree_run[c].0 >= DISAGREE_FRAMES)
+            .map(|c| c as u16)
             .collect()
     }
 
@@ -802,8 +838,8 @@ mod tests {
     /// A report whose cameras' own contradicted shares are `at_first` plus `rise`, per camera.
     fn by_camera(rise: &[f64]) -> FrameReport {
         let mut r = report(0.05, 0.8, false);
-        r.contradicted_by_camera_at_first = vec![0.03; rise.len()];
-        r.contradicted_by_camera = rise.iter().map(|d| 0.03 + d).collect();
+        r.contradicted_by_camera_at_first = vec![Some(0.03); rise.len()];
+        r.contradicted_by_camera = rise.iter().map(|d| Some(0.03 + d)).collect();
         r
     }
 
@@ -885,7 +921,75 @@ mod tests {
             let reps: Vec<(u32, &FrameReport)> = (1..20).map(|f| (f, r)).collect();
             assert!(check_reports(0, reps).is_empty());
         }
-        assert!(old.contradicted_by_camera.is_empty());
+    }
+
+    #[test]
+    fn cameras_not_measured_neither_count_nor_break_a_run_and_a_frame_with_nothing_checked_keeps_it(
+    ) {
+        let knocked = || by_camera(&[0.07, 0.08, 0.0, 0.0]);
+        // Camera 3 left out at report 4 (blank: it took no pixels), report 5 checked nothing
+        // (empty), report 6 from a log written before the field existed: the run of cameras
+        // 0 and 1 from report 2 goes on, and report 8 is its fifth.
+        let mut out3 = knocked();
+        out3.contradicted_by_camera[3] = None;
+        let nothing = {
+            let mut r = knocked();
+            r.contradicted_by_camera.clear();
+            r.contradicted_by_camera_at_first.clear();
+            r
+        };
+        let reps = [
+            (1, by_camera(&[0.0; 4])),
+            (2, knocked()),
+            (3, knocked()),
+            (4, out3),
+            (5, nothing.clone()),
+            (6, nothing),
+            (7, knocked()),
+            (8, knocked()),
+        ];
+        let checks = check_reports(0, reps.iter().map(|(f, r)| (*f, r)));
+        let frames: Vec<u32> = checks.iter().map(|c| c.frame).collect();
+        assert_eq!(frames, [1, 2, 3, 4, 5, 6, 7]);
+        assert!(checks.iter().all(|c| c.concerns
+            == [Concern::Disagree {
+                cameras: 2,
+                rise: 0.08,
+                since: 1
+            }]));
+        // A three-camera rig with one camera left out is two cameras: never named.
+        let mut two = by_camera(&[0.07, 0.08, 0.0]);
+        two.contradicted_by_camera[2] = None;
+        let reps: Vec<(u32, &FrameReport)> = (1..12).map(|f| (f, &two)).collect();
+        assert!(check_reports(0, reps).is_empty());
+        // A run that ends and begins again is named again from its own first frame, and no
+        // frame is flagged twice; a change of camera count starts afresh.
+        let mut reps: Vec<(u32, FrameReport)> = Vec::new();
+        for f in 1..=6 {
+            reps.push((f, knocked()));
+        }
+        reps.push((7, by_camera(&[0.0; 4])));
+        for f in 8..=12 {
+            reps.push((f, knocked()));
+        }
+        for f in 13..=16 {
+            reps.push((f, by_camera(&[0.07, 0.08, 0.0, 0.0, 0.0])));
+        }
+        let checks = check_reports(0, reps.iter().map(|(f, r)| (*f, r)));
+        let since: Vec<(u32, u32)> = checks
+            .iter()
+            .flat_map(|c| {
+                c.concerns.iter().map(move |k| match k {
+                    Concern::Disagree { since, .. } => (c.frame, *since),
+                    _ => panic!("{k:?}"),
+                })
+            })
+            .collect();
+        let want: Vec<(u32, u32)> = (1..=5)
+            .map(|f| (f, 1))
+            .chain((7..=11).map(|f| (f, 7)))
+            .collect();
+        assert_eq!(since, want);
     }
 
     #[test]

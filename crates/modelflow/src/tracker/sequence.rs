@@ -69,13 +69,16 @@ pub struct FrameReport {
     /// template that the other cameras contradicted. A camera knocked off its calibration in
     /// front of a plain background (where `moved_cameras` has nothing to see it by) raises the
     /// shares of the cameras whose view of the surface only it checks, frame after frame, while
-    /// the rig's share stays within its footage's level ([`health::DISAGREE_RISE`]). Absent
-    /// with one camera and in logs written before 2026-12-03.
+    /// the rig's share stays within its footage's level ([`health::DISAGREE_RISE`]). Over the
+    /// pixels the camera took before the check (the rig's share is over those left after the
+    /// still occluders' are left out too). `null` for a camera that took none (left out, blank,
+    /// out of view). Absent with one camera, without anchors (`--anchor-weight 0`, no first
+    /// frame's template to compare with) and in logs written before 2026-12-03.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
-    pub contradicted_by_camera: Vec<f64>,
+    pub contradicted_by_camera: Vec<Option<f64>>,
     /// The same per camera at the first frame, where the mesh is given lined up.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
-    pub contradicted_by_camera_at_first: Vec<f64>,
+    pub contradicted_by_camera_at_first: Vec<Option<f64>>,
     /// Pixels of the finest level's templates (previous frame and anchor) whose surface point
     /// another part of the mesh hides in this frame, or lies at one of the mesh's depth edges
     /// here, judged from the mesh where that level started (an arm in front of the body, a fold
@@ -290,7 +293,7 @@ pub struct Tracker {
     /// (`FrameReport::contradicted_at_first`).
     contradicted_at_first: f64,
     /// The same per camera (`FrameReport::contradicted_by_camera_at_first`).
-    contradicted_by_camera_at_first: Vec<f64>,
+    contradicted_by_camera_at_first: Vec<Option<f64>>,
     /// What the first frame's own images give its mesh (`FrameReport::information_share`).
     information_at_first: f64,
     /// The first frame (where the anchor was taken).
@@ -1360,7 +1363,7 @@ impl Tracker {
         &self,
         first: &Template,
         next: Option<(&[Point3<f64>], f64)>,
-    ) -> (Vec<PatchSet>, f64, Vec<f64>) {
+    ) -> (Vec<PatchSet>, f64, Vec<Option<f64>>) {
         if self.opts.anchor_weight <= 0.0 {
             return (Vec::new(), 0.0, Vec::new());
         }
@@ -2345,7 +2348,7 @@ struct Outcome {
     pixels: usize,
     contradicted: usize,
     contradicted_share: f64,
-    contradicted_by_camera: Vec<f64>,
+    contradicted_by_camera: Vec<Option<f64>>,
     hidden: usize,
     near_still: usize,
     rejected_share: f64,
