@@ -374,11 +374,9 @@ fn align_refuses_what_it_cannot_do() {
     assert!(err.contains("the camera's size"), "{err}");
 }
 
-#[test]
-fn a_mesh_misplaced_so_far_that_it_reads_far_off_the_surface_is_named() {
-    // The blob turned 5° and moved 3 % of its size (640×480, four cameras): the surface check
-    // reads it 29 % of its size off along its normals, farther than `track` moves a mesh onto
-    // the surface, so it was neither moved nor checked for its placement: no warning at all.
+/// The default blob (640×480, four cameras) at its first frame: the scene, its images and the
+/// mesh's size (bounding-box diagonal).
+fn blob_first_frame() -> (Synthetic, Vec<modelflow::RgbImage>, f64) {
     let syn = Synthetic::generate(&SynthOptions {
         preset: Preset::Blob,
         frames: 1,
@@ -387,6 +385,15 @@ fn a_mesh_misplaced_so_far_that_it_reads_far_off_the_surface_is_named() {
     .unwrap();
     let images: Vec<_> = (0..syn.cameras.len()).map(|c| syn.render(c, 0)).collect();
     let size = syn.mesh.bbox_diagonal();
+    (syn, images, size)
+}
+
+#[test]
+fn a_mesh_misplaced_so_far_that_it_reads_far_off_the_surface_is_named() {
+    // The blob turned 5° and moved 3 % of its size (640×480, four cameras): the surface check
+    // reads it 29 % of its size off along its normals, farther than `track` moves a mesh onto
+    // the surface, so it was neither moved nor checked for its placement: no warning at all.
+    let (syn, images, size) = blob_first_frame();
     let moved = syn.mesh.with_positions(perturb(&syn.mesh, 0.03, 5.0, 8));
     let c = modelflow::tracker::first_mesh_check(&moved, &syn.cameras, 0, &images);
     let s = c.surface.expect("the cameras compare the mesh");
@@ -407,14 +414,7 @@ fn a_misplaced_mesh_that_also_reads_off_along_its_normals_is_named_not_reshaped(
     // better: that is what it is. A mesh moved along its normals by 2 % of its size (a visual
     // hull) still reads as off the surface, and is moved onto it.
     use modelflow::tracker::moved_onto_surface;
-    let syn = Synthetic::generate(&SynthOptions {
-        preset: Preset::Blob,
-        frames: 1,
-        ..SynthOptions::default()
-    })
-    .unwrap();
-    let images: Vec<_> = (0..syn.cameras.len()).map(|c| syn.render(c, 0)).collect();
-    let size = syn.mesh.bbox_diagonal();
+    let (syn, images, size) = blob_first_frame();
     let moved = syn.mesh.with_positions(perturb(&syn.mesh, 0.03, 5.0, 4));
     let c = modelflow::tracker::first_mesh_check(&moved, &syn.cameras, 0, &images);
     let s = c.surface.expect("the cameras compare the mesh");
