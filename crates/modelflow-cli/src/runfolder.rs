@@ -78,6 +78,7 @@ pub fn run_options(mode: OpenMode, invocation: &Invocation) -> RunOptions {
         given: given_options(invocation.command, invocation.matches),
         cancel: Some(ctrl_c()),
         gpu: None,
+        first_mesh_check: None,
     }
 }
 

@@ -333,7 +333,7 @@ fn first_mesh_checks(
     keep_shape: bool,
     shown: &[modelflow::base::RgbImage],
     blank: &[bool],
-) -> anyhow::Result<()> {
+) -> anyhow::Result<modelflow::tracker::FirstMeshCheck> {
     // A blank first image gives its camera no first-frame template: the shot's first frame
     // is where the mesh is held to, so say so (later blank frames are warned as they come).
     if blank.iter().any(|&b| b) {
@@ -381,7 +381,7 @@ fn first_mesh_checks(
     if let Some(off) = check.off_surface(scene.mesh.bbox_diagonal()) {
         // A mesh off the surface pulls the pose the cameras agree on: no placement check.
         if !keep_shape {
-            return Ok(());
+            return Ok(check);
         }
         let side = match (off.closed, off.pixels < 0.0) {
             (true, true) => "it lies outside the surface (a visual hull made from silhouettes does), and the tracker will turn it short of every turn of the object",
@@ -397,7 +397,7 @@ fn first_mesh_checks(
             len.unit(),
             off.ratio
         );
-        return Ok(());
+        return Ok(check);
     }
     if let Some(p) = check.placement.filter(|p| p.is_off()) {
         // Along what the images hold loosely (a nearly round object's spin) `align` follows
@@ -425,7 +425,7 @@ fn first_mesh_checks(
             scene_path.display()
         );
     }
-    Ok(())
+    Ok(check)
 }
 
 pub fn run(args: Args, invocation: &Invocation) -> anyhow::Result<()> {
@@ -510,11 +510,21 @@ pub fn run(args: Args, invocation: &Invocation) -> anyhow::Result<()> {
             100.0 * cover.one_camera_share()
         );
     }
-    if !args.resume {
-        first_mesh_checks(&scene, &args.scene, !opts.onto_surface, &shown, &blank)?;
-    }
+    // Made once: the tracker moves a mesh off the surface onto it from the same check.
+    let check = if args.resume {
+        None
+    } else {
+        Some(first_mesh_checks(
+            &scene,
+            &args.scene,
+            !opts.onto_surface,
+            &shown,
+            &blank,
+        )?)
+    };
     let mut run = run_options(args.out.mode(args.resume), invocation);
     run.gpu = gpu;
+    run.first_mesh_check = check;
     let summary = run_scene(&scene, &opts, &args.out.out, &run)?;
     if let Some(m) = &summary.first_mesh_moved {
         let len = modelflow::base::Length::of(scene.units);

@@ -439,3 +439,51 @@ fn a_misplaced_mesh_that_also_reads_off_along_its_normals_is_named_not_reshaped(
     assert!(s.pixels < -5.0, "{s:?}");
     assert!(c.placement.is_none(), "{:?}", c.placement);
 }
+
+#[test]
+fn a_tracker_given_tracks_first_mesh_check_starts_where_one_that_measures_it_does() {
+    // `track` checks the first mesh to warn before tracking and hands the check to the tracker
+    // (`RunOptions::first_mesh_check`), which moves a mesh off the surface onto it from there
+    // instead of measuring again: the same start to the bit, for a visual hull (moved) and for
+    // a misplaced mesh (left as given, for the warning to name).
+    use modelflow::tracker::{TrackOptions, Tracker};
+    let syn = Synthetic::generate(&SynthOptions {
+        preset: Preset::Blob,
+        frames: 1,
+        width: 320,
+        height: 240,
+        ..SynthOptions::default()
+    })
+    .unwrap();
+    let images: Vec<_> = (0..syn.cameras.len()).map(|c| syn.render(c, 0)).collect();
+    let size = syn.mesh.bbox_diagonal();
+    let normals = syn.mesh.vertex_normals();
+    let hull = syn.mesh.with_positions(
+        syn.mesh
+            .positions
+            .iter()
+            .zip(&normals)
+            .map(|(p, n)| p + n * 0.02 * size)
+            .collect(),
+    );
+    let misplaced = syn.mesh.with_positions(perturb(&syn.mesh, 0.03, 5.0, 4));
+    for (mesh, moved) in [(&hull, true), (&misplaced, false)] {
+        let check = modelflow::tracker::first_mesh_check(mesh, &syn.cameras, 0, &images);
+        let start = |check| {
+            let t = Tracker::new_checked(
+                mesh,
+                syn.cameras.clone(),
+                0,
+                &images,
+                TrackOptions::default(),
+                check,
+            )
+            .unwrap();
+            (t.positions().to_vec(), t.first_mesh_moved().copied())
+        };
+        let (given, measured) = (start(Some(&check)), start(None));
+        assert_eq!(given, measured);
+        assert_eq!(given.1.is_some(), moved, "{:?}", given.1);
+        assert_eq!(given.0 != mesh.positions, moved);
+    }
+}

@@ -56,6 +56,11 @@ pub struct RunOptions {
     pub cancel: Option<Arc<AtomicBool>>,
     /// When set, the tracker's per-pixel work runs on this GPU (`--device gpu`).
     pub gpu: Option<Arc<crate::tracker::Gpu>>,
+    /// The first-mesh check (`tracker::first_mesh_check`) the caller already made on the
+    /// scene's mesh, cameras and first frame (`track` makes it to warn before tracking): the
+    /// tracker moves a mesh off the surface onto it from this instead of measuring again. It
+    /// must be of the same scene (mesh, cameras, first frame's images); `None`: measured.
+    pub first_mesh_check: Option<crate::tracker::FirstMeshCheck>,
 }
 
 impl RunOptions {

@@ -594,6 +594,32 @@ pub fn moved_onto_surface(
     if crate::tracker::align::misplaced_instead(&found, mesh, cameras, frame, images).is_some() {
         return None;
     }
+    Some(moved_onto(mesh, cameras, frame, images, found))
+}
+
+/// [`moved_onto_surface`] from the first-mesh check already made on the same mesh, cameras,
+/// frame and images ([`FirstMeshCheck`](crate::tracker::FirstMeshCheck), as `track` makes it to
+/// warn before tracking): the same result without measuring the offset and the placement again.
+pub(crate) fn moved_onto_surface_as_checked(
+    mesh: &Mesh,
+    cameras: &[Camera],
+    frame: u32,
+    images: &[RgbImage],
+    check: &crate::tracker::FirstMeshCheck,
+) -> Option<(Vec<Point3<f64>>, SurfaceMove)> {
+    let found = *check.off_surface(mesh.bbox_diagonal())?;
+    Some(moved_onto(mesh, cameras, frame, images, found))
+}
+
+/// `mesh` moved onto the surface from `found`, the offset read off where it is given, and what
+/// was done.
+fn moved_onto(
+    mesh: &Mesh,
+    cameras: &[Camera],
+    frame: u32,
+    images: &[RgbImage],
+    found: SurfaceOffset,
+) -> (Vec<Point3<f64>>, SurfaceMove) {
     let moved = onto_surface(mesh, cameras, frame, images, ROUNDS, Some(&found));
     let mut d: Vec<f64> = moved
         .iter()
@@ -603,7 +629,7 @@ pub fn moved_onto_surface(
     d.sort_by(f64::total_cmp);
     let median = d.get(d.len() / 2).copied().unwrap_or(0.0);
     let max = d.last().copied().unwrap_or(0.0);
-    Some((moved, SurfaceMove { found, median, max }))
+    (moved, SurfaceMove { found, median, max })
 }
 
 /// `mesh` with every vertex moved along its normal onto the surface `cameras` agree on at

@@ -17,6 +17,7 @@ use crate::base::mesh::Mesh;
 use crate::base::raster::{rasterize, IndexBuffer};
 use crate::error::{Error, Result};
 use crate::tracker::align;
+use crate::tracker::align::FirstMeshCheck;
 use crate::tracker::balance;
 use crate::tracker::consensus::{drop_contradicted_ahead, CameraShare, ConsensusOptions};
 use crate::tracker::fold::FoldWatch;
@@ -24,7 +25,7 @@ use crate::tracker::gpu::Gpu;
 use crate::tracker::health;
 use crate::tracker::occluder::{self, Ahead, Way};
 use crate::tracker::occlusion;
-use crate::tracker::offset::{moved_onto_surface, SurfaceMove};
+use crate::tracker::offset::{moved_onto_surface, moved_onto_surface_as_checked, SurfaceMove};
 use crate::tracker::options::{OptionsUsed, TrackOptions};
 use crate::tracker::patch::{CameraPatches, Patch, PatchOptions, PatchSet};
 use crate::tracker::pyramid::Pyramid;
@@ -417,6 +418,21 @@ impl Tracker {
         images: &[RgbImage],
         opts: TrackOptions,
     ) -> Result<Self> {
+        Self::new_checked(mesh, cameras, frame, images, opts, None)
+    }
+
+    /// [`Tracker::new`], given the first-mesh check (`align::first_mesh_check`) the caller
+    /// already made on the same mesh, cameras, frame and images (as `track` does, to warn before
+    /// tracking): a mesh off the surface is moved onto it from that check instead of measuring
+    /// its offset again. `None`: measured here.
+    pub fn new_checked(
+        mesh: &Mesh,
+        cameras: Vec<Camera>,
+        frame: u32,
+        images: &[RgbImage],
+        opts: TrackOptions,
+        check: Option<&FirstMeshCheck>,
+    ) -> Result<Self> {
         opts.validate()?;
         one_per_camera(cameras.len(), images.len())?;
         for (i, c) in cameras.iter().enumerate() {
@@ -441,10 +457,12 @@ impl Tracker {
         );
         // A mesh off the surface the cameras agree on is moved onto it first: everything below
         // (rest lengths, templates, the anchor) starts from the moved mesh.
-        let moved = if opts.onto_surface {
-            moved_onto_surface(mesh, &cameras, frame, images)
-        } else {
-            None
+        let moved = match (opts.onto_surface, check) {
+            (false, _) => None,
+            (true, Some(check)) => {
+                moved_onto_surface_as_checked(mesh, &cameras, frame, images, check)
+            }
+            (true, None) => moved_onto_surface(mesh, &cameras, frame, images),
         };
         let moved_mesh;
         let (mesh, first_mesh_moved) = match moved {

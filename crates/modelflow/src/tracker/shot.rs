@@ -76,12 +76,13 @@ fn track_into(
     on_frame: &mut dyn FnMut(&FrameLog),
 ) -> Result<TrackSummary> {
     let first_images = scene.load_images(scene.first)?;
-    let mut tracker = Tracker::new(
+    let mut tracker = Tracker::new_checked(
         &scene.mesh,
         scene.cameras.clone(),
         scene.first,
         &first_images,
         *opts,
+        run.first_mesh_check.as_ref(),
     )?;
     drop(first_images);
     if let Some(c) = &run.cancel {
