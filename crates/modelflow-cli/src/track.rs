@@ -639,7 +639,22 @@ pub fn run_scene(
     let mut checks = modelflow::tracker::Checks::default();
     // A run of disagreement is flagged at every frame it lasts, and warned about once.
     let mut warned_since = None;
+    // A resumed run's rules that span frames go on from the reports before it (read once, at
+    // its first solved frame: the frame it resumed after is the one before).
+    let mut replayed = run.mode != modelflow::OpenMode::Resume;
     let result = track_scene(scene, opts, out, run, &mut |f| {
+        if !replayed {
+            replayed = true;
+            if let Ok(lines) = modelflow::read_frame_log(out) {
+                checks = modelflow::tracker::Checks::resumed(
+                    scene.first,
+                    f.frame.saturating_sub(1),
+                    lines
+                        .iter()
+                        .filter_map(|l| l.model_flow().map(|r| (l.frame, r))),
+                );
+            }
+        }
         let r = f.model_flow();
         // The concerns this line adds (a slip shows in the next frame's report, so some are
         // about the frame before), one warning each; "started from a contradicted solution"

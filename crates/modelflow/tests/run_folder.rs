@@ -666,3 +666,61 @@ fn a_cancelled_step_leaves_the_tracker_where_it_was() {
     );
     assert_eq!(t.positions(), &at_1[..]);
 }
+
+#[test]
+fn a_run_resumed_in_the_middle_of_a_cameras_disagreement_still_names_it() {
+    // The knocked blob (camera 1 of four turned 0.5° from frame 3, 320×240, in front of a flat
+    // background; `track_cli`'s test of the per-camera rule): uninterrupted, the rule names
+    // cameras 0 and 1 at the fifth report running, frame 8's, and flags frames 3..=8. Interrupted
+    // after frame 5 and resumed, the resumed call sees only reports 6..=9: it goes on from the
+    // log's reports before, and its summary names the same frames.
+    let dir = tempfile::tempdir().unwrap();
+    let opts = SynthOptions {
+        preset: modelflow::synth::Preset::Blob,
+        width: 320,
+        height: 240,
+        frames: 10,
+        shake: 4.0,
+        bump: Some(modelflow::synth::Bump {
+            camera: 1,
+            frame: 3,
+            degrees: 0.5,
+        }),
+        ..SynthOptions::default()
+    };
+    let scene_path = write_dataset(&opts, &dir.path().join("footage"), &|_, _| {}).unwrap();
+    let out = dir.path().join("interrupted");
+    let err = interrupted_after(&scene_path, &out, 5);
+    assert!(
+        matches!(err, Error::Interrupted { last_complete: 5 }),
+        "{err}"
+    );
+    let scene = Scene::load(&scene_path).unwrap();
+    let summary = track_scene(
+        &scene,
+        &TrackOptions::default(),
+        &out,
+        &resume(),
+        &mut |_| {},
+    )
+    .unwrap();
+    assert_eq!(summary.resumed_from, Some(5));
+    let disagreeing: Vec<u32> = summary
+        .checks
+        .iter()
+        .filter(|c| {
+            c.concerns.iter().any(|k| {
+                matches!(
+                    k,
+                    modelflow::tracker::Concern::Disagree {
+                        since: 3,
+                        cameras: 2,
+                        ..
+                    }
+                )
+            })
+        })
+        .map(|c| c.frame)
+        .collect();
+    assert_eq!(disagreeing, [3, 4, 5, 6, 7, 8], "{:?}", summary.checks);
+}

@@ -613,6 +613,29 @@ impl Checks {
     pub fn into_frames(self) -> Vec<FrameCheck> {
         self.list
     }
+
+    /// The checks of a run resumed after frame `last`: its reports up to `last` (log lines, any
+    /// order, the last line of a frame taken) replayed, so that the rules that span frames (a
+    /// camera's run of disagreement) go on across the resume; the frames they flagged are left
+    /// out ([`Checks::frames`] lists only what later reports add, as a resumed call's summary
+    /// and warnings are about its own frames, and a run of disagreement already named flags only
+    /// its later frames).
+    pub fn resumed<'a>(
+        first: u32,
+        last: u32,
+        reports: impl IntoIterator<Item = (u32, &'a FrameReport)>,
+    ) -> Checks {
+        let by_frame: std::collections::BTreeMap<u32, &FrameReport> = reports
+            .into_iter()
+            .filter(|(f, _)| (first..=last).contains(f))
+            .collect();
+        let mut checks = Checks::default();
+        for (f, r) in by_frame {
+            checks.add(f, first, r);
+        }
+        checks.list.clear();
+        checks
+    }
 }
 
 /// The frames to check of a run, from its reports in frame order (`log.jsonl`'s lines); `first`
@@ -841,6 +864,41 @@ mod tests {
         r.contradicted_by_camera_at_first = vec![Some(0.03); rise.len()];
         r.contradicted_by_camera = rise.iter().map(|d| Some(0.03 + d)).collect();
         r
+    }
+
+    #[test]
+    fn a_run_resumed_in_the_middle_of_a_disagreement_names_it_as_the_uninterrupted_run_does() {
+        // The knocked blob's reports (cameras 0 and 1 up from report 4), the run interrupted
+        // after frame 6 and resumed: the resumed call's checks go on from reports 1..=6 and
+        // name the disagreement at report 8, as the whole run does, listing only what reports
+        // 7.. add (frames 3..=7 at once, then 8). Started afresh instead, the resumed call
+        // would see a run of 3 reports and name nothing.
+        let knocked = [0.066, 0.073, -0.001, -0.007];
+        let mut reps = vec![(1, by_camera(&[0.0; 4])), (2, by_camera(&[0.0; 4]))];
+        reps.push((3, by_camera(&[0.01, 0.0, 0.0, 0.0])));
+        for f in 4..=9 {
+            reps.push((f, by_camera(&knocked)));
+        }
+        let mut whole = Checks::default();
+        for (f, r) in &reps {
+            whole.add(*f, 0, r);
+        }
+        // The log may hold a frame twice (an interrupted append, a resume): the last counts.
+        let log: Vec<(u32, &FrameReport)> = std::iter::once((5, &reps[0].1))
+            .chain(reps.iter().map(|(f, r)| (*f, r)))
+            .collect();
+        let mut resumed = Checks::resumed(0, 6, log.iter().copied());
+        assert!(resumed.frames().is_empty());
+        for (f, r) in reps.iter().filter(|(f, _)| *f > 6) {
+            resumed.add(*f, 0, r);
+        }
+        assert_eq!(resumed.frames(), whole.frames());
+        assert_eq!(resumed.disagreeing(), [0, 1]);
+        let mut afresh = Checks::default();
+        for (f, r) in reps.iter().filter(|(f, _)| *f > 6) {
+            afresh.add(*f, 0, r);
+        }
+        assert!(afresh.frames().is_empty() && afresh.disagreeing().is_empty());
     }
 
     #[test]

@@ -90,6 +90,7 @@ fn track_into(
     }
     tracker.set_gpu(run.gpu.clone());
     let first_mesh_moved = tracker.first_mesh_moved().copied();
+    let mut checks = Checks::default();
     let start = match resumed {
         None => {
             folder.write_first(&scene.mesh.with_positions(tracker.positions().to_vec()))?;
@@ -104,7 +105,16 @@ fn track_into(
             // the frame before (the velocity), read back exactly from the meshes written.
             // The cameras left out of it as repeats of the frame before stay left out, and the
             // colour balance it left goes on.
-            let report = crate::run::read_frame_log(folder.dir())?
+            let lines = crate::run::read_frame_log(folder.dir())?;
+            // The rules that span frames go on from the reports before.
+            checks = Checks::resumed(
+                scene.first,
+                last,
+                lines
+                    .iter()
+                    .filter_map(|l| l.model_flow().map(|r| (l.frame, r))),
+            );
+            let report = lines
                 .into_iter()
                 .find(|l| l.frame == last)
                 .and_then(|l| l.model_flow().cloned());
@@ -169,7 +179,6 @@ fn track_into(
     };
     let mut walls = Vec::new();
     let mut iters = Vec::new();
-    let mut checks = Checks::default();
     let mut last_solved = None;
     // Reads a frame's images and builds their pyramids; runs while the previous frame is solved.
     let load = |frame: u32| {
