@@ -431,6 +431,9 @@ pub struct Checks {
     /// The first frame whose solution the current run of disagreement judged (the frame
     /// before the run's first report), while some camera's run is long enough to be named.
     disagree_since: Option<u32>,
+    /// A resumed run's frames flagged before the resume ([`Checks::resumed`]): not listed
+    /// again, but a run of disagreement that reaches back does not flag them twice.
+    before_resume: Vec<FrameCheck>,
 }
 
 impl Checks {
@@ -569,14 +572,16 @@ impl Checks {
         frames.into_iter().map(|f| (f, c)).collect()
     }
 
-    /// Whether `frame` is flagged for [`Concern::Disagree`] already.
+    /// Whether `frame` is flagged for [`Concern::Disagree`] already (before a resume too).
     fn flagged_disagreeing(&self, frame: u32) -> bool {
-        let at = self.list.partition_point(|f| f.frame < frame);
-        self.list.get(at).is_some_and(|f| {
-            f.frame == frame
-                && f.concerns
-                    .iter()
-                    .any(|c| matches!(c, Concern::Disagree { .. }))
+        [&self.list, &self.before_resume].into_iter().any(|list| {
+            let at = list.partition_point(|f| f.frame < frame);
+            list.get(at).is_some_and(|f| {
+                f.frame == frame
+                    && f.concerns
+                        .iter()
+                        .any(|c| matches!(c, Concern::Disagree { .. }))
+            })
         })
     }
 
@@ -618,8 +623,8 @@ impl Checks {
     /// order, the last line of a frame taken) replayed, so that the rules that span frames (a
     /// camera's run of disagreement) go on across the resume; the frames they flagged are left
     /// out ([`Checks::frames`] lists only what later reports add, as a resumed call's summary
-    /// and warnings are about its own frames, and a run of disagreement already named flags only
-    /// its later frames).
+    /// and warnings are about its own frames; a run of disagreement already named flags only
+    /// its later frames, and one named after the resume flags no frame flagged before it).
     pub fn resumed<'a>(
         first: u32,
         last: u32,
@@ -633,7 +638,7 @@ impl Checks {
         for (f, r) in by_frame {
             checks.add(f, first, r);
         }
-        checks.list.clear();
+        checks.before_resume = std::mem::take(&mut checks.list);
         checks
     }
 }
@@ -899,6 +904,34 @@ mod tests {
             afresh.add(*f, 0, r);
         }
         assert!(afresh.frames().is_empty() && afresh.disagreeing().is_empty());
+
+        // Camera 0 up at reports 4..=9 (frames 3..=8 flagged), camera 1 from report 8 on, named
+        // at report 12 with its run reaching back to frame 7: frames 7 and 8 were flagged
+        // already, so it adds 9..=11, and report 13 frame 12, resumed after frame 10 as whole.
+        let up = |a: bool, b: bool| {
+            by_camera(&[
+                if a { 0.07 } else { 0.0 },
+                if b { 0.07 } else { 0.0 },
+                0.0,
+                0.0,
+            ])
+        };
+        let reps: Vec<(u32, FrameReport)> = (1..=13)
+            .map(|f| (f, up((4..=9).contains(&f), f >= 8)))
+            .collect();
+        let mut whole = Checks::default();
+        for (f, r) in &reps {
+            whole.add(*f, 0, r);
+        }
+        let flagged = |c: &Checks| -> Vec<u32> { c.frames().iter().map(|c| c.frame).collect() };
+        assert_eq!(flagged(&whole), (3..=12).collect::<Vec<u32>>());
+        assert!(whole.frames().iter().all(|c| c.concerns.len() == 1));
+        let mut resumed = Checks::resumed(0, 10, reps.iter().map(|(f, r)| (*f, r)));
+        for (f, r) in reps.iter().filter(|(f, _)| *f > 10) {
+            resumed.add(*f, 0, r);
+        }
+        assert_eq!(flagged(&resumed), [9, 10, 11, 12]);
+        assert!(resumed.frames().iter().all(|c| c.concerns.len() == 1));
     }
 
     #[test]

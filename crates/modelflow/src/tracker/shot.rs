@@ -34,7 +34,8 @@ pub struct TrackSummary {
     /// Frames that may be wrong, in order: the cameras contradicted where the frame left the
     /// surface (found with the next frame), the frame started from such a solution, or the mesh
     /// saw next to none of the surface's texture (`health`). With a resumed run, the frame it
-    /// was resumed from may be among them.
+    /// was resumed from may be among them, and frames before it when a camera's run of
+    /// disagreement that began before the resume is named after it (`Checks::resumed`).
     pub suspect_frames: Vec<u32>,
     /// Every frame to check and why (`health`; `run::frames_to_check` reads them back from the folder), stalled and suspect ones alike.
     pub checks: Vec<FrameCheck>,
