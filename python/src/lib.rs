@@ -544,6 +544,8 @@ fn first_mesh_check<'py>(
     let s = &scene.inner;
     let mesh = scene_mesh(s, positions)?;
     let images = s.load_images(s.first).map_err(err)?;
+    // As `track` compares them: in luminance when colour and monochrome cameras mix.
+    let images = mf::base::comparable(&images);
     let c = mf::tracker::first_mesh_check(&mesh, &s.cameras, s.first, &images);
     let d = PyDict::new(py);
     d.set_item("surface", to_py(py, &c.surface)?)?;
