@@ -1301,3 +1301,38 @@ fn a_camera_knocked_off_its_calibration_is_found_from_its_background_and_turned_
     let last = error_share(&footage, &run, 6);
     assert!(last < 0.003, "the last frame is {:.2} % off", 100.0 * last);
 }
+
+#[test]
+fn a_cameras_disagreement_that_only_the_last_frames_check_completes_is_warned_once() {
+    // The knocked blob cut to frames 0..=7: the fifth report running of cameras 0 and 1 is the
+    // check on frame 7, taken after the shot (`Checks::judge_last`); `track` warns once, naming
+    // them, and counts frames 3..=7 on its last line.
+    let dir = tempfile::tempdir().unwrap();
+    let footage = dir.path().join("knocked");
+    let o = Command::new(env!("CARGO_BIN_EXE_modelflow"))
+        .args([
+            "synth", "--preset", "blob", "--width", "320", "--height", "240",
+        ])
+        .args([
+            "--frames", "8", "--shake", "4", "--bump", "1:3:0.5", "--out",
+        ])
+        .arg(&footage)
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let err = track_ok(&footage.join("scene.json"), &dir.path().join("run"));
+    assert_eq!(
+        err.matches("views have disagreed").count(),
+        1,
+        "warned once: {err}"
+    );
+    assert!(
+        err.contains("warning: frame 3: 2 cameras' views have disagreed")
+            && err.contains("the one that moved (cam0, cam1)"),
+        "{err}"
+    );
+    assert!(
+        err.contains("SUSPECT") && err.contains("frames 3, 4, 5, 6, 7)"),
+        "{err}"
+    );
+}

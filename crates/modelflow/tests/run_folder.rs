@@ -724,3 +724,68 @@ fn a_run_resumed_in_the_middle_of_a_cameras_disagreement_still_names_it() {
         .collect();
     assert_eq!(disagreeing, [3, 4, 5, 6, 7, 8], "{:?}", summary.checks);
 }
+
+#[test]
+fn a_cameras_disagreement_completed_by_the_shots_last_frame_is_named() {
+    // The knocked blob cut to frames 0..=7: reports 4..=7 show cameras 0 and 1 up, four
+    // running; the fifth is the check on frame 7 taken once the shot is done (no next frame's
+    // report judges it). Judged by the rig's share alone until 2026-12-04, the run went unnamed.
+    let dir = tempfile::tempdir().unwrap();
+    let opts = SynthOptions {
+        preset: modelflow::synth::Preset::Blob,
+        width: 320,
+        height: 240,
+        frames: 8,
+        shake: 4.0,
+        bump: Some(modelflow::synth::Bump {
+            camera: 1,
+            frame: 3,
+            degrees: 0.5,
+        }),
+        ..SynthOptions::default()
+    };
+    let scene_path = write_dataset(&opts, &dir.path().join("footage"), &|_, _| {}).unwrap();
+    let scene = Scene::load(&scene_path).unwrap();
+    let out = dir.path().join("run");
+    let summary = track_scene(
+        &scene,
+        &TrackOptions::default(),
+        &out,
+        &RunOptions::default(),
+        &mut |_| {},
+    )
+    .unwrap();
+    let disagreeing = |checks: &[modelflow::tracker::FrameCheck]| -> Vec<u32> {
+        checks
+            .iter()
+            .filter(|c| {
+                c.concerns.iter().any(|k| {
+                    matches!(
+                        k,
+                        modelflow::tracker::Concern::Disagree {
+                            since: 3,
+                            cameras: 2,
+                            ..
+                        }
+                    )
+                })
+            })
+            .map(|c| c.frame)
+            .collect()
+    };
+    assert_eq!(
+        disagreeing(&summary.checks),
+        [3, 4, 5, 6, 7],
+        "{:?}",
+        summary.checks
+    );
+    // The manifest keeps each camera's share of that check; the folder's frames to check read
+    // it back.
+    let m = Manifest::read(&out.join("run.json")).unwrap();
+    let last = m.last_frame_check.expect("the last frame's check");
+    assert_eq!((last.frame, last.contradicted_by_camera.len()), (7, 4));
+    let back = modelflow::run::frames_to_check(&out, 0, 7)
+        .unwrap()
+        .unwrap();
+    assert_eq!(disagreeing(&back), [3, 4, 5, 6, 7]);
+}

@@ -2,7 +2,7 @@
 //! `last_frame_check` through the tracker's rules (`tracker::health`), for any range of frames
 //! in it. What `track` said while it ran, available afterwards to the report and to programs.
 
-use super::{read_frame_log, FrameLog, Manifest, MANIFEST};
+use super::{read_frame_log, FrameLog, LastFrameCheck, Manifest, MANIFEST};
 use crate::error::Result;
 use crate::tracker::{Checks, FrameCheck, FrameReport};
 use std::collections::BTreeMap;
@@ -44,7 +44,13 @@ pub(crate) fn checks_in(
         checks.add(*f, first, r);
     }
     let verdict = match after {
-        Some(r) => Some((r.contradicted_share, r.contradicted_at_first)),
+        Some(r) => Some(LastFrameCheck {
+            frame: last,
+            contradicted_share: r.contradicted_share,
+            contradicted_at_first: r.contradicted_at_first,
+            contradicted_by_camera: r.contradicted_by_camera.clone(),
+            contradicted_by_camera_at_first: r.contradicted_by_camera_at_first.clone(),
+        }),
         None => {
             let manifest = dir.join(MANIFEST);
             let check = if manifest.is_file() {
@@ -52,13 +58,18 @@ pub(crate) fn checks_in(
             } else {
                 None
             };
-            check
-                .filter(|c| c.frame == last)
-                .map(|c| (c.contradicted_share, c.contradicted_at_first))
+            check.filter(|c| c.frame == last)
         }
     };
-    if let Some((share, at_first)) = verdict {
-        checks.judge(last, first, share, at_first);
+    if let Some(v) = verdict {
+        checks.judge_last(
+            last,
+            first,
+            v.contradicted_share,
+            v.contradicted_at_first,
+            &v.contradicted_by_camera,
+            &v.contradicted_by_camera_at_first,
+        );
     }
     Ok(Some(checks.into_frames()))
 }

@@ -8,8 +8,8 @@
 //! the surface. Both are flagged: `t` because its solution is contradicted, `t + 1` because it
 //! started from there. The last frame of a shot has no next frame to judge it: `track_scene`
 //! takes the same check once the shot is done (`Tracker::contradicted_now`, one template's
-//! building), adds it with [`Checks::judge`] and keeps it in the manifest (`last_frame_check`),
-//! where the report reads it.
+//! building), adds it with [`Checks::judge_last`] (the rig's share and each camera's) and keeps
+//! it in the manifest (`last_frame_check`), where the report reads it.
 //!
 //! Knows the reports' fields and the thresholds; nothing of images, files or the solver.
 
@@ -448,7 +448,12 @@ impl Checks {
             .and_then(|prev| self.judge(prev, first, r.contradicted_share, r.contradicted_at_first))
             .into_iter()
             .collect();
-        added.extend(self.disagreement(frame, first, r));
+        added.extend(self.disagreement(
+            frame,
+            first,
+            &r.contradicted_by_camera,
+            &r.contradicted_by_camera_at_first,
+        ));
         if !r.ahead_cameras.is_empty() && frame > first + 1 {
             // The frame before was solved with the cameras found early here a frame ahead.
             let c = Concern::Ahead {
@@ -483,22 +488,48 @@ impl Checks {
         Some((frame, c))
     }
 
+    /// The cross-camera check on a shot's last frame `frame`, taken once it is solved
+    /// (`Tracker::contradicted_now`; the manifest's `last_frame_check`): the rig's share as
+    /// [`Checks::judge`] judges it, and each camera's as the next frame's report would have
+    /// given them to the per-camera rule. Returns the concerns added, by frame.
+    pub fn judge_last(
+        &mut self,
+        frame: u32,
+        first: u32,
+        share: f64,
+        at_first: f64,
+        by_camera: &[Option<f64>],
+        by_camera_at_first: &[Option<f64>],
+    ) -> Vec<(u32, Concern)> {
+        let mut added: Vec<(u32, Concern)> = self
+            .judge(frame, first, share, at_first)
+            .into_iter()
+            .collect();
+        added.extend(self.disagreement(frame + 1, first, by_camera, by_camera_at_first));
+        added
+    }
+
     /// The per-camera rule ([`Concern::Disagree`]) for report `frame`, which judges the
     /// previous frame's solution: once a camera's run reaches [`DISAGREE_FRAMES`], every
     /// solution the run judged is flagged, and each later one while it lasts.
-    fn disagreement(&mut self, frame: u32, first: u32, r: &FrameReport) -> Vec<(u32, Concern)> {
-        let n = r.contradicted_by_camera.len();
+    fn disagreement(
+        &mut self,
+        frame: u32,
+        first: u32,
+        by_camera: &[Option<f64>],
+        at_first: &[Option<f64>],
+    ) -> Vec<(u32, Concern)> {
+        let n = by_camera.len();
         if n == 0 {
             // Nothing checked at this report (a template without patches: the mesh out of
             // view), or a log written before the field existed: the run stands as it was.
             return Vec::new();
         }
-        let at_first = &r.contradicted_by_camera_at_first;
         // Per camera, its rise; `None` where it was not measured now or at the first frame
         // (left out, blank, out of view): it neither counts nor breaks its run.
         let rises: Vec<Option<f64>> = (0..n)
             .map(|c| {
-                let now = r.contradicted_by_camera[c]?;
+                let now = by_camera[c]?;
                 Some(now - at_first.get(c).copied().flatten()?)
             })
             .collect();
@@ -645,7 +676,7 @@ impl Checks {
 
 /// The frames to check of a run, from its reports in frame order (`log.jsonl`'s lines); `first`
 /// is the scene's first frame (the given mesh, never flagged). The last frame's verdict is not
-/// in the reports: add it with [`Checks::judge`] (the manifest's `last_frame_check`).
+/// in the reports: add it with [`Checks::judge_last`] (the manifest's `last_frame_check`).
 pub fn check_reports<'a>(
     first: u32,
     reports: impl IntoIterator<Item = (u32, &'a FrameReport)>,

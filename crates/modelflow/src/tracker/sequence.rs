@@ -232,6 +232,19 @@ fn one() -> f64 {
 }
 
 /// A template's patches at one level ([`Tracker::template_patches`]).
+/// The cross-camera check on the current solution ([`Tracker::contradicted_now`]).
+#[derive(Clone, Debug, PartialEq)]
+pub struct ContradictedNow {
+    /// The share of the template the other cameras contradict.
+    pub share: f64,
+    /// That share at the first frame.
+    pub at_first: f64,
+    /// Each camera's own share (`None`: it took no pixels).
+    pub by_camera: Vec<Option<f64>>,
+    /// Each camera's own share at the first frame.
+    pub by_camera_at_first: Vec<Option<f64>>,
+}
+
 struct TemplatePatches {
     set: PatchSet,
     /// Pixels the other cameras contradicted, left out.
@@ -1995,17 +2008,22 @@ impl Tracker {
     /// The cross-camera check on the current solution, taken as the next frame's finest
     /// template would take it: the share of its pixels the other cameras contradict, and that
     /// share at the first frame. This is what judges a shot's last frame, which no next frame's
-    /// report does (`health`); one template's building, no solve.
-    pub fn contradicted_now(&self) -> (f64, f64) {
+    /// report does (`health`); one template's building, no solve. Also each camera's own
+    /// share, now and at the first frame (`FrameReport::contradicted_by_camera`, for the
+    /// per-camera rule).
+    pub fn contradicted_now(&self) -> ContradictedNow {
         let TemplatePatches {
             set,
             contradicted: dropped,
+            by_camera,
             ..
         } = self.previous_template(self.opts.finest_level, None);
-        (
-            share_of(dropped, set.pixels.len()),
-            self.contradicted_at_first,
-        )
+        ContradictedNow {
+            share: share_of(dropped, set.pixels.len()),
+            at_first: self.contradicted_at_first,
+            by_camera: by_camera.iter().map(CameraShare::share).collect(),
+            by_camera_at_first: self.contradicted_by_camera_at_first.clone(),
+        }
     }
 
     /// A level's patches: the previous frame's `template`, the first frame's anchor where the

@@ -242,12 +242,21 @@ fn track_into(
     }
     // The last frame has no next frame whose templates judge it: the same check, taken now.
     if let Some(last) = last_solved {
-        let (share, at_first) = tracker.contradicted_now();
-        checks.judge(last, scene.first, share, at_first);
+        let now = tracker.contradicted_now();
+        checks.judge_last(
+            last,
+            scene.first,
+            now.share,
+            now.at_first,
+            &now.by_camera,
+            &now.by_camera_at_first,
+        );
         folder.record_last_frame_check(LastFrameCheck {
             frame: last,
-            contradicted_share: share,
-            contradicted_at_first: at_first,
+            contradicted_share: now.share,
+            contradicted_at_first: now.at_first,
+            contradicted_by_camera: now.by_camera,
+            contradicted_by_camera_at_first: now.by_camera_at_first,
         });
     }
     let checks = checks.into_frames();
