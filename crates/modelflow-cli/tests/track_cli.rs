@@ -1204,7 +1204,7 @@ fn a_camera_knocked_in_front_of_a_plain_background_is_named_by_its_disagreement_
         "warned once: {err}"
     );
     assert!(
-        err.contains("SUSPECT") && err.contains("frames 3, 4, 5, 6, 7, 8)"),
+        err.contains("SUSPECT") && err.contains("frames 3, 4, 5, 6, 7, 8, 9)"),
         "{err}"
     );
     // The log has each camera's share, and the run folder's frames to check name the concern.
