@@ -667,19 +667,15 @@ fn a_cancelled_step_leaves_the_tracker_where_it_was() {
     assert_eq!(t.positions(), &at_1[..]);
 }
 
-#[test]
-fn a_run_resumed_in_the_middle_of_a_cameras_disagreement_still_names_it() {
-    // The knocked blob (camera 1 of four turned 0.5° from frame 3, 320×240, in front of a flat
-    // background; `track_cli`'s test of the per-camera rule): uninterrupted, the rule names
-    // cameras 0 and 1 at the fifth report running, frame 8's, and flags frames 3..=8. Interrupted
-    // after frame 5 and resumed, the resumed call sees only reports 6..=9: it goes on from the
-    // log's reports before, and its summary names the same frames.
+/// The knocked blob of `frames` frames (camera 1 of four turned 0.5° from frame 3, 320×240, a
+/// flat background; `track_cli`'s test of the per-camera rule): its folder and scene file.
+fn knocked_blob(frames: u32) -> (tempfile::TempDir, PathBuf) {
     let dir = tempfile::tempdir().unwrap();
     let opts = SynthOptions {
         preset: modelflow::synth::Preset::Blob,
         width: 320,
         height: 240,
-        frames: 10,
+        frames,
         shake: 4.0,
         bump: Some(modelflow::synth::Bump {
             camera: 1,
@@ -688,7 +684,38 @@ fn a_run_resumed_in_the_middle_of_a_cameras_disagreement_still_names_it() {
         }),
         ..SynthOptions::default()
     };
-    let scene_path = write_dataset(&opts, &dir.path().join("footage"), &|_, _| {}).unwrap();
+    let scene = write_dataset(&opts, &dir.path().join("footage"), &|_, _| {}).unwrap();
+    (dir, scene)
+}
+
+/// The frames flagged for the knocked pair's disagreement (cameras 0 and 1, since frame 3).
+fn knocked_pair_flagged(checks: &[modelflow::tracker::FrameCheck]) -> Vec<u32> {
+    checks
+        .iter()
+        .filter(|c| {
+            c.concerns.iter().any(|k| {
+                matches!(
+                    k,
+                    modelflow::tracker::Concern::Disagree {
+                        since: 3,
+                        cameras: 2,
+                        ..
+                    }
+                )
+            })
+        })
+        .map(|c| c.frame)
+        .collect()
+}
+
+#[test]
+fn a_run_resumed_in_the_middle_of_a_cameras_disagreement_still_names_it() {
+    // The knocked blob (camera 1 of four turned 0.5° from frame 3, 320×240, in front of a flat
+    // background; `track_cli`'s test of the per-camera rule): uninterrupted, the rule names
+    // cameras 0 and 1 at the fifth report running, frame 8's, and flags frames 3..=8. Interrupted
+    // after frame 5 and resumed, the resumed call sees only reports 6..=9: it goes on from the
+    // log's reports before, and its summary names the same frames.
+    let (dir, scene_path) = knocked_blob(10);
     let out = dir.path().join("interrupted");
     let err = interrupted_after(&scene_path, &out, 5);
     assert!(
@@ -705,24 +732,12 @@ fn a_run_resumed_in_the_middle_of_a_cameras_disagreement_still_names_it() {
     )
     .unwrap();
     assert_eq!(summary.resumed_from, Some(5));
-    let disagreeing: Vec<u32> = summary
-        .checks
-        .iter()
-        .filter(|c| {
-            c.concerns.iter().any(|k| {
-                matches!(
-                    k,
-                    modelflow::tracker::Concern::Disagree {
-                        since: 3,
-                        cameras: 2,
-                        ..
-                    }
-                )
-            })
-        })
-        .map(|c| c.frame)
-        .collect();
-    assert_eq!(disagreeing, [3, 4, 5, 6, 7, 8], "{:?}", summary.checks);
+    assert_eq!(
+        knocked_pair_flagged(&summary.checks),
+        [3, 4, 5, 6, 7, 8],
+        "{:?}",
+        summary.checks
+    );
 }
 
 #[test]
@@ -730,21 +745,7 @@ fn a_cameras_disagreement_completed_by_the_shots_last_frame_is_named() {
     // The knocked blob cut to frames 0..=7: reports 4..=7 show cameras 0 and 1 up, four
     // running; the fifth is the check on frame 7 taken once the shot is done (no next frame's
     // report judges it). Judged by the rig's share alone until 2026-12-04, the run went unnamed.
-    let dir = tempfile::tempdir().unwrap();
-    let opts = SynthOptions {
-        preset: modelflow::synth::Preset::Blob,
-        width: 320,
-        height: 240,
-        frames: 8,
-        shake: 4.0,
-        bump: Some(modelflow::synth::Bump {
-            camera: 1,
-            frame: 3,
-            degrees: 0.5,
-        }),
-        ..SynthOptions::default()
-    };
-    let scene_path = write_dataset(&opts, &dir.path().join("footage"), &|_, _| {}).unwrap();
+    let (dir, scene_path) = knocked_blob(8);
     let scene = Scene::load(&scene_path).unwrap();
     let out = dir.path().join("run");
     let summary = track_scene(
@@ -755,26 +756,8 @@ fn a_cameras_disagreement_completed_by_the_shots_last_frame_is_named() {
         &mut |_| {},
     )
     .unwrap();
-    let disagreeing = |checks: &[modelflow::tracker::FrameCheck]| -> Vec<u32> {
-        checks
-            .iter()
-            .filter(|c| {
-                c.concerns.iter().any(|k| {
-                    matches!(
-                        k,
-                        modelflow::tracker::Concern::Disagree {
-                            since: 3,
-                            cameras: 2,
-                            ..
-                        }
-                    )
-                })
-            })
-            .map(|c| c.frame)
-            .collect()
-    };
     assert_eq!(
-        disagreeing(&summary.checks),
+        knocked_pair_flagged(&summary.checks),
         [3, 4, 5, 6, 7],
         "{:?}",
         summary.checks
@@ -787,5 +770,5 @@ fn a_cameras_disagreement_completed_by_the_shots_last_frame_is_named() {
     let back = modelflow::run::frames_to_check(&out, 0, 7)
         .unwrap()
         .unwrap();
-    assert_eq!(disagreeing(&back), [3, 4, 5, 6, 7]);
+    assert_eq!(knocked_pair_flagged(&back), [3, 4, 5, 6, 7]);
 }
