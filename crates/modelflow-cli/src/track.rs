@@ -702,32 +702,26 @@ pub fn run_scene(
     });
     progress.finish();
     // The last frame is judged after the loop (no next frame's report does it): by the rig's
-    // share and each camera's, as the run's manifest records them.
-    if result.is_ok() {
-        let manifest = modelflow::run::Manifest::read(&out.join(modelflow::run::MANIFEST));
-        if let Some(v) = manifest.ok().and_then(|m| m.last_frame_check) {
-            let added = checks.judge_last(
-                v.frame,
-                scene.first,
-                v.contradicted_share,
-                v.contradicted_at_first,
-                &v.contradicted_by_camera,
-                &v.contradicted_by_camera_at_first,
-            );
-            let disagreeing = checks.disagreeing();
-            for (frame, c) in added {
-                let named = match c {
-                    modelflow::tracker::Concern::Disagree { since, .. } => {
-                        if warned_since == Some(since) {
-                            continue;
-                        }
-                        warned_since = Some(since);
-                        format!(" ({})", camera_names(scene, &disagreeing))
+    // share and each camera's, as the summary gives them.
+    let last = result
+        .as_ref()
+        .ok()
+        .and_then(|s| s.last_frame_check.as_ref());
+    if let Some(v) = last {
+        let added = checks.judge_last(scene.first, v);
+        let disagreeing = checks.disagreeing();
+        for (frame, c) in added {
+            let named = match c {
+                modelflow::tracker::Concern::Disagree { since, .. } => {
+                    if warned_since == Some(since) {
+                        continue;
                     }
-                    _ => String::new(),
-                };
-                eprintln!("warning: frame {frame}: {}{named}", c.describe());
-            }
+                    warned_since = Some(since);
+                    format!(" ({})", camera_names(scene, &disagreeing))
+                }
+                _ => String::new(),
+            };
+            eprintln!("warning: frame {frame}: {}{named}", c.describe());
         }
     }
     result.map_err(|e| {

@@ -44,13 +44,7 @@ pub(crate) fn checks_in(
         checks.add(*f, first, r);
     }
     let verdict = match after {
-        Some(r) => Some(LastFrameCheck {
-            frame: last,
-            contradicted_share: r.contradicted_share,
-            contradicted_at_first: r.contradicted_at_first,
-            contradicted_by_camera: r.contradicted_by_camera.clone(),
-            contradicted_by_camera_at_first: r.contradicted_by_camera_at_first.clone(),
-        }),
+        Some(r) => Some(LastFrameCheck::of_report(last, r)),
         None => {
             let manifest = dir.join(MANIFEST);
             let check = if manifest.is_file() {
@@ -62,14 +56,7 @@ pub(crate) fn checks_in(
         }
     };
     if let Some(v) = verdict {
-        checks.judge_last(
-            last,
-            first,
-            v.contradicted_share,
-            v.contradicted_at_first,
-            &v.contradicted_by_camera,
-            &v.contradicted_by_camera_at_first,
-        );
+        checks.judge_last(first, &v);
     }
     Ok(Some(checks.into_frames()))
 }

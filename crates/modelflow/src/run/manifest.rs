@@ -108,24 +108,9 @@ pub struct Manifest {
     pub first_mesh_moved: Option<crate::tracker::SurfaceMove>,
 }
 
-/// The cross-camera check on a run's last frame, as a next frame's templates would have taken
-/// it (`Tracker::contradicted_now`).
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-pub struct LastFrameCheck {
-    pub frame: u32,
-    /// The share of the template taken from that frame's solution that the other cameras
-    /// contradict (0 to 1), as a log line's `contradicted_share`.
-    pub contradicted_share: f64,
-    /// The same share at the first frame, as a log line's `contradicted_at_first`.
-    pub contradicted_at_first: f64,
-    /// Each camera's own share, as a log line's `contradicted_by_camera` (`null`: the camera
-    /// took no pixels); empty in manifests written before 2026-12-04.
-    #[serde(default)]
-    pub contradicted_by_camera: Vec<Option<f64>>,
-    /// The same at the first frame, as a log line's `contradicted_by_camera_at_first`.
-    #[serde(default)]
-    pub contradicted_by_camera_at_first: Vec<Option<f64>>,
-}
+/// The cross-camera check on a run's last frame (kept in `last_frame_check`): the verdict the
+/// frames-to-check rules read, defined with them.
+pub use crate::tracker::health::LastFrameCheck;
 
 impl Manifest {
     /// A manifest for a run of `method` on `scene` starting now.

@@ -420,6 +420,39 @@ pub fn own_concerns(r: &FrameReport) -> Vec<Concern> {
     c
 }
 
+/// The cross-camera check on a run's last frame, as a next frame's templates would have taken
+/// it (`Tracker::contradicted_now`), the manifest's `last_frame_check`.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct LastFrameCheck {
+    pub frame: u32,
+    /// The share of the template taken from that frame's solution that the other cameras
+    /// contradict (0 to 1), as a log line's `contradicted_share`.
+    pub contradicted_share: f64,
+    /// The same share at the first frame, as a log line's `contradicted_at_first`.
+    pub contradicted_at_first: f64,
+    /// Each camera's own share, as a log line's `contradicted_by_camera` (`null`: the camera
+    /// took no pixels); empty in manifests written before 2026-12-04.
+    #[serde(default)]
+    pub contradicted_by_camera: Vec<Option<f64>>,
+    /// The same at the first frame, as a log line's `contradicted_by_camera_at_first`.
+    #[serde(default)]
+    pub contradicted_by_camera_at_first: Vec<Option<f64>>,
+}
+
+impl LastFrameCheck {
+    /// The check on `frame` as the next frame's report `r` took it (a run read back over a
+    /// range that ends before the run does).
+    pub fn of_report(frame: u32, r: &FrameReport) -> LastFrameCheck {
+        LastFrameCheck {
+            frame,
+            contradicted_share: r.contradicted_share,
+            contradicted_at_first: r.contradicted_at_first,
+            contradicted_by_camera: r.contradicted_by_camera.clone(),
+            contradicted_by_camera_at_first: r.contradicted_by_camera_at_first.clone(),
+        }
+    }
+}
+
 /// Collects the frames to check as reports arrive in frame order.
 #[derive(Clone, Debug, Default)]
 pub struct Checks {
@@ -488,24 +521,27 @@ impl Checks {
         Some((frame, c))
     }
 
-    /// The cross-camera check on a shot's last frame `frame`, taken once it is solved
+    /// The cross-camera check on a shot's last frame, taken once it is solved
     /// (`Tracker::contradicted_now`; the manifest's `last_frame_check`): the rig's share as
     /// [`Checks::judge`] judges it, and each camera's as the next frame's report would have
     /// given them to the per-camera rule. Returns the concerns added, by frame.
-    pub fn judge_last(
-        &mut self,
-        frame: u32,
-        first: u32,
-        share: f64,
-        at_first: f64,
-        by_camera: &[Option<f64>],
-        by_camera_at_first: &[Option<f64>],
-    ) -> Vec<(u32, Concern)> {
+    pub fn judge_last(&mut self, first: u32, check: &LastFrameCheck) -> Vec<(u32, Concern)> {
+        let frame = check.frame;
         let mut added: Vec<(u32, Concern)> = self
-            .judge(frame, first, share, at_first)
+            .judge(
+                frame,
+                first,
+                check.contradicted_share,
+                check.contradicted_at_first,
+            )
             .into_iter()
             .collect();
-        added.extend(self.disagreement(frame + 1, first, by_camera, by_camera_at_first));
+        added.extend(self.disagreement(
+            frame + 1,
+            first,
+            &check.contradicted_by_camera,
+            &check.contradicted_by_camera_at_first,
+        ));
         added
     }
 

@@ -49,7 +49,7 @@ pub use offset::{
 };
 pub use options::{OptionsUsed, TrackOptions};
 pub use regularise::Regularisation;
-pub use sequence::{prepare, ContradictedNow, FrameReport, Prepared, StepTiming, Tracker};
+pub use sequence::{prepare, FrameReport, Prepared, StepTiming, Tracker};
 pub use shot::{median, track_scene, TrackSummary};
 pub use solve::{
     GainModel, Interpolation, IterationSummary, Loss, SolveSummary, SolverOptions, StopReason,

@@ -23,6 +23,7 @@ use crate::tracker::consensus::{drop_contradicted_ahead, CameraShare, ConsensusO
 use crate::tracker::fold::FoldWatch;
 use crate::tracker::gpu::Gpu;
 use crate::tracker::health;
+use crate::tracker::health::LastFrameCheck;
 use crate::tracker::occluder::{self, Ahead, Way};
 use crate::tracker::occlusion;
 use crate::tracker::offset::{moved_onto_surface, moved_onto_surface_as_checked, SurfaceMove};
@@ -232,19 +233,6 @@ fn one() -> f64 {
 }
 
 /// A template's patches at one level ([`Tracker::template_patches`]).
-/// The cross-camera check on the current solution ([`Tracker::contradicted_now`]).
-#[derive(Clone, Debug, PartialEq)]
-pub struct ContradictedNow {
-    /// The share of the template the other cameras contradict.
-    pub share: f64,
-    /// That share at the first frame.
-    pub at_first: f64,
-    /// Each camera's own share (`None`: it took no pixels).
-    pub by_camera: Vec<Option<f64>>,
-    /// Each camera's own share at the first frame.
-    pub by_camera_at_first: Vec<Option<f64>>,
-}
-
 struct TemplatePatches {
     set: PatchSet,
     /// Pixels the other cameras contradicted, left out.
@@ -2010,19 +1998,20 @@ impl Tracker {
     /// share at the first frame. This is what judges a shot's last frame, which no next frame's
     /// report does (`health`); one template's building, no solve. Also each camera's own
     /// share, now and at the first frame (`FrameReport::contradicted_by_camera`, for the
-    /// per-camera rule).
-    pub fn contradicted_now(&self) -> ContradictedNow {
+    /// per-camera rule), as the check on `frame` (the current one).
+    pub fn contradicted_now(&self, frame: u32) -> LastFrameCheck {
         let TemplatePatches {
             set,
             contradicted: dropped,
             by_camera,
             ..
         } = self.previous_template(self.opts.finest_level, None);
-        ContradictedNow {
-            share: share_of(dropped, set.pixels.len()),
-            at_first: self.contradicted_at_first,
-            by_camera: by_camera.iter().map(CameraShare::share).collect(),
-            by_camera_at_first: self.contradicted_by_camera_at_first.clone(),
+        LastFrameCheck {
+            frame,
+            contradicted_share: share_of(dropped, set.pixels.len()),
+            contradicted_at_first: self.contradicted_at_first,
+            contradicted_by_camera: by_camera.iter().map(CameraShare::share).collect(),
+            contradicted_by_camera_at_first: self.contradicted_by_camera_at_first.clone(),
         }
     }
 

@@ -42,6 +42,9 @@ pub struct TrackSummary {
     /// When the scene's mesh lay off the surface the cameras agree on and was moved onto it
     /// before tracking (`TrackOptions::onto_surface`); the run's first mesh is the moved one.
     pub first_mesh_moved: Option<SurfaceMove>,
+    /// The cross-camera check on the last frame solved, taken once the shot was done (as
+    /// `run.json`'s `last_frame_check`); `None` when this call solved no frame.
+    pub last_frame_check: Option<LastFrameCheck>,
 }
 
 /// Tracks a whole scene into the run folder `out_dir` (see `run` for the layout and the rules
@@ -241,23 +244,12 @@ fn track_into(
         pending = next;
     }
     // The last frame has no next frame whose templates judge it: the same check, taken now.
+    let mut last_frame_check = None;
     if let Some(last) = last_solved {
-        let now = tracker.contradicted_now();
-        checks.judge_last(
-            last,
-            scene.first,
-            now.share,
-            now.at_first,
-            &now.by_camera,
-            &now.by_camera_at_first,
-        );
-        folder.record_last_frame_check(LastFrameCheck {
-            frame: last,
-            contradicted_share: now.share,
-            contradicted_at_first: now.at_first,
-            contradicted_by_camera: now.by_camera,
-            contradicted_by_camera_at_first: now.by_camera_at_first,
-        });
+        let check = tracker.contradicted_now(last);
+        checks.judge_last(scene.first, &check);
+        folder.record_last_frame_check(check.clone());
+        last_frame_check = Some(check);
     }
     let checks = checks.into_frames();
     let pick = |f: fn(&FrameCheck) -> bool| -> Vec<u32> {
@@ -274,6 +266,7 @@ fn track_into(
         suspect_frames: pick(FrameCheck::suspect),
         checks,
         first_mesh_moved,
+        last_frame_check,
     })
 }
 
