@@ -377,15 +377,35 @@ fn align_refuses_what_it_cannot_do() {
 /// The default blob (640×480, four cameras) at its first frame: the scene, its images and the
 /// mesh's size (bounding-box diagonal).
 fn blob_first_frame() -> (Synthetic, Vec<modelflow::RgbImage>, f64) {
+    blob_first_frame_at(640, 480)
+}
+
+/// [`blob_first_frame`] at `width × height`.
+fn blob_first_frame_at(width: u32, height: u32) -> (Synthetic, Vec<modelflow::RgbImage>, f64) {
     let syn = Synthetic::generate(&SynthOptions {
         preset: Preset::Blob,
         frames: 1,
+        width,
+        height,
         ..SynthOptions::default()
     })
     .unwrap();
     let images: Vec<_> = (0..syn.cameras.len()).map(|c| syn.render(c, 0)).collect();
     let size = syn.mesh.bbox_diagonal();
     (syn, images, size)
+}
+
+/// `mesh` with every vertex moved `d` along its normal (a visual hull, for `d > 0` on a closed
+/// mesh).
+fn along_normals(mesh: &modelflow::Mesh, d: f64) -> modelflow::Mesh {
+    let normals = mesh.vertex_normals();
+    mesh.with_positions(
+        mesh.positions
+            .iter()
+            .zip(&normals)
+            .map(|(p, n)| p + n * d)
+            .collect(),
+    )
 }
 
 #[test]
@@ -425,15 +445,7 @@ fn a_misplaced_mesh_that_also_reads_off_along_its_normals_is_named_not_reshaped(
     assert!(c.off_surface(size).is_none());
     assert!(moved_onto_surface(&moved, &syn.cameras, 0, &images).is_none());
     // Off along its normals: moved onto the surface, not called misplaced.
-    let normals = syn.mesh.vertex_normals();
-    let hull = syn.mesh.with_positions(
-        syn.mesh
-            .positions
-            .iter()
-            .zip(&normals)
-            .map(|(p, n)| p + n * 0.02 * size)
-            .collect(),
-    );
+    let hull = along_normals(&syn.mesh, 0.02 * size);
     let c = modelflow::tracker::first_mesh_check(&hull, &syn.cameras, 0, &images);
     let s = c.off_surface(size).expect("read off the surface");
     assert!(s.pixels < -5.0, "{s:?}");
@@ -447,25 +459,8 @@ fn a_tracker_given_tracks_first_mesh_check_starts_where_one_that_measures_it_doe
     // instead of measuring again: the same start to the bit, for a visual hull (moved) and for
     // a misplaced mesh (left as given, for the warning to name).
     use modelflow::tracker::{TrackOptions, Tracker};
-    let syn = Synthetic::generate(&SynthOptions {
-        preset: Preset::Blob,
-        frames: 1,
-        width: 320,
-        height: 240,
-        ..SynthOptions::default()
-    })
-    .unwrap();
-    let images: Vec<_> = (0..syn.cameras.len()).map(|c| syn.render(c, 0)).collect();
-    let size = syn.mesh.bbox_diagonal();
-    let normals = syn.mesh.vertex_normals();
-    let hull = syn.mesh.with_positions(
-        syn.mesh
-            .positions
-            .iter()
-            .zip(&normals)
-            .map(|(p, n)| p + n * 0.02 * size)
-            .collect(),
-    );
+    let (syn, images, size) = blob_first_frame_at(320, 240);
+    let hull = along_normals(&syn.mesh, 0.02 * size);
     let misplaced = syn.mesh.with_positions(perturb(&syn.mesh, 0.03, 5.0, 4));
     for (mesh, moved) in [(&hull, true), (&misplaced, false)] {
         let check = modelflow::tracker::first_mesh_check(mesh, &syn.cameras, 0, &images);
