@@ -149,4 +149,7 @@ def align(
     edge) and "agreement" ({"before", "after": the cameras' mean cost compared with each other
     as placed and where the solve ended; "pixels_before", "texture_before", "texture_after": the
     pixels compared as placed and their texture there and where it ended; "kept_given": where it
-    ended they agree no better, so the placement given was returned}, or None)."""
+    ended they agree no better, so the placement given was returned}, or None) and "texture_pass"
+    ({"plain", "weighed": the cameras' cost per unit of texture where the plain pass and the pass
+    that weighs each patch by its texture put the mesh; "kept": the weighed pass's result was
+    returned, the cameras agreeing there at least twice as well}, or None)."""

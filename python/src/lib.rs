@@ -472,6 +472,7 @@ fn align<'py>(
     d.set_item("loose", to_py(py, &a.loose)?)?;
     d.set_item("outline", to_py(py, &a.outline)?)?;
     d.set_item("agreement", to_py(py, &a.agreement)?)?;
+    d.set_item("texture_pass", to_py(py, &a.texture_pass)?)?;
     Ok(d)
 }
 

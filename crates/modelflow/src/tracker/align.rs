@@ -67,6 +67,14 @@ pub struct AlignOptions {
     /// leave free (`outline`): for a sheet whose border is its visible edge against a
     /// background. Off by default (a mesh whose border lies inside a surface has no edge there).
     pub outline: bool,
+    /// Also solve a second pass with each patch weighed by how textured its source pixels are
+    /// (`weigh_by_texture`), and keep where it ends when the cameras agree there at least
+    /// [`TEXTURE_PASS_GAIN`] times better per unit of texture than where the plain pass ends:
+    /// with three cameras around an object the plain pass can be drawn partly over a plain
+    /// background (docs/tracker.md, "With three cameras the range is about half"). Twice the
+    /// time; `placement`, which only asks whether the mesh is off, runs without it.
+    #[serde(default)]
+    pub texture_pass: bool,
     /// The solver of each round (with the tracker's robust loss by default).
     pub solver: SolverOptions,
 }
@@ -79,6 +87,7 @@ impl Default for AlignOptions {
             rounds: 12,
             gauge_floor: 1e-6,
             outline: false,
+            texture_pass: true,
             blur: 1.0,
             margin: 1,
             min_cos: 0.1,
@@ -165,6 +174,22 @@ pub struct Alignment {
     /// How the cameras agree where the solve started and where it ended; `None` when that
     /// could not be compared.
     pub agreement: Option<Agreement>,
+    /// With [`AlignOptions::texture_pass`]: the two passes compared; `None` when the second
+    /// was not run or either could not be compared.
+    pub texture_pass: Option<TexturePass>,
+}
+
+/// The two passes of [`align`] with [`AlignOptions::texture_pass`], each by how well the cameras
+/// agree per unit of texture where its result is ([`Agreement::kept_per_texture`]).
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct TexturePass {
+    /// The plain pass's.
+    pub plain: f64,
+    /// The pass with the patches weighed by their texture.
+    pub weighed: f64,
+    /// The weighed pass's result was kept: it moved the mesh, and the cameras agree there at
+    /// least [`TEXTURE_PASS_GAIN`] times better per unit of texture.
+    pub kept: bool,
 }
 
 /// The cameras' comparison with each other where [`align`] started and where it ended: each
@@ -186,6 +211,48 @@ pub struct Agreement {
     /// and where the solve ended.
     pub texture_before: f64,
     pub texture_after: f64,
+}
+
+impl Agreement {
+    /// [`Agreement::after_per_texture`] where the solve's end is kept, and the same at the
+    /// placement given where that is kept instead.
+    pub fn kept_per_texture(&self) -> f64 {
+        if !self.kept_given {
+            return self.after_per_texture();
+        }
+        if self.texture_before > 0.0 {
+            self.before / self.texture_before
+        } else {
+            f64::INFINITY
+        }
+    }
+    /// The cameras' mean cost where the solve ended per unit of the texture compared there:
+    /// how well they agree relative to what there is to agree on (a plain background, which
+    /// every camera sees alike, has a low cost and no texture). Infinite without texture.
+    pub fn after_per_texture(&self) -> f64 {
+        if self.texture_after > 0.0 {
+            self.after / self.texture_after
+        } else {
+            f64::INFINITY
+        }
+    }
+}
+
+/// How many times better per unit of texture ([`Agreement::after_per_texture`]) the cameras
+/// must agree where [`AlignOptions::texture_pass`]'s pass ends than where the plain pass ends
+/// for it to be kept. Where both passes come back to the surface they end within a few per
+/// cent of each other on that measure (the hard sample: 1.62 and 1.6–1.7); the plain pass drawn
+/// over a plain background by three cameras ends 4–11 times worse than the truth (blob 1.24
+/// against 0.11, irregular 0.99–1.85 against 0.28).
+pub const TEXTURE_PASS_GAIN: f64 = 2.0;
+
+/// One coarse-to-fine pass of [`align`]: where it ended (the motions the images leave free
+/// undone), each level's summary, and the pose's stiffness at the finest level.
+struct Pass {
+    x: Vec<Point3<f64>>,
+    levels: Vec<AlignLevel>,
+    stiffness: Vec<(f64, [f64; 7])>,
+    free: Vec<[f64; 7]>,
 }
 
 /// What the outline fit did (see [`AlignOptions::outline`]).
@@ -334,7 +401,12 @@ pub fn placement(
             ..placement_of(mesh, a)
         })
     };
-    let a = aligned(&AlignOptions::default())?;
+    // Whether the mesh is off, not where exactly it belongs: the plain pass alone.
+    let check = AlignOptions {
+        texture_pass: false,
+        ..AlignOptions::default()
+    };
+    let a = aligned(&check)?;
     let found = verdict(&a)?;
     // A pose the coarsest level alone draws away is not one the images hold: on a body with an
     // arm crossing in front of it at 480×360, the coarsest level compared 114 pixels of thin
@@ -344,7 +416,7 @@ pub fn placement(
     if found.is_off() && a.levels.len() > 1 {
         let fewer = AlignOptions {
             levels: a.levels.len() - 1,
-            ..AlignOptions::default()
+            ..check
         };
         if let Some(again) = aligned(&fewer).as_ref().and_then(verdict) {
             if again.fraction < found.fraction {
@@ -879,119 +951,166 @@ pub fn align(
         Motion::Rigid
     };
     let pattern = mesh.edges();
-    let mut x = start.clone();
-    let mut out_levels = Vec::with_capacity(levels);
-    let mut last = None;
-    for level in (0..levels).rev() {
-        let projections: Vec<Projection> = cameras
-            .iter()
-            .map(|c| level_projection(c.at(frame), level))
-            .collect();
-        let targets: Vec<&RgbImage> = pyramids.iter().map(|p| &p.levels[level]).collect();
-        // At coarse levels a triangle may be smaller than a pixel, and the margin test (a
-        // pixel's neighbours must belong to its triangle or one sharing a vertex) would then
-        // drop every pixel: there the pixels are kept up to the outline, and the finest level
-        // drops what mixes two surfaces.
-        let popts = PatchOptions {
-            margin: if level == 0 { popts.margin } else { 0 },
-            ..popts
-        };
-        let mut summary = AlignLevel {
-            level,
-            rounds: 0,
-            iterations: 0,
-            cost_before: f64::NAN,
-            cost_after: f64::NAN,
-            pixels: 0,
-            last_move_px: 0.0,
-            stop: StopReason::NoData,
-        };
-        for round in 0..opts.rounds {
-            let x0 = x.clone();
-            let mut set = cross_patches(&x0, &triangles, &projections, &targets, &popts, 0);
-            // A coarse level that compares only a few pixels (two cameras that share only a
-            // rim: 0–33 at the coarser levels of the limb's two cameras at 480×360) holds no
-            // pose; followed, it turned the limb 142°. The finer levels start where it began.
-            if level > 0 && round == 0 && (set.compared_pixels() as f64) < MIN_LEVEL_PIXELS {
-                summary.pixels = set.compared_pixels();
-                summary.stop = StopReason::NoData;
-                break;
-            }
-            let by_triangle = set.by_triangle();
-            let problem = Problem {
-                moving_source: Some(&x0),
-                gauge_floor: opts.gauge_floor,
-                ..Problem::photometric(
-                    &triangles,
-                    &set,
-                    &by_triangle,
-                    targets.clone(),
-                    projections.clone(),
-                    &pattern,
-                )
+    // One coarse to fine pass from the placement given, its patches weighed by their texture or
+    // not (`weigh_by_texture`); the motions the images leave free undone at its end.
+    let solve_pass = |weigh: bool| -> Result<Pass> {
+        let mut x = start.clone();
+        let mut out_levels = Vec::with_capacity(levels);
+        let mut last = None;
+        for level in (0..levels).rev() {
+            let projections: Vec<Projection> = cameras
+                .iter()
+                .map(|c| level_projection(c.at(frame), level))
+                .collect();
+            let targets: Vec<&RgbImage> = pyramids.iter().map(|p| &p.levels[level]).collect();
+            // At coarse levels a triangle may be smaller than a pixel, and the margin test (a
+            // pixel's neighbours must belong to its triangle or one sharing a vertex) would then
+            // drop every pixel: there the pixels are kept up to the outline, and the finest level
+            // drops what mixes two surfaces.
+            let popts = PatchOptions {
+                margin: if level == 0 { popts.margin } else { 0 },
+                ..popts
             };
-            // The chosen robust loss from the first round: an occluder in front of the surface
-            // (a rod, a hand) or a highlight is seen differently by every camera, and with a
-            // convex loss it pulls the loosely held motions (a nearly round object's spin: the
-            // Blender hard sample drifted 0.51 % from its true placement with Huber until the
-            // last rounds, 0.18 % with Tukey throughout). Tukey's threshold follows the
-            // residuals and the image gradient (`SolverOptions::tukey_px`), so a misplaced
-            // mesh's pixels on edges are kept while it comes in.
-            let sopts = opts.solver;
-            let (sol, s, lin) = problem.solve_motion(&x, None, &sopts, motion);
-            summary.rounds += 1;
-            summary.iterations += s.iterations.len();
-            if round == 0 {
-                summary.cost_before = s.initial_cost;
+            let mut summary = AlignLevel {
+                level,
+                rounds: 0,
+                iterations: 0,
+                cost_before: f64::NAN,
+                cost_after: f64::NAN,
+                pixels: 0,
+                last_move_px: 0.0,
+                stop: StopReason::NoData,
+            };
+            for round in 0..opts.rounds {
+                let x0 = x.clone();
+                let mut set = cross_patches(&x0, &triangles, &projections, &targets, &popts, 0);
+                // A coarse level that compares only a few pixels (two cameras that share only a
+                // rim: 0–33 at the coarser levels of the limb's two cameras at 480×360) holds no
+                // pose; followed, it turned the limb 142°. The finer levels start where it began.
+                if level > 0 && round == 0 && (set.compared_pixels() as f64) < MIN_LEVEL_PIXELS {
+                    summary.pixels = set.compared_pixels();
+                    summary.stop = StopReason::NoData;
+                    break;
+                }
+                if weigh {
+                    weigh_by_texture(&mut set, &triangles, x0.len(), projections.len());
+                }
+                let by_triangle = set.by_triangle();
+                let problem = Problem {
+                    moving_source: Some(&x0),
+                    gauge_floor: opts.gauge_floor,
+                    ..Problem::photometric(
+                        &triangles,
+                        &set,
+                        &by_triangle,
+                        targets.clone(),
+                        projections.clone(),
+                        &pattern,
+                    )
+                };
+                // The chosen robust loss from the first round: an occluder in front of the surface
+                // (a rod, a hand) or a highlight is seen differently by every camera, and with a
+                // convex loss it pulls the loosely held motions (a nearly round object's spin: the
+                // Blender hard sample drifted 0.51 % from its true placement with Huber until the
+                // last rounds, 0.18 % with Tukey throughout). Tukey's threshold follows the
+                // residuals and the image gradient (`SolverOptions::tukey_px`), so a misplaced
+                // mesh's pixels on edges are kept while it comes in.
+                let sopts = opts.solver;
+                let (sol, s, lin) = problem.solve_motion(&x, None, &sopts, motion);
+                summary.rounds += 1;
+                summary.iterations += s.iterations.len();
+                if round == 0 {
+                    summary.cost_before = s.initial_cost;
+                }
+                summary.cost_after = s.final_cost;
+                summary.pixels = s.pixels;
+                summary.stop = s.stop;
+                let moved = max_move_px(&x, &sol, &projections);
+                summary.last_move_px = moved;
+                x = sol;
+                if level == 0 {
+                    last = Some((lin, x.clone()));
+                }
+                if s.stop == StopReason::NoData || s.stop == StopReason::NonFinite {
+                    break;
+                }
+                // Converged when a round moves nothing by more than a twentieth of a pixel.
+                if moved < 0.05 {
+                    break;
+                }
             }
-            summary.cost_after = s.final_cost;
-            summary.pixels = s.pixels;
-            summary.stop = s.stop;
-            let moved = max_move_px(&x, &sol, &projections);
-            summary.last_move_px = moved;
-            x = sol;
-            if level == 0 {
-                last = Some((lin, x.clone()));
-            }
-            if s.stop == StopReason::NoData || s.stop == StopReason::NonFinite {
-                break;
-            }
-            // Converged when a round moves nothing by more than a twentieth of a pixel.
-            if moved < 0.05 {
-                break;
-            }
-        }
-        if summary.stop == StopReason::NoData && level == 0 {
-            return Err(Error::mismatch(
+            if summary.stop == StopReason::NoData && level == 0 {
+                return Err(Error::mismatch(
                 "cameras seeing the mesh",
                 format!("at least 2 that see a common triangle at frame {frame}"),
                 "none: the mesh is outside the images, seen by one camera only, or only edge-on \
                  (triangles more oblique than min_cos) or in slivers thinner than the margin",
             ));
+            }
+            out_levels.push(summary);
         }
-        out_levels.push(summary);
-    }
-    let stiffness = last
-        .map(|(lin, xs)| pose_stiffness(&lin, &xs, opts.scale))
-        .unwrap_or_default();
-    // Steps leave out the motions the images do not fix, but those are the current pose's: a
-    // sheet tilted on the way in slides in its own plane while the tilt is taken out. The
-    // motions free at the solution are undone here, as far as they bring the mesh back to
-    // where the user put it (they cost nothing: the images cannot tell).
-    let free: Vec<[f64; 7]> = stiffness
-        .iter()
-        .filter(|(s, _)| *s < opts.gauge_floor)
-        .map(|(_, v)| *v)
-        .collect();
-    if !free.is_empty() {
-        x = back_to_placement(&x, &start, &free);
-    }
+        let stiffness = last
+            .map(|(lin, xs)| pose_stiffness(&lin, &xs, opts.scale))
+            .unwrap_or_default();
+        // Steps leave out the motions the images do not fix, but those are the current pose's: a
+        // sheet tilted on the way in slides in its own plane while the tilt is taken out. The
+        // motions free at the solution are undone here, as far as they bring the mesh back to
+        // where the user put it (they cost nothing: the images cannot tell).
+        let free: Vec<[f64; 7]> = stiffness
+            .iter()
+            .filter(|(s, _)| *s < opts.gauge_floor)
+            .map(|(_, v)| *v)
+            .collect();
+        if !free.is_empty() {
+            x = back_to_placement(&x, &start, &free);
+        }
+        Ok(Pass {
+            x,
+            levels: out_levels,
+            stiffness,
+            free,
+        })
+    };
     // The verdict on the whole solve: the cameras compared with each other where it ends and
     // where it started, each with its pixels attached where the mesh is (what the rounds solve
     // is always the pixels of the round's start, so no round sees this). Where it ends no
     // better, the placement given is kept: two noisy cameras that share only a rim drew the
     // limb 2 % of its size off its true place to where they agree 45 % worse.
-    let agreement = agreement(mesh, &start, &x, cameras, frame, images);
+    let plain = solve_pass(false)?;
+    let mut found = agreement(mesh, &start, &plain.x, cameras, frame, images);
+    let mut chosen = plain;
+    let mut texture_pass = None;
+    // A second pass with the patches weighed by their texture, kept where it ends with the
+    // cameras agreeing at least `TEXTURE_PASS_GAIN` times better per unit of texture: with
+    // three cameras around an object the plain pass can be drawn partly over a plain
+    // background, where the bands two cameras share compare background with background
+    // (docs/tracker.md, "With three cameras"); the weighed pass, which gives those patches
+    // no say, comes back from there more often, but where both come back the plain one is the
+    // closer (the glossy hard sample: 0.145–0.150 % against 0.19–0.25 %).
+    if opts.texture_pass {
+        let weighed = solve_pass(true)?;
+        let other = agreement(mesh, &start, &weighed.x, cameras, frame, images);
+        if let (Some(a), Some(b)) = (found, other) {
+            let kept =
+                !b.kept_given && b.after_per_texture() * TEXTURE_PASS_GAIN <= a.kept_per_texture();
+            texture_pass = Some(TexturePass {
+                plain: a.kept_per_texture(),
+                weighed: b.kept_per_texture(),
+                kept,
+            });
+            if kept {
+                found = other;
+                chosen = weighed;
+            }
+        }
+    }
+    let agreement = found;
+    let Pass {
+        mut x,
+        levels: out_levels,
+        stiffness,
+        free,
+    } = chosen;
     if let Some(a) = &agreement {
         if a.kept_given {
             x = start.clone();
@@ -1051,8 +1170,88 @@ pub fn align(
         outline: outline_fit,
         loose_twists,
         agreement,
+        texture_pass,
     })
 }
+
+/// Of each patch's weight, the share its texture earns: `t / (t + TEXTURE_SCALE·median t)`, with
+/// `t` the colour variance (summed over R, G, B) of its source camera's pixels over the
+/// triangle and every triangle sharing a vertex with it (at the coarse levels a triangle owns a
+/// pixel or two, too few for a variance of its own), the median over the patches compared. A
+/// patch over a plain background (which every camera sees alike, so comparing it rewards a pose
+/// that puts the mesh there) gets almost none; a textured one keeps nearly all of its weight.
+fn weigh_by_texture(set: &mut PatchSet, triangles: &[[u32; 3]], vertices: usize, cameras: usize) {
+    let nt = triangles.len();
+    // Per (source camera, triangle): the count, sum and sum of squares of its pixels' colours.
+    // A source patch is listed once per camera it is warped into; it is counted once.
+    let mut sums = vec![[0.0f64; 7]; cameras * nt];
+    let mut counted = vec![false; cameras * nt];
+    for p in &set.patches {
+        let k = p.source as usize * nt + p.triangle as usize;
+        if std::mem::replace(&mut counted[k], true) {
+            continue;
+        }
+        let a = &mut sums[k];
+        for px in &set.pixels[p.start as usize..p.end as usize] {
+            a[0] += 1.0;
+            for (c, &v) in px.color.iter().enumerate() {
+                a[1 + c] += f64::from(v);
+                a[4 + c] += f64::from(v) * f64::from(v);
+            }
+        }
+    }
+    let mut ring: Vec<Vec<u32>> = vec![Vec::new(); vertices];
+    for (t, tri) in triangles.iter().enumerate() {
+        for &v in tri {
+            ring[v as usize].push(t as u32);
+        }
+    }
+    let mut texture = vec![0.0f64; cameras * nt];
+    let mut near: Vec<u32> = Vec::new();
+    for c in 0..cameras {
+        for t in 0..nt {
+            if !counted[c * nt + t] {
+                continue;
+            }
+            near.clear();
+            for &v in &triangles[t] {
+                near.extend_from_slice(&ring[v as usize]);
+            }
+            near.sort_unstable();
+            near.dedup();
+            let mut a = [0.0f64; 7];
+            for &u in &near {
+                for (s, b) in a.iter_mut().zip(&sums[c * nt + u as usize]) {
+                    *s += b;
+                }
+            }
+            if a[0] > 0.0 {
+                texture[c * nt + t] = (0..3)
+                    .map(|i| (a[4 + i] / a[0] - (a[1 + i] / a[0]).powi(2)).max(0.0))
+                    .sum();
+            }
+        }
+    }
+    let of = |p: &Patch| texture[p.source as usize * nt + p.triangle as usize];
+    let mut sorted: Vec<f64> = set.patches.iter().map(of).collect();
+    sorted.sort_by(f64::total_cmp);
+    let scale = TEXTURE_SCALE * sorted.get(sorted.len() / 2).copied().unwrap_or(0.0);
+    if scale <= 0.0 {
+        return;
+    }
+    let shares: Vec<f32> = set
+        .patches
+        .iter()
+        .map(|p| (of(p) / (of(p) + scale)) as f32)
+        .collect();
+    for (p, w) in set.patches.iter_mut().zip(shares) {
+        p.weight *= w;
+    }
+}
+
+/// The texture, as a fraction of the median patch's, at which [`weigh_by_texture`] halves a
+/// patch's weight.
+const TEXTURE_SCALE: f64 = 0.25;
 
 /// How the cameras agree with each other at the placement given (`start`) and where [`align`]
 /// ended (`end`): [`Agreement`], `None` where they compare no common triangle at either.

@@ -32,10 +32,11 @@ pub(crate) mod warp;
 #[cfg(test)]
 mod tests;
 
+pub use align::TexturePass;
 pub use align::{
     align, first_mesh_check, perturb, placement, Agreement, AlignLevel, AlignOptions, Alignment,
     FirstMeshCheck, LooseMotion, MotionKind, OutlineSummary, Placement, LOOSE, PLACEMENT_MIN_GAIN,
-    PLACEMENT_WARN,
+    PLACEMENT_WARN, TEXTURE_PASS_GAIN,
 };
 pub use coverage::{coverage, Coverage};
 pub use gpu::{Gpu, GpuStats};
