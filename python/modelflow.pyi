@@ -140,6 +140,7 @@ def align(
     positions: Optional[npt.NDArray[np.float64]] = None,
     scale: bool = False,
     outline: bool = False,
+    search: bool = True,
 ) -> Dict[str, Any]:
     """Lines up a roughly placed mesh (`positions`, (V, 3); default: the scene's) with the
     scene's first frame, as `modelflow align` does. Returns "positions", "rotation", "translation",
@@ -149,7 +150,10 @@ def align(
     edge) and "agreement" ({"before", "after": the cameras' mean cost compared with each other
     as placed and where the solve ended; "pixels_before", "texture_before", "texture_after": the
     pixels compared as placed and their texture there and where it ended; "kept_given": where it
-    ended they agree no better, so the placement given was returned}, or None) and "texture_pass"
-    ({"plain", "weighed": the cameras' cost per unit of texture where the plain pass and the pass
-    that weighs each patch by its texture put the mesh; "kept": the weighed pass's result was
-    returned, the cameras agreeing there at least twice as well}, or None)."""
+    ended they agree no better, so the placement given was returned}, or None), "passes" (the
+    coarse-to-fine passes solved: [{"shift", "turn": where each started, moved by fractions of
+    the mesh's size or turned by degrees about each axis from the placement given; "weighed":
+    its patches weighed by their texture; "per_texture": the cameras' cost per unit of texture
+    where its result is; "kept_given"}]: the plain pass, the weighed one and, with `search`,
+    twelve more from around the placement given) and "kept_pass" (the index of the one
+    returned: a later pass is kept only where the cameras agree at least twice as well)."""

@@ -434,15 +434,18 @@ fn export(py: Python<'_>, run: PathBuf, out: PathBuf, fps: f64) -> PyResult<Vec<
 /// "rotation" (3×3), "translation", "scale" (`X' = scale·R·X + t`), "angle_deg", "levels" (per
 /// pyramid level: rounds, iterations, costs) and "loose" (the motions the images hold loosely,
 /// with their relative stiffness; below 1e-6 they were kept as placed, or with `outline` set
-/// from the contrast across the mesh's border, summarised in "outline").
+/// from the contrast across the mesh's border, summarised in "outline"); "passes" and
+/// "kept_pass" (the coarse-to-fine passes solved and which one the result is from; `search`
+/// adds starts around the placement given, as `modelflow align` does unless `--no-search`).
 #[pyfunction]
-#[pyo3(signature = (scene, positions=None, scale=false, outline=false))]
+#[pyo3(signature = (scene, positions=None, scale=false, outline=false, search=true))]
 fn align<'py>(
     py: Python<'py>,
     scene: &Scene,
     positions: Option<PyReadonlyArray2<'py, f64>>,
     scale: bool,
     outline: bool,
+    search: bool,
 ) -> PyResult<Bound<'py, PyDict>> {
     let s = &scene.inner;
     let mesh = scene_mesh(s, positions)?;
@@ -450,6 +453,7 @@ fn align<'py>(
     let opts = mf::tracker::AlignOptions {
         scale,
         outline,
+        search,
         ..Default::default()
     };
     let a = mf::tracker::align(&mesh, &s.cameras, s.first, &images, &opts).map_err(err)?;
@@ -472,7 +476,8 @@ fn align<'py>(
     d.set_item("loose", to_py(py, &a.loose)?)?;
     d.set_item("outline", to_py(py, &a.outline)?)?;
     d.set_item("agreement", to_py(py, &a.agreement)?)?;
-    d.set_item("texture_pass", to_py(py, &a.texture_pass)?)?;
+    d.set_item("passes", to_py(py, &a.passes)?)?;
+    d.set_item("kept_pass", a.kept_pass)?;
     Ok(d)
 }
 

@@ -35,6 +35,12 @@ pub struct Args {
     /// coarsest; 0 to 8).
     #[arg(long, default_value_t = AlignOptions::default().levels)]
     levels: usize,
+    /// Solve only from the placement given: leave out the twelve extra starts around it (moved
+    /// 2.5 % of the mesh's size along each axis, turned 5° about each), which reach farther
+    /// misplacements with few cameras for twelve passes' time (docs/tracker.md, "With three
+    /// cameras").
+    #[arg(long)]
+    no_search: bool,
     /// Before aligning, misplace the mesh on purpose by PCT percent of its size and DEG degrees
     /// about a random axis (seeded by --seed): a check of how far off a placement may be. With
     /// ground truth, the error before and after is printed.
@@ -105,6 +111,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         scale: args.scale,
         levels: args.levels,
         outline: args.outline,
+        search: !args.no_search,
         ..AlignOptions::default()
     };
     opts.validate()?;
@@ -194,7 +201,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             "loose": a.loose,
             "outline": a.outline,
             "agreement": a.agreement,
-            "texture_pass": a.texture_pass,
+            "passes": a.passes,
+            "kept_pass": a.kept_pass,
             "error_before_pct": errors.map(|e| e.0),
             "error_after_pct": errors.map(|e| e.1),
             "surface_error_before_pct": errors.and_then(|e| e.2),
@@ -252,10 +260,28 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             ),
             None => {}
         }
-        if let Some(t) = a.texture_pass.filter(|t| t.kept) {
+        if a.kept_pass > 0 {
+            let (p, plain) = (a.passes[a.kept_pass], a.passes[0]);
+            let from = if p.shift.iter().any(|v| *v != 0.0) {
+                let k = p.shift.iter().position(|v| *v != 0.0).unwrap_or(0);
+                format!(
+                    " started {:+.1} % of its size along {} from the placement given",
+                    100.0 * p.shift[k],
+                    ["x", "y", "z"][k]
+                )
+            } else if p.turn.iter().any(|v| *v != 0.0) {
+                let k = p.turn.iter().position(|v| *v != 0.0).unwrap_or(0);
+                format!(
+                    " started turned {:+.0}° about {} from the placement given",
+                    p.turn[k],
+                    ["x", "y", "z"][k]
+                )
+            } else {
+                String::new()
+            };
             eprintln!(
-                "kept the pass that weighs each patch by its texture: there the cameras agree {:.1} times better per unit of texture than where the plain pass ended, which a plain background draws the mesh toward (docs/tracker.md, \"With three cameras\")",
-                t.plain / t.weighed
+                "kept the pass{from} that weighs each patch by its texture: there the cameras agree {:.1} times better per unit of texture than where the plain pass left the mesh, which a plain background can draw in (docs/tracker.md, \"With three cameras\")",
+                plain.per_texture / p.per_texture
             );
         }
         if let Some(o) = &a.outline {

@@ -32,12 +32,12 @@ pub(crate) mod warp;
 #[cfg(test)]
 mod tests;
 
-pub use align::TexturePass;
 pub use align::{
     align, first_mesh_check, perturb, placement, Agreement, AlignLevel, AlignOptions, Alignment,
     FirstMeshCheck, LooseMotion, MotionKind, OutlineSummary, Placement, LOOSE, PLACEMENT_MIN_GAIN,
     PLACEMENT_WARN, TEXTURE_PASS_GAIN,
 };
+pub use align::{PassSummary, SEARCH_SHIFT, SEARCH_STARTS, SEARCH_TURN};
 pub use coverage::{coverage, Coverage};
 pub use gpu::{Gpu, GpuStats};
 pub use health::{
