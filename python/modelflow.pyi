@@ -154,6 +154,6 @@ def align(
     coarse-to-fine passes solved: [{"shift", "turn": where each started, moved by fractions of
     the mesh's size or turned by degrees about each axis from the placement given; "weighed":
     its patches weighed by their texture; "per_texture": the cameras' cost per unit of texture
-    where its result is; "kept_given"}]: the plain pass, the weighed one and, with `search`,
+    where its result is, None where it compares no texture; "kept_given"}]: the plain pass, the weighed one and, with `search`,
     twelve more from around the placement given) and "kept_pass" (the index of the one
     returned: a later pass is kept only where the cameras agree at least twice as well)."""

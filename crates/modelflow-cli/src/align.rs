@@ -37,8 +37,8 @@ pub struct Args {
     levels: usize,
     /// Solve only from the placement given: leave out the twelve extra starts around it (moved
     /// 2.5 % of the mesh's size along each axis, turned 5° about each), which reach farther
-    /// misplacements with few cameras for twelve passes' time (docs/tracker.md, "With three
-    /// cameras").
+    /// misplacements with few cameras for twelve more passes' time, at most 640 px wide
+    /// (docs/tracker.md, "With three cameras").
     #[arg(long)]
     no_search: bool,
     /// Before aligning, misplace the mesh on purpose by PCT percent of its size and DEG degrees
@@ -279,9 +279,19 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             } else {
                 String::new()
             };
+            let ratio = plain.per_texture / p.per_texture;
+            let how = if ratio.is_finite() {
+                format!("{ratio:.1} times better")
+            } else {
+                "better".to_string()
+            };
+            let than = if plain.kept_given {
+                "at the placement given"
+            } else {
+                "where the plain pass left the mesh, which a plain background can draw in"
+            };
             eprintln!(
-                "kept the pass{from} that weighs each patch by its texture: there the cameras agree {:.1} times better per unit of texture than where the plain pass left the mesh, which a plain background can draw in (docs/tracker.md, \"With three cameras\")",
-                plain.per_texture / p.per_texture
+                "kept the pass{from} that weighs each patch by its texture: there the cameras agree {how} per unit of texture than {than} (docs/tracker.md, \"With three cameras\")"
             );
         }
         if let Some(o) = &a.outline {

@@ -79,7 +79,9 @@ pub struct AlignOptions {
     /// (moved by [`SEARCH_SHIFT`] of the mesh's size along each axis, either way, and turned
     /// by [`SEARCH_TURN`] about each axis through its centroid), each end kept by the same rule
     /// against the best so far: a misplacement beyond the plain pass's reach is then often
-    /// within one of theirs. With `texture_pass` only; thirteen passes' time instead of two.
+    /// within one of theirs. With `texture_pass` only; twelve more passes, solved down to the
+    /// level at most `SEARCH_WIDTH` pixels wide (one that is kept is then solved on from there
+    /// to full resolution).
     #[serde(default)]
     pub search: bool,
     /// The solver of each round (with the tracker's robust loss by default).
@@ -187,7 +189,8 @@ pub struct Alignment {
     /// [`AlignOptions::search`] the weighed ones from the placements around it; those that
     /// could not be compared (a start the cameras do not see) are left out.
     pub passes: Vec<PassSummary>,
-    /// Which of `passes` the result is from.
+    /// Which of `passes` the result is from (0, the plain pass, also when `passes` is empty:
+    /// the cameras could not be compared).
     pub kept_pass: usize,
 }
 
@@ -203,7 +206,9 @@ pub struct PassSummary {
     pub turn: [f64; 3],
     /// Its patches were weighed by their texture.
     pub weighed: bool,
-    /// The cameras' cost per unit of texture where its result is.
+    /// The cameras' cost per unit of texture where its result is (at full resolution; for a
+    /// search start not kept, where its solve at the reduced level ended). Infinite where its
+    /// result compares no texture (`null` in JSON).
     pub per_texture: f64,
     /// Its end was no better than the placement given (its result is the placement given).
     pub kept_given: bool,
@@ -271,8 +276,9 @@ pub const SEARCH_STARTS: usize = 12;
 pub const SEARCH_SHIFT: f64 = 0.025;
 /// How far [`AlignOptions::search`] turns its starts, degrees.
 pub const SEARCH_TURN: f64 = 5.0;
-/// The widest pyramid level [`AlignOptions::search`]'s starts are solved at (the one they keep
-/// is then solved down to full resolution): on an 8-camera 1080p rig `align` takes 12 s with the
+/// The widest pyramid level [`AlignOptions::search`]'s starts are solved at, by the widest
+/// camera (the coarsest level where none is that narrow; the one they keep is then solved on
+/// from there to full resolution): on an 8-camera 1080p rig `align` takes 10 s with the
 /// search instead of 34 s at full resolution (2.5 s without it); a 1280×960 three-camera blob
 /// comes back from every misplacement it came back from at full resolution.
 const SEARCH_WIDTH: u32 = 640;
@@ -985,133 +991,159 @@ pub fn align(
     let pattern = mesh.edges();
     // One coarse to fine pass from the placement given, its patches weighed by their texture or
     // not (`weigh_by_texture`); the motions the images leave free undone at its end.
-    // `finest`: the finest level solved (0: full resolution).
-    let solve_pass = |weigh: bool, from: &[Point3<f64>], finest: usize| -> Result<Pass> {
-        let mut x = from.to_vec();
-        let mut out_levels = Vec::with_capacity(levels);
-        let mut last = None;
-        for level in (finest..levels).rev() {
-            let projections: Vec<Projection> = cameras
-                .iter()
-                .map(|c| level_projection(c.at(frame), level))
-                .collect();
-            let targets: Vec<&RgbImage> = pyramids.iter().map(|p| &p.levels[level]).collect();
-            // At coarse levels a triangle may be smaller than a pixel, and the margin test (a
-            // pixel's neighbours must belong to its triangle or one sharing a vertex) would then
-            // drop every pixel: there the pixels are kept up to the outline, and the finest level
-            // drops what mixes two surfaces.
-            let popts = PatchOptions {
-                margin: if level == 0 { popts.margin } else { 0 },
-                ..popts
-            };
-            let mut summary = AlignLevel {
-                level,
-                rounds: 0,
-                iterations: 0,
-                cost_before: f64::NAN,
-                cost_after: f64::NAN,
-                pixels: 0,
-                last_move_px: 0.0,
-                stop: StopReason::NoData,
-            };
-            for round in 0..opts.rounds {
-                let x0 = x.clone();
-                let mut set = cross_patches(&x0, &triangles, &projections, &targets, &popts, 0);
-                // A coarse level that compares only a few pixels (two cameras that share only a
-                // rim: 0–33 at the coarser levels of the limb's two cameras at 480×360) holds no
-                // pose; followed, it turned the limb 142°. The finer levels start where it began.
-                if level > finest && round == 0 && (set.compared_pixels() as f64) < MIN_LEVEL_PIXELS
-                {
-                    summary.pixels = set.compared_pixels();
-                    summary.stop = StopReason::NoData;
-                    break;
-                }
-                if weigh {
-                    weigh_by_texture(&mut set, &triangles, x0.len(), projections.len());
-                }
-                let by_triangle = set.by_triangle();
-                let problem = Problem {
-                    moving_source: Some(&x0),
-                    gauge_floor: opts.gauge_floor,
-                    ..Problem::photometric(
-                        &triangles,
-                        &set,
-                        &by_triangle,
-                        targets.clone(),
-                        projections.clone(),
-                        &pattern,
-                    )
+    // Each vertex's triangles, for `weigh_by_texture`'s neighbourhoods.
+    let mut ring: Vec<Vec<u32>> = vec![Vec::new(); start.len()];
+    for (t, tri) in triangles.iter().enumerate() {
+        for &v in tri {
+            ring[v as usize].push(t as u32);
+        }
+    }
+    // Levels `coarsest` down to `finest` are solved (0: full resolution).
+    let solve_pass =
+        |weigh: bool, from: &[Point3<f64>], finest: usize, coarsest: usize| -> Result<Pass> {
+            let mut x = from.to_vec();
+            let mut out_levels = Vec::with_capacity(levels);
+            let mut last = None;
+            for level in (finest..=coarsest).rev() {
+                let projections: Vec<Projection> = cameras
+                    .iter()
+                    .map(|c| level_projection(c.at(frame), level))
+                    .collect();
+                let targets: Vec<&RgbImage> = pyramids.iter().map(|p| &p.levels[level]).collect();
+                // At coarse levels a triangle may be smaller than a pixel, and the margin test (a
+                // pixel's neighbours must belong to its triangle or one sharing a vertex) would then
+                // drop every pixel: there the pixels are kept up to the outline, and the finest level
+                // drops what mixes two surfaces.
+                let popts = PatchOptions {
+                    margin: if level == 0 { popts.margin } else { 0 },
+                    ..popts
                 };
-                // The chosen robust loss from the first round: an occluder in front of the surface
-                // (a rod, a hand) or a highlight is seen differently by every camera, and with a
-                // convex loss it pulls the loosely held motions (a nearly round object's spin: the
-                // Blender hard sample drifted 0.51 % from its true placement with Huber until the
-                // last rounds, 0.18 % with Tukey throughout). Tukey's threshold follows the
-                // residuals and the image gradient (`SolverOptions::tukey_px`), so a misplaced
-                // mesh's pixels on edges are kept while it comes in.
-                let sopts = opts.solver;
-                let (sol, s, lin) = problem.solve_motion(&x, None, &sopts, motion);
-                summary.rounds += 1;
-                summary.iterations += s.iterations.len();
-                if round == 0 {
-                    summary.cost_before = s.initial_cost;
+                let mut summary = AlignLevel {
+                    level,
+                    rounds: 0,
+                    iterations: 0,
+                    cost_before: f64::NAN,
+                    cost_after: f64::NAN,
+                    pixels: 0,
+                    last_move_px: 0.0,
+                    stop: StopReason::NoData,
+                };
+                for round in 0..opts.rounds {
+                    let x0 = x.clone();
+                    let mut set = cross_patches(&x0, &triangles, &projections, &targets, &popts, 0);
+                    // A coarse level that compares only a few pixels (two cameras that share only a
+                    // rim: 0–33 at the coarser levels of the limb's two cameras at 480×360) holds no
+                    // pose; followed, it turned the limb 142°. The finer levels start where it began.
+                    if level > finest
+                        && round == 0
+                        && (set.compared_pixels() as f64) < MIN_LEVEL_PIXELS
+                    {
+                        summary.pixels = set.compared_pixels();
+                        summary.stop = StopReason::NoData;
+                        break;
+                    }
+                    if weigh {
+                        weigh_by_texture(&mut set, &triangles, &ring, projections.len());
+                    }
+                    let by_triangle = set.by_triangle();
+                    let problem = Problem {
+                        moving_source: Some(&x0),
+                        gauge_floor: opts.gauge_floor,
+                        ..Problem::photometric(
+                            &triangles,
+                            &set,
+                            &by_triangle,
+                            targets.clone(),
+                            projections.clone(),
+                            &pattern,
+                        )
+                    };
+                    // The chosen robust loss from the first round: an occluder in front of the surface
+                    // (a rod, a hand) or a highlight is seen differently by every camera, and with a
+                    // convex loss it pulls the loosely held motions (a nearly round object's spin: the
+                    // Blender hard sample drifted 0.51 % from its true placement with Huber until the
+                    // last rounds, 0.18 % with Tukey throughout). Tukey's threshold follows the
+                    // residuals and the image gradient (`SolverOptions::tukey_px`), so a misplaced
+                    // mesh's pixels on edges are kept while it comes in.
+                    let sopts = opts.solver;
+                    let (sol, s, lin) = problem.solve_motion(&x, None, &sopts, motion);
+                    summary.rounds += 1;
+                    summary.iterations += s.iterations.len();
+                    if round == 0 {
+                        summary.cost_before = s.initial_cost;
+                    }
+                    summary.cost_after = s.final_cost;
+                    summary.pixels = s.pixels;
+                    summary.stop = s.stop;
+                    let moved = max_move_px(&x, &sol, &projections);
+                    summary.last_move_px = moved;
+                    x = sol;
+                    if level == 0 {
+                        last = Some((lin, x.clone()));
+                    }
+                    if s.stop == StopReason::NoData || s.stop == StopReason::NonFinite {
+                        break;
+                    }
+                    // Converged when a round moves nothing by more than a twentieth of a pixel.
+                    if moved < 0.05 {
+                        break;
+                    }
                 }
-                summary.cost_after = s.final_cost;
-                summary.pixels = s.pixels;
-                summary.stop = s.stop;
-                let moved = max_move_px(&x, &sol, &projections);
-                summary.last_move_px = moved;
-                x = sol;
-                if level == 0 {
-                    last = Some((lin, x.clone()));
+                if summary.stop == StopReason::NoData && level == finest {
+                    return Err(Error::mismatch(
+                        "cameras seeing the mesh",
+                        format!("at least 2 that see a common triangle at frame {frame}"),
+                        "none: the mesh is outside the images, seen by one camera only, or only \
+                     edge-on (triangles more oblique than min_cos) or in slivers thinner than \
+                     the margin",
+                    ));
                 }
-                if s.stop == StopReason::NoData || s.stop == StopReason::NonFinite {
-                    break;
-                }
-                // Converged when a round moves nothing by more than a twentieth of a pixel.
-                if moved < 0.05 {
-                    break;
-                }
+                out_levels.push(summary);
             }
-            if summary.stop == StopReason::NoData && level == finest {
-                return Err(Error::mismatch(
-                "cameras seeing the mesh",
-                format!("at least 2 that see a common triangle at frame {frame}"),
-                "none: the mesh is outside the images, seen by one camera only, or only edge-on \
-                 (triangles more oblique than min_cos) or in slivers thinner than the margin",
-            ));
+            let stiffness = last
+                .map(|(lin, xs)| pose_stiffness(&lin, &xs, opts.scale))
+                .unwrap_or_default();
+            // Steps leave out the motions the images do not fix, but those are the current pose's: a
+            // sheet tilted on the way in slides in its own plane while the tilt is taken out. The
+            // motions free at the solution are undone here, as far as they bring the mesh back to
+            // where the user put it (they cost nothing: the images cannot tell).
+            let free: Vec<[f64; 7]> = stiffness
+                .iter()
+                .filter(|(s, _)| *s < opts.gauge_floor)
+                .map(|(_, v)| *v)
+                .collect();
+            if !free.is_empty() {
+                x = back_to_placement(&x, &start, &free);
             }
-            out_levels.push(summary);
-        }
-        let stiffness = last
-            .map(|(lin, xs)| pose_stiffness(&lin, &xs, opts.scale))
-            .unwrap_or_default();
-        // Steps leave out the motions the images do not fix, but those are the current pose's: a
-        // sheet tilted on the way in slides in its own plane while the tilt is taken out. The
-        // motions free at the solution are undone here, as far as they bring the mesh back to
-        // where the user put it (they cost nothing: the images cannot tell).
-        let free: Vec<[f64; 7]> = stiffness
-            .iter()
-            .filter(|(s, _)| *s < opts.gauge_floor)
-            .map(|(_, v)| *v)
-            .collect();
-        if !free.is_empty() {
-            x = back_to_placement(&x, &start, &free);
-        }
-        Ok(Pass {
-            x,
-            levels: out_levels,
-            stiffness,
-            free,
-        })
-    };
+            Ok(Pass {
+                x,
+                levels: out_levels,
+                stiffness,
+                free,
+            })
+        };
     // The verdict on the whole solve: the cameras compared with each other where it ends and
     // where it started, each with its pixels attached where the mesh is (what the rounds solve
     // is always the pixels of the round's start, so no round sees this). Where it ends no
     // better, the placement given is kept: two noisy cameras that share only a rim drew the
     // limb 2 % of its size off its true place to where they agree 45 % worse.
-    let plain = solve_pass(false, &start, 0)?;
-    let mut found = agreement(mesh, &start, &plain.x, cameras, frame, images);
+    let compared_at = |x: &[Point3<f64>]| {
+        crate::tracker::offset::compared_texture(
+            &mesh.with_positions(x.to_vec()),
+            cameras,
+            frame,
+            images,
+        )
+        .filter(|c| c.cost.is_finite())
+    };
+    let given = compared_at(&start);
+    let judge = |end: &[Point3<f64>]| {
+        let before = given.as_ref()?;
+        compared_at(end).map(|after| agreement(before, &after))
+    };
+    let top = levels - 1;
+    let plain = solve_pass(false, &start, 0, top)?;
+    let mut found = judge(&plain.x);
     let mut chosen = plain;
     let summary = |weighed: bool, shift: [f64; 3], turn: [f64; 3], g: &Agreement| PassSummary {
         shift,
@@ -1156,7 +1188,7 @@ pub fn align(
     let widest = cameras.iter().map(|c| c.width).max().unwrap_or(0);
     let search_finest = (0..levels)
         .find(|&l| widest >> l <= SEARCH_WIDTH)
-        .unwrap_or(levels - 1);
+        .unwrap_or(top);
     for (shift, turn) in starts {
         let turned =
             nalgebra::Rotation3::from_scaled_axis(Vector3::from(turn).map(f64::to_radians));
@@ -1170,22 +1202,25 @@ pub fn align(
         // from where it ended down to full resolution and judged again.
         let search_start = shift != [0.0; 3] || turn != [0.0; 3];
         let finest = if search_start { search_finest } else { 0 };
+        // (A pass whose result compares no texture is never kept: that is the pose these
+        // passes are there to avoid.)
         let better = |g: &Agreement, best: Option<Agreement>| {
             !g.kept_given
+                && g.after_per_texture().is_finite()
                 && g.after_per_texture() * TEXTURE_PASS_GAIN
                     <= best.map_or(f64::INFINITY, |b| b.kept_per_texture())
         };
-        let Ok(mut pass) = solve_pass(true, &from, finest) else {
+        let Ok(mut pass) = solve_pass(true, &from, finest, top) else {
             continue;
         };
-        let Some(mut g) = agreement(mesh, &start, &pass.x, cameras, frame, images) else {
+        let Some(mut g) = judge(&pass.x) else {
             continue;
         };
         if finest > 0 && better(&g, found) {
-            let Ok(full) = solve_pass(true, &pass.x, 0) else {
+            let Ok(full) = solve_pass(true, &pass.x, 0, finest - 1) else {
                 continue;
             };
-            let Some(h) = agreement(mesh, &start, &full.x, cameras, frame, images) else {
+            let Some(h) = judge(&full.x) else {
                 continue;
             };
             (pass, g) = (full, h);
@@ -1274,7 +1309,7 @@ pub fn align(
 /// pixel or two, too few for a variance of its own), the median over the patches compared. A
 /// patch over a plain background (which every camera sees alike, so comparing it rewards a pose
 /// that puts the mesh there) gets almost none; a textured one keeps nearly all of its weight.
-fn weigh_by_texture(set: &mut PatchSet, triangles: &[[u32; 3]], vertices: usize, cameras: usize) {
+fn weigh_by_texture(set: &mut PatchSet, triangles: &[[u32; 3]], ring: &[Vec<u32>], cameras: usize) {
     let nt = triangles.len();
     // Per (source camera, triangle): the count, sum and sum of squares of its pixels' colours.
     // A source patch is listed once per camera it is warped into; it is counted once.
@@ -1292,12 +1327,6 @@ fn weigh_by_texture(set: &mut PatchSet, triangles: &[[u32; 3]], vertices: usize,
                 a[1 + c] += f64::from(v);
                 a[4 + c] += f64::from(v) * f64::from(v);
             }
-        }
-    }
-    let mut ring: Vec<Vec<u32>> = vec![Vec::new(); vertices];
-    for (t, tri) in triangles.iter().enumerate() {
-        for &v in tri {
-            ring[v as usize].push(t as u32);
         }
     }
     let mut texture = vec![0.0f64; cameras * nt];
@@ -1347,34 +1376,20 @@ fn weigh_by_texture(set: &mut PatchSet, triangles: &[[u32; 3]], vertices: usize,
 /// patch's weight.
 const TEXTURE_SCALE: f64 = 0.25;
 
-/// How the cameras agree with each other at the placement given (`start`) and where [`align`]
-/// ended (`end`): [`Agreement`], `None` where they compare no common triangle at either.
+/// How the cameras agree with each other at the placement given and where [`align`] ended,
+/// from their comparisons there (`offset::compared_texture`).
 fn agreement(
-    mesh: &Mesh,
-    start: &[Point3<f64>],
-    end: &[Point3<f64>],
-    cameras: &[Camera],
-    frame: u32,
-    images: &[RgbImage],
-) -> Option<Agreement> {
-    let at = |x: &[Point3<f64>]| {
-        crate::tracker::offset::compared_texture(
-            &mesh.with_positions(x.to_vec()),
-            cameras,
-            frame,
-            images,
-        )
-        .filter(|c| c.cost.is_finite())
-    };
-    let (before, after) = (at(start)?, at(end)?);
-    Some(Agreement {
+    before: &crate::tracker::offset::Compared,
+    after: &crate::tracker::offset::Compared,
+) -> Agreement {
+    Agreement {
         before: before.cost,
         after: after.cost,
         kept_given: after.cost >= before.cost,
         pixels_before: before.pixels,
         texture_before: before.texture,
         texture_after: after.texture,
-    })
+    }
 }
 
 /// `mesh` moved by a rotation of `degrees` about a random axis through its centroid and a
