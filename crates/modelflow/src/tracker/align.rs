@@ -263,7 +263,7 @@ impl Agreement {
 /// How many times better per unit of texture ([`Agreement::after_per_texture`]) the cameras
 /// must agree where [`AlignOptions::texture_pass`]'s pass ends than where the plain pass ends
 /// for it to be kept. Where both passes come back to the surface they end within a few per
-/// cent of each other on that measure (the hard sample: 1.62 and 1.6–1.7); the plain pass drawn
+/// cent of each other on that measure (the hard sample's fourteen: 1.58–1.63); the plain pass drawn
 /// over a plain background by three cameras ends 4–11 times worse than the truth (blob 1.24
 /// against 0.11, irregular 0.99–1.85 against 0.28).
 pub const TEXTURE_PASS_GAIN: f64 = 2.0;
