@@ -28,8 +28,14 @@ fn sheet_normal(p: &[Point3<f64>]) -> Vector3<f64> {
 }
 
 fn footage(preset: Preset) -> (Synthetic, Vec<modelflow::RgbImage>) {
+    footage_with(preset, None)
+}
+
+/// `preset`'s first frame at 320×240, with `cameras` cameras (the preset's own without).
+fn footage_with(preset: Preset, cameras: Option<usize>) -> (Synthetic, Vec<modelflow::RgbImage>) {
     let syn = Synthetic::generate(&SynthOptions {
         preset,
+        cameras,
         width: 320,
         height: 240,
         frames: 1,
@@ -73,16 +79,7 @@ fn three_cameras(
     preset: Preset,
     seed: u64,
 ) -> (Synthetic, Vec<modelflow::RgbImage>, modelflow::Mesh, f64) {
-    let syn = Synthetic::generate(&SynthOptions {
-        preset,
-        cameras: Some(3),
-        width: 320,
-        height: 240,
-        frames: 1,
-        ..SynthOptions::default()
-    })
-    .unwrap();
-    let images: Vec<_> = (0..syn.cameras.len()).map(|c| syn.render(c, 0)).collect();
+    let (syn, images) = footage_with(preset, Some(3));
     let size = syn.mesh.bbox_diagonal();
     let start = syn
         .mesh
