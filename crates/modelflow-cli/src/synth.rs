@@ -59,7 +59,9 @@ pub struct Args {
     #[arg(long, default_value_t = 0.0)]
     sync_error: f64,
     /// Motion blur: the shutter's opening as a fraction of a frame (0 to 1), centred on the
-    /// frame's time; each image is the mean of 8 renders over it.
+    /// frame's time; each image is the mean of renders over it (at least 8, and as many as keep
+    /// the fastest vertex within a pixel between two, up to 160: a streak). The scene file
+    /// records it as each camera's `shutter`.
     #[arg(long, default_value_t = 0.0)]
     motion_blur: f64,
     /// The object turned in the hand: degrees per frame about the first camera's image vertical

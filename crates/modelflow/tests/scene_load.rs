@@ -706,6 +706,29 @@ fn time_offset_is_read_written_and_checked() {
 }
 
 #[test]
+fn shutter_is_read_written_and_checked() {
+    let dir = tempfile::tempdir().unwrap();
+    let (path, mut file) = write_scene(dir.path());
+    // cam0's shutter stays open half of each frame (a 180° shutter).
+    file.cameras[0].shutter = 0.5;
+    file.write(&path).unwrap();
+    assert!(std::fs::read_to_string(&path)
+        .unwrap()
+        .contains("\"shutter\": 0.5"));
+    let scene = Scene::load(&path).unwrap();
+    assert_eq!(scene.cameras[0].shutter, 0.5);
+    assert_eq!(scene.cameras[1].shutter, 0.0);
+    // Sharp (0) is the default and is not written.
+    file.cameras[0].shutter = 0.0;
+    file.write(&path).unwrap();
+    assert!(!std::fs::read_to_string(&path).unwrap().contains("shutter"));
+    for bad in [1.5, -0.1, f64::NAN] {
+        let msg = broken_in_memory(|f| f.cameras[0].shutter = bad);
+        assert_names(&msg, &["cameras[0].shutter", "from 0 to 1", "180°"]);
+    }
+}
+
+#[test]
 fn a_shorter_range_other_cameras_or_another_mesh_are_checked() {
     let dir = tempfile::tempdir().unwrap();
     let (path, _) = write_scene(dir.path());

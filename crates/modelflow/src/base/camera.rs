@@ -162,6 +162,10 @@ pub struct Camera {
     /// time; 0.1: a tenth of a frame late). A rig that is not genlocked has a known sub-frame
     /// lag per camera; the tracker sees the surface moved along its velocity by that much.
     pub time_offset: f64,
+    /// How long the shutter stays open, as a fraction of a frame (0: sharp images; 0.5: a
+    /// 180° shutter). A moving surface is smeared along its motion over that time; the tracker
+    /// compares each template and frame under their common smear (`tracker::smear`).
+    pub shutter: f64,
 }
 
 impl Camera {
@@ -175,6 +179,7 @@ impl Camera {
             poses: vec![pose],
             lens: None,
             time_offset: 0.0,
+            shutter: 0.0,
         }
     }
 
@@ -195,6 +200,7 @@ impl Camera {
             poses,
             lens: None,
             time_offset: 0.0,
+            shutter: 0.0,
         }
     }
 

@@ -74,6 +74,11 @@ pub struct CameraEntry {
     /// compensates it along the surface's velocity.
     #[serde(default, skip_serializing_if = "is_zero_f64")]
     pub time_offset: f64,
+    /// How long this camera's shutter stays open, as a fraction of a frame (0 to 1; 0.5 is a
+    /// 180° shutter; 0, the default: sharp images). The tracker compares templates and frames
+    /// under the smear their motion gives both.
+    #[serde(default, skip_serializing_if = "is_zero_f64")]
+    pub shutter: f64,
     pub images: String,
     /// What the stored values are: `"auto"` (floating-point images scene-linear, integer ones
     /// encoded), `"linear"` or `"encoded"` (`input::transfer`).
@@ -476,8 +481,19 @@ impl SceneFile {
                 ),
             ));
         }
+        if !(c.shutter.is_finite() && (0.0..=1.0).contains(&c.shutter)) {
+            return Err(Error::invalid(
+                path,
+                format!("cameras[{i}].shutter"),
+                format!(
+                    "{}: expected the shutter's opening as a fraction of a frame, from 0 to 1 (0.5 is a 180° shutter)",
+                    c.shutter
+                ),
+            ));
+        }
         let mut camera = build_camera(path, i, c, self.frames.first, self.frames.last)?;
         camera.time_offset = c.time_offset;
+        camera.shutter = c.shutter;
         Ok(camera)
     }
 

@@ -151,7 +151,7 @@ pub struct SynthOptions {
     pub sync_error: f64,
     /// The shutter's opening as a fraction of a frame, centred on the frame's time (0: an
     /// instant): each image is the mean of renders spread over it, so moving texture smears
-    /// along its motion.
+    /// along its motion; the scene file records it as each camera's `shutter`.
     pub motion_blur: f64,
     /// A hand-held object turned in the hand: degrees per frame about the first camera's image
     /// vertical through the object's centre, on top of the preset's motion and `shake` (0:
@@ -202,8 +202,14 @@ impl Bump {
     }
 }
 
-/// Renders averaged per image for [`SynthOptions::motion_blur`].
+/// Renders averaged per image for [`SynthOptions::motion_blur`], at least.
 const BLUR_SAMPLES: usize = 8;
+/// ... and more where the surface moves farther over the shutter: at most this many pixels
+/// apart at the fastest vertex, so a long smear is a continuous streak as a real shutter
+/// records it, not a few sharp copies of the texture.
+const BLUR_SPACING_PX: f64 = 1.0;
+/// The most renders one image averages.
+const BLUR_SAMPLES_MAX: usize = 160;
 
 impl Default for SynthOptions {
     fn default() -> Self {
@@ -971,6 +977,8 @@ impl Synthetic {
         let lags: Vec<f64> = (0..n).map(|c| s.exposure_lag(c, n)).collect();
         for (cam, lag) in s.cameras.iter_mut().zip(lags) {
             cam.time_offset = lag;
+            // The shutter the images were rendered with, as the scene file tells it.
+            cam.shutter = opts.motion_blur;
         }
         if let Some(d) = opts.distortion.as_ref().filter(|d| !d.is_identity()) {
             for (cam, (k, _, _)) in s.cameras.iter_mut().zip(&s.krt) {
@@ -1006,6 +1014,7 @@ impl Synthetic {
             let mut moved = Camera::moving(cam.name.clone(), cam.width, cam.height, 0, poses)
                 .with_lens(cam.lens.clone());
             moved.time_offset = cam.time_offset;
+            moved.shutter = cam.shutter;
             s.cameras[b.camera] = moved;
         }
         Ok(s)
@@ -1174,8 +1183,30 @@ impl Synthetic {
         let t = frame as f64 + self.exposure_lag(camera, self.cameras.len());
         let s = self.options.motion_blur;
         if s > 0.0 {
-            (0..BLUR_SAMPLES)
-                .map(|k| t + s * ((k as f64 + 0.5) / BLUR_SAMPLES as f64 - 0.5))
+            // The longest way a vertex's image goes while the shutter is open, over four parts.
+            let proj = self.cameras[camera].at(frame);
+            let seen = |time: f64| -> Vec<Option<nalgebra::Point2<f64>>> {
+                self.positions_at(time)
+                    .iter()
+                    .map(|p| proj.project(p))
+                    .collect()
+            };
+            let mut way = vec![0.0f64; self.mesh.positions.len()];
+            let mut last = seen(t - 0.5 * s);
+            for k in 1..=4 {
+                let now = seen(t + s * (k as f64 / 4.0 - 0.5));
+                for ((w, a), b) in way.iter_mut().zip(&last).zip(&now) {
+                    if let (Some(a), Some(b)) = (a, b) {
+                        *w += (b - a).norm();
+                    }
+                }
+                last = now;
+            }
+            let longest = way.iter().cloned().fold(0.0, f64::max);
+            let n =
+                ((longest / BLUR_SPACING_PX).ceil() as usize).clamp(BLUR_SAMPLES, BLUR_SAMPLES_MAX);
+            (0..n)
+                .map(|k| t + s * ((k as f64 + 0.5) / n as f64 - 0.5))
                 .collect()
         } else {
             vec![t]
@@ -1337,6 +1368,7 @@ impl Synthetic {
                     }),
                     frame_offset: 0,
                     time_offset: cam.time_offset,
+                    shutter: cam.shutter,
                     images: format!("images/{}/{{frame:04}}.png", cam.name),
                     transfer: Default::default(),
                 })

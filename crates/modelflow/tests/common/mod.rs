@@ -48,6 +48,7 @@ pub fn camera(name: &str, eye: Point3<f64>) -> CameraEntry {
         distortion: None,
         frame_offset: 0,
         time_offset: 0.0,
+        shutter: 0.0,
         images: format!("images/{name}/{{frame:04}}.png"),
         transfer: Default::default(),
     }
