@@ -115,6 +115,12 @@ pub struct TrackArgs {
     /// the sides that come into view from drifting (0 = off; 0 to 10).
     #[arg(long, default_value_t = TrackOptions::default().lent_anchor)]
     pub lent_anchor: f64,
+    /// Every camera's shutter, as a fraction of a frame (0 to 1; 0.5 is a 180° shutter),
+    /// instead of the scene's per-camera `shutter`: the template and the frame being solved are
+    /// then compared under the smear their motions give both (fast motion under a long
+    /// shutter). 0 compares the images as they are. Default: the scene's (0 where it gives none).
+    #[arg(long, value_name = "FRACTION")]
+    pub shutter: Option<f64>,
     /// Keep template pixels that another part of the mesh hides in the frame being solved (an
     /// arm in front of the body, a fold turned over); by default they are left out, judged
     /// from the mesh where each pyramid level starts.
@@ -240,6 +246,7 @@ impl TrackArgs {
             stereo_neighbours: self.stereo_neighbours,
             approach_decrease: self.approach_decrease,
             lent_anchor: self.lent_anchor,
+            shutter: self.shutter,
             hidden_ahead: !self.keep_hidden,
             still_occluders: !self.keep_near_occluders,
             onto_surface: !self.keep_shape,

@@ -345,6 +345,35 @@ fn a_run_stopped_after_a_camera_was_found_turned_resumes_to_the_same_files() {
 }
 
 #[test]
+fn a_run_under_a_long_shutter_resumes_to_the_same_files() {
+    // With the shutter open (`motion_blur`, written into the scene), the anchor is smeared
+    // along the first frame's motion from frame 2 on: a resumed run takes that motion from the
+    // run's frame 1, and goes on exactly as the uninterrupted one.
+    let dir = tempfile::tempdir().unwrap();
+    let opts = SynthOptions {
+        width: 160,
+        height: 120,
+        frames: 7,
+        shake: 4.0,
+        motion_blur: 1.0,
+        ..SynthOptions::default()
+    };
+    let scene = write_dataset(&opts, &dir.path().join("footage"), &|_, _| {}).unwrap();
+    assert!(std::fs::read_to_string(&scene)
+        .unwrap()
+        .contains("\"shutter\": 1.0"));
+    let reference = dir.path().join("reference");
+    track(&scene, &reference, &RunOptions::default()).unwrap();
+    for stop in [1, 3] {
+        let out = dir.path().join(format!("interrupted-{stop}"));
+        interrupted_after(&scene, &out, stop);
+        assert_eq!(track(&scene, &out, &resume()).unwrap(), (6 - stop) as usize);
+        assert_eq!(meshes(&out), meshes(&reference), "byte-identical meshes");
+        assert_eq!(logs_without_times(&out), logs_without_times(&reference));
+    }
+}
+
+#[test]
 fn a_mesh_split_along_seams_resumes_to_the_files_of_an_uninterrupted_run() {
     // The tracker works on the split vertices merged; the bending term's yield depends on the
     // last frame's per-vertex information, which a resumed run reads back from a confidence

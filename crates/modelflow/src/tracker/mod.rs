@@ -24,6 +24,7 @@ pub(crate) mod pyramid;
 pub(crate) mod regularise;
 pub(crate) mod sequence;
 mod shot;
+pub(crate) mod smear;
 pub(crate) mod solve;
 pub(crate) mod sparse;
 pub(crate) mod steady;

@@ -116,6 +116,12 @@ pub struct TrackOptions {
     /// before it existed.
     #[serde(default)]
     pub steady_cameras: bool,
+    /// Every camera's shutter, as a fraction of a frame (0 to 1), instead of the scene's
+    /// per-camera `shutter` (`None`: the scene's; `Some(0.0)`: compare the images as they are,
+    /// as runs made before it existed did). With a shutter, each template and the frame being
+    /// solved are compared under the smear their motions give both (`tracker::smear`).
+    #[serde(default)]
+    pub shutter: Option<f64>,
 }
 
 fn default_consensus() -> f64 {
@@ -155,6 +161,7 @@ impl Default for TrackOptions {
             still_occluders: true,
             onto_surface: true,
             steady_cameras: true,
+            shutter: None,
         }
     }
 }
@@ -217,6 +224,16 @@ impl TrackOptions {
     /// ranges") before any work, naming the option as `modelflow track` spells it. Non-finite
     /// values are always refused: they would leave the mesh unmoved or never finish.
     pub fn validate(&self) -> Result<()> {
+        if let Some(v) = self.shutter {
+            Range {
+                option: "--shutter",
+                value: v,
+                low: (0.0, true),
+                high: (1.0, true),
+                why: "the shutter's opening as a fraction of a frame; 0 = sharp",
+            }
+            .check()?;
+        }
         let s = &self.solver;
         let r = &self.regularisation;
         let ranges = [
@@ -595,5 +612,32 @@ mod tests {
             },
             TrackOptions::default()
         );
+    }
+
+    #[test]
+    fn the_shutter_is_the_scene_s_unless_given_and_checked_when_given() {
+        // Runs made before the shutter was an option read no field, and compared the images as
+        // they were, which is what the scene's shutter (0 in every scene made before it
+        // existed) gives them.
+        assert_eq!(TrackOptions::default().shutter, None);
+        assert_eq!(read_without(&["shutter"]), TrackOptions::default());
+        for ok in [0.0, 0.5, 1.0] {
+            let o = TrackOptions {
+                shutter: Some(ok),
+                ..TrackOptions::default()
+            };
+            o.validate().unwrap();
+        }
+        for bad in [-0.1, 1.5, f64::NAN] {
+            let o = TrackOptions {
+                shutter: Some(bad),
+                ..TrackOptions::default()
+            };
+            let msg = o.validate().unwrap_err().to_string();
+            assert!(
+                msg.contains("--shutter") && msg.contains("fraction of a frame"),
+                "{msg}"
+            );
+        }
     }
 }

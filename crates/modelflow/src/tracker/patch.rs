@@ -33,6 +33,10 @@ pub struct Patch {
     pub source: u16,
     /// Weight of the template this patch comes from.
     pub weight: f32,
+    /// Whether the pixels come from the shot's first frame (the anchor, and its views lent to
+    /// other cameras): under an open shutter they are compared with the frame being solved
+    /// smeared along the first frame's motion, not the previous frame's (`smear`).
+    pub first: bool,
     pub start: u32,
     pub end: u32,
 }
@@ -224,6 +228,7 @@ impl<'a> CameraPatches<'a> {
                 camera: self.camera,
                 source: self.camera,
                 weight: self.weight,
+                first: false,
                 start: offset + start as u32,
                 end: offset + k as u32,
             });
@@ -409,6 +414,7 @@ mod tests {
             camera: 0,
             source: 0,
             weight: 1.0,
+            first: false,
             start,
             end,
         };

@@ -31,6 +31,7 @@ use crate::tracker::options::{OptionsUsed, TrackOptions};
 use crate::tracker::patch::{CameraPatches, Patch, PatchOptions, PatchSet};
 use crate::tracker::pyramid::Pyramid;
 use crate::tracker::regularise::{self, EdgeSet, FrameContext, Regulariser};
+use crate::tracker::smear::{self, Velocities};
 use crate::tracker::solve::{
     moved_on, Interpolation, Lag, Loss, Motion, Problem, SolveSummary, SolverOptions, StageRole,
     StopReason, VertexConfidence,
@@ -275,6 +276,15 @@ struct Template {
     thumbs: Vec<BlockMeans>,
 }
 
+/// The first frame as the anchor's smear needs it (`Tracker::first`).
+struct FirstFrame {
+    positions: Vec<Point3<f64>>,
+    pyramids: Vec<Pyramid>,
+    frame: u32,
+    /// Per vertex, per frame: the forward difference to the next frame solved.
+    velocity: Option<Vec<Vector3<f64>>>,
+}
+
 /// Frame-by-frame tracker state, in memory.
 pub struct Tracker {
     triangles: Vec<[u32; 3]>,
@@ -300,6 +310,9 @@ pub struct Tracker {
     information_at_first: f64,
     /// The first frame (where the anchor was taken).
     anchor_frame: u32,
+    /// The first frame's mesh and images, and once the frame after it is solved its velocity:
+    /// kept when a camera's shutter is open, to smear the anchor's pixels (`smear`).
+    first: Option<FirstFrame>,
     prev: Template,
     before_prev: Option<Vec<Point3<f64>>>,
     /// The frame `before_prev` was solved for.
@@ -503,6 +516,7 @@ impl Tracker {
             contradicted_by_camera_at_first: Vec::new(),
             information_at_first: 0.0,
             anchor_frame: frame,
+            first: None,
             prev: Template {
                 positions: mesh.positions.clone(),
                 pyramids,
@@ -556,6 +570,14 @@ impl Tracker {
             t.contradicted_by_camera_at_first,
         ) = t.anchor_patches(&t.prev, None);
         t.information_at_first = t.information_at_first();
+        if (0..t.cameras.len()).any(|c| t.shutter(c) > 0.0) {
+            t.first = Some(FirstFrame {
+                positions: t.prev.positions.clone(),
+                pyramids: t.prev.pyramids.clone(),
+                frame,
+                velocity: None,
+            });
+        }
         Ok(t)
     }
 
@@ -646,7 +668,7 @@ impl Tracker {
     /// (as [`prepare`]d), its solved positions and, when there is one, the solved positions of
     /// the frame before it (for the constant-velocity prediction). Continuing from here gives
     /// exactly what an uninterrupted run gives (how `--resume` continues a run) when, for
-    /// cameras with a `time_offset`, `first_next` gives the solved positions of the frame after
+    /// cameras with a `time_offset` or an open shutter, `first_next` gives the solved positions of the frame after
     /// the first (the anchor is taken where those cameras saw the surface move); it is read
     /// only on a tracker fresh from [`Tracker::new`]. `confidence` is the frame's
     /// [`FrameReport::confidence`] (on the given mesh's vertices), when it had one.
@@ -679,6 +701,11 @@ impl Tracker {
         let positions = self.merged(positions);
         let before = before.map(|b| self.merged(b));
         let first_next = first_next.map(|n| self.merged(n));
+        if let (Some(n), Some(first)) = (&first_next, &mut self.first) {
+            if first.velocity.is_none() && self.prev.frame == first.frame {
+                first.velocity = Some(velocity_of(&first.positions, n, 1.0));
+            }
+        }
         if let Some(n) = &first_next {
             if self.prev.frame == self.anchor_frame && self.before_prev.is_none() {
                 (
@@ -1166,6 +1193,191 @@ impl Tracker {
         }
     }
 
+    /// Camera `c`'s shutter, as a fraction of a frame: the options' when they give one, else
+    /// the scene's.
+    fn shutter(&self, c: usize) -> f64 {
+        self.opts.shutter.unwrap_or(self.cameras[c].shutter)
+    }
+
+    /// The velocities the smears of this frame's level are taken from (`smear`), with the mesh
+    /// of the frame being solved at `estimate`; `None` when every shutter is closed, or while no
+    /// velocity is known yet (the first frame solved, or after `set_positions`: both sides are
+    /// then compared as the cameras saw them, which is exact for a steady motion) or the first
+    /// frame's is not (the anchor's smear needs it).
+    fn smear_velocities(&self, frame: u32, estimate: &[Point3<f64>]) -> Option<Velocities> {
+        self.first.as_ref()?.velocity.as_ref()?;
+        let before = self.before_prev.as_deref()?;
+        let gap_before = self.prev.frame.saturating_sub(self.before_frame).max(1) as f64;
+        let gap = frame.saturating_sub(self.prev.frame).max(1) as f64;
+        Some(Velocities::new(
+            before,
+            gap_before,
+            &self.prev.positions,
+            estimate,
+            gap,
+        ))
+    }
+
+    /// Each camera's image of the frame being solved at `level`, smeared by what it lacks of a
+    /// template's smear (`motions`) where its shutter is open (`smear::smeared_target`, with
+    /// the mesh at `estimate`); `None` for a camera left as it is.
+    fn smeared_targets(
+        &self,
+        frame: u32,
+        level: usize,
+        next: &[Pyramid],
+        estimate: &[Point3<f64>],
+        motions: &smear::Motions,
+    ) -> Vec<Option<RgbImage>> {
+        (0..self.cameras.len())
+            .into_par_iter()
+            .map(|c| {
+                let s = self.shutter(c);
+                (s > 0.0).then(|| {
+                    // A camera that records late or early sees the mesh moved on (`Lag`).
+                    let d = self.cameras[c].time_offset;
+                    let gap = frame.saturating_sub(self.prev.frame).max(1) as f64;
+                    let seen: std::borrow::Cow<[Point3<f64>]> = if d != 0.0 {
+                        estimate
+                            .iter()
+                            .zip(&self.prev.positions)
+                            .map(|(x, p)| moved_on(x, p, d, gap))
+                            .collect()
+                    } else {
+                        std::borrow::Cow::Borrowed(estimate)
+                    };
+                    smear::smeared_target(
+                        &next[c].levels[level],
+                        &level_projection(self.cameras[c].at(frame), level),
+                        &self.triangles,
+                        &seen,
+                        motions,
+                        s,
+                    )
+                })
+            })
+            .collect()
+    }
+
+    /// The previous frame's and the anchor's pixels of `set` (patches `tpl` the previous
+    /// frame's, `anchor` the first frame's) re-read under the smear of the frame being solved
+    /// (`smear::smear_templates`).
+    fn smear_template_pixels(
+        &self,
+        set: &mut PatchSet,
+        tpl: std::ops::Range<usize>,
+        anchor: std::ops::Range<usize>,
+        level: usize,
+        v: &Velocities,
+    ) {
+        let shutter: Vec<f64> = (0..self.cameras.len()).map(|c| self.shutter(c)).collect();
+        // Where each camera saw the template's mesh: moved along its velocity for a camera that
+        // records late or early, as `template_patches` took its pixels.
+        let seen_of = |positions: &[Point3<f64>], velocity: Option<&[Vector3<f64>]>| {
+            self.cameras
+                .iter()
+                .map(|cam| match velocity {
+                    Some(v) if cam.time_offset != 0.0 => positions
+                        .iter()
+                        .zip(v)
+                        .map(|(p, v)| p + v * cam.time_offset)
+                        .collect(),
+                    _ => positions.to_vec(),
+                })
+                .collect::<Vec<Vec<Point3<f64>>>>()
+        };
+        let gap_before = self.prev.frame.saturating_sub(self.before_frame).max(1) as f64;
+        let prev_velocity: Option<Vec<Vector3<f64>>> = self
+            .before_prev
+            .as_deref()
+            .map(|b| velocity_of(b, &self.prev.positions, gap_before));
+        let seen = seen_of(&self.prev.positions, prev_velocity.as_deref());
+        let projections: Vec<Projection> = self
+            .cameras
+            .iter()
+            .map(|c| level_projection(c.at(self.prev.frame), level))
+            .collect();
+        let source = smear::Source {
+            seen: seen.iter().map(Vec::as_slice).collect(),
+            images: self
+                .prev
+                .pyramids
+                .iter()
+                .map(|p| &p.levels[level])
+                .collect(),
+            projections: &projections,
+        };
+        let outlines = |source: &smear::Source| -> Vec<IndexBuffer> {
+            (0..self.cameras.len())
+                .into_par_iter()
+                .map(|c| {
+                    let im = source.images[c];
+                    rasterize(
+                        source.seen[c],
+                        &self.triangles,
+                        &source.projections[c],
+                        im.width(),
+                        im.height(),
+                    )
+                })
+                .collect()
+        };
+        let mut keep: Vec<Vec<bool>> = Vec::with_capacity(set.patches.len());
+        let motions = smear::Motions {
+            template: &v.template,
+            target: &v.target,
+        };
+        let kept = smear::smear_templates(
+            set,
+            tpl.clone(),
+            &self.triangles,
+            &source,
+            &outlines(&source),
+            &motions,
+            &shutter,
+        );
+        let whole = |p: &Patch| vec![true; (p.end - p.start) as usize];
+        keep.extend(set.patches[..tpl.start].iter().map(whole));
+        keep.extend(kept);
+        let keep_rest = |set: &PatchSet, keep: &mut Vec<Vec<bool>>, from: usize| {
+            keep.extend(set.patches[from..].iter().map(whole));
+        };
+        let first_velocity = self.first.as_ref().and_then(|f| f.velocity.as_ref());
+        let (Some(first), Some(velocity)) = (&self.first, first_velocity) else {
+            keep_rest(set, &mut keep, tpl.end);
+            set.retain_pixels(&keep);
+            return;
+        };
+        keep.extend(set.patches[tpl.end..anchor.start].iter().map(whole));
+        let seen = seen_of(&first.positions, Some(velocity));
+        let projections: Vec<Projection> = self
+            .cameras
+            .iter()
+            .map(|c| level_projection(c.at(first.frame), level))
+            .collect();
+        let source = smear::Source {
+            seen: seen.iter().map(Vec::as_slice).collect(),
+            images: first.pyramids.iter().map(|p| &p.levels[level]).collect(),
+            projections: &projections,
+        };
+        let motions = smear::Motions {
+            template: velocity,
+            target: &v.target,
+        };
+        let kept = smear::smear_templates(
+            set,
+            anchor.clone(),
+            &self.triangles,
+            &source,
+            &outlines(&source),
+            &motions,
+            &shutter,
+        );
+        keep.extend(kept);
+        keep_rest(set, &mut keep, anchor.end);
+        set.retain_pixels(&keep);
+    }
+
     fn consensus_options(&self) -> ConsensusOptions {
         ConsensusOptions {
             k: self.opts.consensus,
@@ -1313,9 +1525,8 @@ impl Tracker {
         x: &[Point3<f64>],
         frame: u32,
         level: usize,
-        next: &[Pyramid],
+        images: &[&RgbImage],
     ) -> (PatchSet, Vec<IndexBuffer>) {
-        let images: Vec<&RgbImage> = next.iter().map(|p| &p.levels[level]).collect();
         let projections: Vec<Projection> = self
             .cameras
             .iter()
@@ -1342,14 +1553,14 @@ impl Tracker {
         // same level (`leave_out_hidden`), which looks at the same mesh.
         let buffers: Vec<IndexBuffer> = projections
             .par_iter()
-            .zip(&images)
+            .zip(images)
             .map(|(p, im)| rasterize(x, &self.triangles, p, im.width(), im.height()))
             .collect();
         let mut set = align::cross_patches_in(
             x,
             &self.triangles,
             &projections,
-            &images,
+            images,
             Some(&buffers),
             &popts,
             self.opts.stereo_neighbours as usize,
@@ -1405,7 +1616,7 @@ impl Tracker {
                     return PatchSet::default();
                 }
                 let TemplatePatches {
-                    set,
+                    mut set,
                     contradicted: dropped,
                     by_camera: cams,
                     ..
@@ -1417,6 +1628,9 @@ impl Tracker {
                     true,
                     None,
                 );
+                for p in &mut set.patches {
+                    p.first = true;
+                }
                 if l == self.opts.finest_level {
                     share = share_of(dropped, set.pixels.len());
                     by_camera = cams.iter().map(CameraShare::share).collect();
@@ -1645,8 +1859,39 @@ impl Tracker {
                 out.contradicted_by_camera =
                     template.by_camera.iter().map(CameraShare::share).collect();
             }
-            let (mut set, near_still, stereo) =
-                self.level_patches(frame, level, template, &x, &next, &predicted_shape);
+            // Under an open shutter, the template and this frame are compared under their
+            // common smear (`smear`), taken with the mesh where this level starts (the
+            // prediction at the coarsest level, where it is tried first).
+            let estimate: &[Point3<f64>] = if level + 1 == levels {
+                &predicted_shape
+            } else {
+                &x
+            };
+            let smear_v = self.smear_velocities(frame, estimate);
+            let smeared = smear_v.as_ref().map(|v| {
+                let motions = smear::Motions {
+                    template: &v.template,
+                    target: &v.target,
+                };
+                self.smeared_targets(frame, level, &next, estimate, &motions)
+            });
+            let targets: Vec<&RgbImage> = (0..n)
+                .map(|c| {
+                    smeared
+                        .as_ref()
+                        .and_then(|s| s[c].as_ref())
+                        .unwrap_or(&next[c].levels[level])
+                })
+                .collect();
+            let (mut set, near_still, stereo) = self.level_patches(
+                frame,
+                level,
+                template,
+                &x,
+                &targets,
+                &predicted_shape,
+                smear_v.as_ref(),
+            );
             let (stereo_x0, buffers) = stereo.unzip();
             if level == finest {
                 out.near_still = near_still;
@@ -1673,6 +1918,38 @@ impl Tracker {
                     out.hidden = hidden;
                 }
             }
+            // The first frame's patches are compared with this frame smeared along the first
+            // frame's motion: as cameras of their own, `n` after the real ones, posed and timed
+            // as they are.
+            let first_velocity = self.first.as_ref().and_then(|f| f.velocity.as_ref());
+            let first_smeared = match (&smear_v, first_velocity) {
+                (Some(v), Some(velocity)) if set.patches.iter().any(|p| p.first) => {
+                    for p in set.patches.iter_mut().filter(|p| p.first) {
+                        p.camera += n as u16;
+                        p.source += n as u16;
+                    }
+                    let motions = smear::Motions {
+                        template: velocity,
+                        target: &v.target,
+                    };
+                    Some(self.smeared_targets(frame, level, &next, estimate, &motions))
+                }
+                _ => None,
+            };
+            let targets: Vec<&RgbImage> = match &first_smeared {
+                Some(own) => {
+                    let firsts: Vec<&RgbImage> = (0..n)
+                        .map(|c| own[c].as_ref().unwrap_or(targets[c]))
+                        .collect();
+                    targets.iter().copied().chain(firsts).collect()
+                }
+                None => targets,
+            };
+            let offsets_used: Vec<f64> = if targets.len() > n {
+                offsets.iter().chain(&offsets).copied().collect()
+            } else {
+                offsets.clone()
+            };
             let by_triangle = set.by_triangle();
             out.timing.patches += tp.elapsed().as_secs_f64();
             let input = LevelInput {
@@ -1681,9 +1958,9 @@ impl Tracker {
                 set: &set,
                 by_triangle: &by_triangle,
                 stereo_x0: stereo_x0.as_deref(),
-                next: &next,
+                targets: &targets,
                 lag: (lagged && self.before_prev.is_some()).then_some(Lag {
-                    offsets: &offsets,
+                    offsets: &offsets_used,
                     previous: &self.prev.positions,
                     gap: frame.saturating_sub(self.prev.frame).max(1) as f64,
                 }),
@@ -1849,6 +2126,12 @@ impl Tracker {
                     thumbs: next_thumbs,
                 },
             );
+            if let Some(first) = self.first.as_mut().filter(|f| f.velocity.is_none()) {
+                if first_motion && old.frame == first.frame {
+                    let gap = frame.saturating_sub(old.frame).max(1) as f64;
+                    first.velocity = Some(velocity_of(&first.positions, &self.prev.positions, gap));
+                }
+            }
             if first_motion && lagged {
                 // The first frame's velocity is known now: cameras that recorded it late or
                 // early saw the surface moved along it, so their anchor pixels are taken again
@@ -2023,14 +2306,16 @@ impl Tracker {
     /// returned: the pixels left out near still occluders, the template's and the anchor's, and
     /// with `--stereo` each camera's index buffer of `x` at this level (beside `x`, for
     /// `leave_out_hidden`).
+    #[allow(clippy::too_many_arguments)]
     fn level_patches(
         &self,
         frame: u32,
         level: usize,
         template: TemplatePatches,
         x: &[Point3<f64>],
-        next: &[Pyramid],
+        targets: &[&RgbImage],
         predicted: &[Point3<f64>],
+        smear: Option<&Velocities>,
     ) -> (PatchSet, usize, Option<StereoView>) {
         let TemplatePatches {
             mut set,
@@ -2040,6 +2325,8 @@ impl Tracker {
             ..
         } = template;
         let ncam = self.cameras.len();
+        let from_previous = 0..set.patches.len();
+        let mut from_first = set.patches.len()..set.patches.len();
         if let Some(anchor) = self.anchor.get(level) {
             // Anchor patches only where the triangle is seen in the previous frame too
             // (otherwise it has turned away or been covered by another part of the mesh since
@@ -2075,9 +2362,13 @@ impl Tracker {
                     set.push_copy(anchor, *p);
                 }
             }
+            from_first.end = set.patches.len();
             if self.opts.lent_anchor > 0.0 {
                 self.lend_anchor(anchor, &cover, &mut set);
             }
+        }
+        if let Some(v) = smear {
+            self.smear_template_pixels(&mut set, from_previous, from_first, level, v);
         }
         let stereo = self.opts.stereo > 0.0
             && ncam > 1
@@ -2086,7 +2377,7 @@ impl Tracker {
             return (set, near_still, None);
         }
         let x0 = x.to_vec();
-        let (stereo, buffers) = self.stereo_patches(&x0, frame, level, next);
+        let (stereo, buffers) = self.stereo_patches(&x0, frame, level, targets);
         merge_into(&mut set, stereo);
         (set, near_still, Some((x0, buffers)))
     }
@@ -2147,7 +2438,7 @@ impl Tracker {
             set,
             by_triangle,
             stereo_x0,
-            next,
+            targets,
             lag,
         } = *input;
         let (levels, finest) = (self.opts.levels, self.opts.finest_level);
@@ -2192,9 +2483,12 @@ impl Tracker {
                 &self.triangles,
                 set,
                 by_triangle,
-                next.iter().map(|p| &p.levels[level]).collect(),
+                targets.to_vec(),
+                // The first frame's patches' own cameras (`solve_frame`) repeat the rig.
                 self.cameras
                     .iter()
+                    .cycle()
+                    .take(targets.len())
                     .map(|c| level_projection(c.at(frame), level))
                     .collect(),
                 &self.pattern,
@@ -2359,7 +2653,9 @@ struct LevelInput<'a> {
     by_triangle: &'a [(u32, std::ops::Range<usize>)],
     /// The mesh the `--stereo` comparisons were taken at (their moving source); `None`: none.
     stereo_x0: Option<&'a [Point3<f64>]>,
-    next: &'a [Pyramid],
+    /// The images each camera's patches are compared with at this level: the next frame's, smeared
+    /// where a shutter is open (`smear`).
+    targets: &'a [&'a RgbImage],
     lag: Option<Lag<'a>>,
 }
 
@@ -2543,6 +2839,11 @@ fn marked(flags: &[bool]) -> Vec<u16> {
 }
 
 /// `extra`'s patches and pixels appended to `set`'s.
+/// Per vertex, `(to − from) / gap`: a velocity per frame.
+fn velocity_of(from: &[Point3<f64>], to: &[Point3<f64>], gap: f64) -> Vec<Vector3<f64>> {
+    from.iter().zip(to).map(|(a, b)| (b - a) / gap).collect()
+}
+
 fn merge_into(set: &mut PatchSet, extra: PatchSet) {
     let off = set.pixels.len() as u32;
     set.pixels.extend(extra.pixels);

@@ -162,8 +162,13 @@ fn track_into(
             let positions = folder.read_positions(last)?;
             let before = folder.read_positions(last - 1)?;
             // Cameras that record late or early took their anchor where the surface had moved
-            // by the frame after the first.
-            let first_next = if scene.cameras.iter().any(|c| c.time_offset != 0.0) {
+            // by the frame after the first; under an open shutter the anchor is smeared along
+            // the first frame's motion (`smear`).
+            let first_next = if scene
+                .cameras
+                .iter()
+                .any(|c| c.time_offset != 0.0 || opts.shutter.unwrap_or(c.shutter) > 0.0)
+            {
                 Some(folder.read_positions(scene.first + 1)?)
             } else {
                 None
