@@ -104,7 +104,8 @@ pub struct FrameReport {
     /// images give its mesh: the sum over the vertices of the smallest eigenvalue of each
     /// vertex's photometric normal-equation block (the confidence file's `information`), at the
     /// solution against the same sum for the first frame's templates compared with the first
-    /// frame itself. Logs written before it existed read as 1.
+    /// frame itself (under an open shutter, times the share of texture the smeared images kept:
+    /// `smear::Texture::kept`). Logs written before it existed read as 1.
     #[serde(default = "one")]
     pub information_share: f64,
     /// The frame may be wrong, by its own report ([`health::own_concerns`]): `contradicted_share`
@@ -1228,7 +1229,7 @@ impl Tracker {
         next: &[Pyramid],
         estimate: &[Point3<f64>],
         motions: &smear::Motions,
-    ) -> Vec<Option<RgbImage>> {
+    ) -> Vec<Option<(RgbImage, smear::Texture)>> {
         (0..self.cameras.len())
             .into_par_iter()
             .map(|c| {
@@ -1796,6 +1797,7 @@ impl Tracker {
             hidden: 0,
             near_still: 0,
             rejected_share: 0.0,
+            texture_kept: 1.0,
             stop: StopReason::NoData,
             confidence: Vec::new(),
             timing: StepTiming {
@@ -1879,7 +1881,7 @@ impl Tracker {
                 .map(|c| {
                     smeared
                         .as_ref()
-                        .and_then(|s| s[c].as_ref())
+                        .and_then(|s| s[c].as_ref().map(|(image, _)| image))
                         .unwrap_or(&next[c].levels[level])
                 })
                 .collect();
@@ -1895,6 +1897,15 @@ impl Tracker {
             let (stereo_x0, buffers) = stereo.unzip();
             if level == finest {
                 out.near_still = near_still;
+                // Under a smear the images show less texture than the first frame's did: the
+                // frame's information is measured against the share they kept.
+                let textures: Vec<smear::Texture> = smeared
+                    .iter()
+                    .flatten()
+                    .flatten()
+                    .map(|(_, t)| *t)
+                    .collect();
+                out.texture_kept = smear::Texture::kept(&textures).unwrap_or(1.0);
             }
             if next_left_out.iter().any(|&b| b) {
                 // A camera whose image of this frame is blank or repeated is compared with
@@ -1939,7 +1950,7 @@ impl Tracker {
             let targets: Vec<&RgbImage> = match &first_smeared {
                 Some(own) => {
                     let firsts: Vec<&RgbImage> = (0..n)
-                        .map(|c| own[c].as_ref().unwrap_or(targets[c]))
+                        .map(|c| own[c].as_ref().map_or(targets[c], |(image, _)| image))
                         .collect();
                     targets.iter().copied().chain(firsts).collect()
                 }
@@ -1975,7 +1986,7 @@ impl Tracker {
         let iterations = out.summaries.iter().map(|s| s.iterations.len()).sum();
         let information: f64 = out.confidence.iter().map(|c| c.information).sum();
         let information_share = if self.information_at_first > 0.0 {
-            information / self.information_at_first
+            information / (self.information_at_first * out.texture_kept.max(f64::MIN_POSITIVE))
         } else {
             1.0
         };
@@ -2673,6 +2684,9 @@ struct Outcome {
     hidden: usize,
     near_still: usize,
     rejected_share: f64,
+    /// Under an open shutter, the share of its weakest texture the finest level's images kept
+    /// through the smear (`smear::Texture::kept`); 1 without.
+    texture_kept: f64,
     stop: StopReason,
     confidence: Vec<VertexConfidence>,
     timing: StepTiming,

@@ -179,7 +179,8 @@ pub(crate) fn common(
 /// lacks of a template's smear (`motions`; [`common`]) for a shutter of `shutter` frames,
 /// wherever the mesh at `x` covers it (`proj`: that camera at that level): per pixel, from the
 /// motions of the centroid of the triangle that the z-buffer puts there. The rest of the
-/// image, which no template pixel is compared with, is left as it is.
+/// image, which no template pixel is compared with, is left as it is. Also the texture the
+/// smear left there ([`Texture`]).
 pub(crate) fn smeared_target(
     img: &RgbImage,
     proj: &Projection,
@@ -187,7 +188,7 @@ pub(crate) fn smeared_target(
     x: &[Point3<f64>],
     motions: &Motions,
     shutter: f64,
-) -> RgbImage {
+) -> (RgbImage, Texture) {
     let (w, h) = (img.width(), img.height());
     let ib = rasterize(x, triangles, proj, w, h);
     let per_triangle: Vec<[Vector2<f64>; 2]> = triangles
@@ -208,7 +209,7 @@ pub(crate) fn smeared_target(
     let win = ib.window;
     let owners = ib.owners();
     if win.width == 0 {
-        return out;
+        return (out, Texture::default());
     }
     out.pixels_mut()
         .par_chunks_mut(w)
@@ -228,7 +229,70 @@ pub(crate) fn smeared_target(
                 }
             }
         });
-    out
+    let texture = Texture {
+        before: structure(img, &ib),
+        after: structure(&out, &ib),
+    };
+    (out, texture)
+}
+
+/// How much texture a smear left where the mesh is: the structure tensor (`Σ ∇I·∇Iᵀ` over the
+/// pixels the mesh covers, the colour channels summed; `[xx, xy, yy]`) of the image before and
+/// after it.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub(crate) struct Texture {
+    pub before: [f64; 3],
+    pub after: [f64; 3],
+}
+
+impl Texture {
+    /// The share of the weakest direction's texture the smears kept, over several cameras'
+    /// (each camera's weakest direction, summed): what the frame's `information_share`, the
+    /// least-constrained direction of each vertex, is measured against under a smear.
+    pub(crate) fn kept(textures: &[Texture]) -> Option<f64> {
+        let least = |t: [f64; 3]| {
+            let (m, r) = (
+                0.5 * (t[0] + t[2]),
+                (0.25 * (t[0] - t[2]).powi(2) + t[1] * t[1]).sqrt(),
+            );
+            (m - r).max(0.0)
+        };
+        let before: f64 = textures.iter().map(|t| least(t.before)).sum();
+        let after: f64 = textures.iter().map(|t| least(t.after)).sum();
+        (before > 0.0).then(|| (after / before).min(1.0))
+    }
+}
+
+/// The structure tensor of `img` over the pixels `ib` covers (central differences; the
+/// image's border pixels left out).
+fn structure(img: &RgbImage, ib: &IndexBuffer) -> [f64; 3] {
+    let (w, h) = (img.width(), img.height());
+    let win = ib.window;
+    let owners = ib.owners();
+    (win.y0.max(1)..(win.y0 + win.height).min(h.saturating_sub(1)))
+        .into_par_iter()
+        .map(|y| {
+            let mut t = [0.0f64; 3];
+            for x in win.x0.max(1)..(win.x0 + win.width).min(w.saturating_sub(1)) {
+                if owners[(y - win.y0) * win.width + x - win.x0] == NONE {
+                    continue;
+                }
+                let (l, r) = (img.get(x - 1, y), img.get(x + 1, y));
+                let (u, d) = (img.get(x, y - 1), img.get(x, y + 1));
+                for k in 0..3 {
+                    let gx = 0.5 * (r[k] - l[k]) as f64;
+                    let gy = 0.5 * (d[k] - u[k]) as f64;
+                    t[0] += gx * gx;
+                    t[1] += gx * gy;
+                    t[2] += gy * gy;
+                }
+            }
+            t
+        })
+        .collect::<Vec<_>>()
+        .into_iter()
+        // Summed in row order: the same whatever the thread count.
+        .fold([0.0; 3], |a, b| [a[0] + b[0], a[1] + b[1], a[2] + b[2]])
 }
 
 /// Re-reads the colour of every pixel of `patches` (a template's, whose pixels come from
@@ -380,6 +444,33 @@ mod tests {
                 "{own:?} {other:?}: {lhs} {rhs}"
             );
         }
+    }
+
+    #[test]
+    fn the_texture_kept_is_the_weakest_direction_s_summed_over_cameras() {
+        // Camera 0 textured alike in x and y, its smear along x keeping a quarter of the x
+        // texture; camera 1 unsmeared, with twice the texture. The weakest directions: 1 + 2
+        // before, 0.25 + 2 after.
+        let t = [
+            Texture {
+                before: [1.0, 0.0, 1.0],
+                after: [0.25, 0.0, 1.0],
+            },
+            Texture {
+                before: [2.0, 0.0, 2.0],
+                after: [2.0, 0.0, 2.0],
+            },
+        ];
+        let kept = Texture::kept(&t).unwrap();
+        assert!((kept - 2.25 / 3.0).abs() < 1e-12, "{kept}");
+        // Rotated tensors keep their eigenvalues: a 45° smear of an isotropic texture.
+        let r = Texture {
+            before: [1.0, 0.0, 1.0],
+            after: [0.625, -0.375, 0.625],
+        };
+        assert!((Texture::kept(&[r]).unwrap() - 0.25).abs() < 1e-12);
+        // Nothing to keep where there was no texture.
+        assert_eq!(Texture::kept(&[Texture::default()]), None);
     }
 
     #[test]
