@@ -2,6 +2,7 @@
 //! [`OptionsUsed`], the same resolved and with what they imply, which the tracker runs with and
 //! a run's manifest records (like Ceres' summary, which reports options as given and as used).
 
+use crate::base::camera::Camera;
 use crate::error::{Error, Result};
 use crate::tracker::pyramid::auto_levels;
 use crate::tracker::regularise::{self, Regularisation};
@@ -220,6 +221,12 @@ impl Range {
 }
 
 impl TrackOptions {
+    /// A camera's shutter as these options have the tracker take it: theirs when they give one,
+    /// else the camera's own (the scene's).
+    pub fn shutter_of(&self, camera: &Camera) -> f64 {
+        self.shutter.unwrap_or(camera.shutter)
+    }
+
     /// Checks every option against its documented range (`docs/tracker.md`, "Options and their
     /// ranges") before any work, naming the option as `modelflow track` spells it. Non-finite
     /// values are always refused: they would leave the mesh unmoved or never finish.

@@ -669,8 +669,9 @@ impl Tracker {
     /// (as [`prepare`]d), its solved positions and, when there is one, the solved positions of
     /// the frame before it (for the constant-velocity prediction). Continuing from here gives
     /// exactly what an uninterrupted run gives (how `--resume` continues a run) when, for
-    /// cameras with a `time_offset` or an open shutter, `first_next` gives the solved positions of the frame after
-    /// the first (the anchor is taken where those cameras saw the surface move); it is read
+    /// cameras with a `time_offset` or an open shutter, `first_next` gives the solved positions
+    /// of the frame after the first (the anchor is taken where those cameras saw the surface
+    /// move, and smeared along that motion); it is read
     /// only on a tracker fresh from [`Tracker::new`]. `confidence` is the frame's
     /// [`FrameReport::confidence`] (on the given mesh's vertices), when it had one.
     pub fn restore(
@@ -1197,7 +1198,7 @@ impl Tracker {
     /// Camera `c`'s shutter, as a fraction of a frame: the options' when they give one, else
     /// the scene's.
     fn shutter(&self, c: usize) -> f64 {
-        self.opts.shutter.unwrap_or(self.cameras[c].shutter)
+        self.opts.shutter_of(&self.cameras[c])
     }
 
     /// The velocities the smears of this frame's level are taken from (`smear`), with the mesh
@@ -1219,17 +1220,19 @@ impl Tracker {
         ))
     }
 
-    /// Each camera's image of the frame being solved at `level`, smeared by what it lacks of a
-    /// template's smear (`motions`) where its shutter is open (`smear::smeared_target`, with
-    /// the mesh at `estimate`); `None` for a camera left as it is.
+    /// Each camera's image of the frame being solved at `level`, smeared by what it lacks of
+    /// each template's smear (`motions`, one image each) where its shutter is open
+    /// (`smear::smeared_targets`, with the mesh at `estimate`), and with `measure` the texture
+    /// the first smear kept; `None` for a camera left as it is.
     fn smeared_targets(
         &self,
         frame: u32,
         level: usize,
         next: &[Pyramid],
         estimate: &[Point3<f64>],
-        motions: &smear::Motions,
-    ) -> Vec<Option<(RgbImage, smear::Texture)>> {
+        motions: &[smear::Motions],
+        measure: bool,
+    ) -> Vec<Option<(Vec<RgbImage>, Option<smear::Texture>)>> {
         (0..self.cameras.len())
             .into_par_iter()
             .map(|c| {
@@ -1247,13 +1250,14 @@ impl Tracker {
                     } else {
                         std::borrow::Cow::Borrowed(estimate)
                     };
-                    smear::smeared_target(
+                    smear::smeared_targets(
                         &next[c].levels[level],
                         &level_projection(self.cameras[c].at(frame), level),
                         &self.triangles,
                         &seen,
                         motions,
                         s,
+                        measure,
                     )
                 })
             })
@@ -1261,8 +1265,8 @@ impl Tracker {
     }
 
     /// The previous frame's and the anchor's pixels of `set` (patches `tpl` the previous
-    /// frame's, `anchor` the first frame's) re-read under the smear of the frame being solved
-    /// (`smear::smear_templates`).
+    /// frame's, `anchor` the first frame's) re-read under the smear of the frame being solved,
+    /// those whose smear reaches the mesh's outline left out (`smear::smear_templates`).
     fn smear_template_pixels(
         &self,
         set: &mut PatchSet,
@@ -1272,110 +1276,96 @@ impl Tracker {
         v: &Velocities,
     ) {
         let shutter: Vec<f64> = (0..self.cameras.len()).map(|c| self.shutter(c)).collect();
-        // Where each camera saw the template's mesh: moved along its velocity for a camera that
-        // records late or early, as `template_patches` took its pixels.
-        let seen_of = |positions: &[Point3<f64>], velocity: Option<&[Vector3<f64>]>| {
-            self.cameras
-                .iter()
-                .map(|cam| match velocity {
-                    Some(v) if cam.time_offset != 0.0 => positions
-                        .iter()
-                        .zip(v)
-                        .map(|(p, v)| p + v * cam.time_offset)
-                        .collect(),
-                    _ => positions.to_vec(),
-                })
-                .collect::<Vec<Vec<Point3<f64>>>>()
-        };
-        let gap_before = self.prev.frame.saturating_sub(self.before_frame).max(1) as f64;
-        let prev_velocity: Option<Vec<Vector3<f64>>> = self
-            .before_prev
-            .as_deref()
-            .map(|b| velocity_of(b, &self.prev.positions, gap_before));
-        let seen = seen_of(&self.prev.positions, prev_velocity.as_deref());
-        let projections: Vec<Projection> = self
-            .cameras
+        let mut keep: Vec<Vec<bool>> = set
+            .patches
             .iter()
-            .map(|c| level_projection(c.at(self.prev.frame), level))
+            .map(|p| vec![true; (p.end - p.start) as usize])
             .collect();
-        let source = smear::Source {
-            seen: seen.iter().map(Vec::as_slice).collect(),
-            images: self
-                .prev
-                .pyramids
+        // One template's patches `range`, taken from `pyramids` of `frame` with the mesh at
+        // `positions`, smeared by its own motion `own`; a camera that records late or early
+        // saw the mesh moved along `lag` (as `template_patches` took its pixels).
+        let mut reread = |set: &mut PatchSet,
+                          range: std::ops::Range<usize>,
+                          positions: &[Point3<f64>],
+                          lag: &[Vector3<f64>],
+                          own: &[Vector3<f64>],
+                          frame: u32,
+                          pyramids: &[Pyramid]| {
+            let seen: Vec<Vec<Point3<f64>>> = self
+                .cameras
                 .iter()
-                .map(|p| &p.levels[level])
-                .collect(),
-            projections: &projections,
-        };
-        let outlines = |source: &smear::Source| -> Vec<IndexBuffer> {
-            (0..self.cameras.len())
+                .map(|cam| {
+                    let d = cam.time_offset;
+                    positions.iter().zip(lag).map(|(p, v)| p + v * d).collect()
+                })
+                .collect();
+            let projections: Vec<Projection> = self
+                .cameras
+                .iter()
+                .map(|c| level_projection(c.at(frame), level))
+                .collect();
+            let images: Vec<&RgbImage> = pyramids.iter().map(|p| &p.levels[level]).collect();
+            let outlines: Vec<IndexBuffer> = (0..self.cameras.len())
                 .into_par_iter()
                 .map(|c| {
-                    let im = source.images[c];
-                    rasterize(
-                        source.seen[c],
-                        &self.triangles,
-                        &source.projections[c],
-                        im.width(),
-                        im.height(),
-                    )
+                    let (w, h) = (images[c].width(), images[c].height());
+                    rasterize(&seen[c], &self.triangles, &projections[c], w, h)
                 })
-                .collect()
+                .collect();
+            let source = smear::Source {
+                seen: seen.iter().map(Vec::as_slice).collect(),
+                images,
+                projections: &projections,
+            };
+            let motions = smear::Motions {
+                template: own,
+                target: &v.target,
+            };
+            let kept = smear::smear_templates(
+                set,
+                range.clone(),
+                &self.triangles,
+                &source,
+                &outlines,
+                &motions,
+                &shutter,
+            );
+            for (k, kept) in keep[range].iter_mut().zip(kept) {
+                *k = kept;
+            }
         };
-        let mut keep: Vec<Vec<bool>> = Vec::with_capacity(set.patches.len());
-        let motions = smear::Motions {
-            template: &v.template,
-            target: &v.target,
-        };
-        let kept = smear::smear_templates(
-            set,
-            tpl.clone(),
-            &self.triangles,
-            &source,
-            &outlines(&source),
-            &motions,
-            &shutter,
-        );
-        let whole = |p: &Patch| vec![true; (p.end - p.start) as usize];
-        keep.extend(set.patches[..tpl.start].iter().map(whole));
-        keep.extend(kept);
-        let keep_rest = |set: &PatchSet, keep: &mut Vec<Vec<bool>>, from: usize| {
-            keep.extend(set.patches[from..].iter().map(whole));
-        };
-        let first_velocity = self.first.as_ref().and_then(|f| f.velocity.as_ref());
-        let (Some(first), Some(velocity)) = (&self.first, first_velocity) else {
-            keep_rest(set, &mut keep, tpl.end);
-            set.retain_pixels(&keep);
-            return;
-        };
-        keep.extend(set.patches[tpl.end..anchor.start].iter().map(whole));
-        let seen = seen_of(&first.positions, Some(velocity));
-        let projections: Vec<Projection> = self
-            .cameras
-            .iter()
-            .map(|c| level_projection(c.at(first.frame), level))
-            .collect();
-        let source = smear::Source {
-            seen: seen.iter().map(Vec::as_slice).collect(),
-            images: first.pyramids.iter().map(|p| &p.levels[level]).collect(),
-            projections: &projections,
-        };
-        let motions = smear::Motions {
-            template: velocity,
-            target: &v.target,
-        };
-        let kept = smear::smear_templates(
-            set,
-            anchor.clone(),
-            &self.triangles,
-            &source,
-            &outlines(&source),
-            &motions,
-            &shutter,
-        );
-        keep.extend(kept);
-        keep_rest(set, &mut keep, anchor.end);
+        // The previous frame is smeared by its motion there (`v.template`, the central
+        // difference); a late camera took its pixels along the backward one.
+        if let Some(before) = self.before_prev.as_deref() {
+            let gap_before = self.prev.frame.saturating_sub(self.before_frame).max(1) as f64;
+            let backward = velocity_of(before, &self.prev.positions, gap_before);
+            let prev = &self.prev;
+            reread(
+                set,
+                tpl,
+                &prev.positions,
+                &backward,
+                &v.template,
+                prev.frame,
+                &prev.pyramids,
+            );
+        }
+        // The first frame by the forward difference, both ways.
+        if let Some((first, velocity)) = self
+            .first
+            .as_ref()
+            .and_then(|f| f.velocity.as_ref().map(|v| (f, v)))
+        {
+            reread(
+                set,
+                anchor,
+                &first.positions,
+                velocity,
+                velocity,
+                first.frame,
+                &first.pyramids,
+            );
+        }
         set.retain_pixels(&keep);
     }
 
@@ -1870,20 +1860,35 @@ impl Tracker {
                 &x
             };
             let smear_v = self.smear_velocities(frame, estimate);
+            // Per camera, this frame smeared against the previous frame's motion and, where
+            // the anchor is compared, against the first frame's (`None`: left as it is).
             let smeared = smear_v.as_ref().map(|v| {
-                let motions = smear::Motions {
+                let mut motions = vec![smear::Motions {
                     template: &v.template,
                     target: &v.target,
-                };
-                self.smeared_targets(frame, level, &next, estimate, &motions)
+                }];
+                let anchored = self
+                    .anchor
+                    .get(level)
+                    .is_some_and(|a| !a.patches.is_empty());
+                if let Some(velocity) = self.first.as_ref().and_then(|f| f.velocity.as_ref()) {
+                    if anchored {
+                        motions.push(smear::Motions {
+                            template: velocity,
+                            target: &v.target,
+                        });
+                    }
+                }
+                self.smeared_targets(frame, level, &next, estimate, &motions, level == finest)
             });
+            let smeared_of = |c: usize, k: usize| {
+                smeared
+                    .as_ref()
+                    .and_then(|s| s[c].as_ref())
+                    .and_then(|(images, _)| images.get(k))
+            };
             let targets: Vec<&RgbImage> = (0..n)
-                .map(|c| {
-                    smeared
-                        .as_ref()
-                        .and_then(|s| s[c].as_ref().map(|(image, _)| image))
-                        .unwrap_or(&next[c].levels[level])
-                })
+                .map(|c| smeared_of(c, 0).unwrap_or(&next[c].levels[level]))
                 .collect();
             let (mut set, near_still, stereo) = self.level_patches(
                 frame,
@@ -1903,7 +1908,7 @@ impl Tracker {
                     .iter()
                     .flatten()
                     .flatten()
-                    .map(|(_, t)| *t)
+                    .filter_map(|(_, t)| *t)
                     .collect();
                 out.texture_kept = smear::Texture::kept(&textures).unwrap_or(1.0);
             }
@@ -1932,29 +1937,18 @@ impl Tracker {
             // The first frame's patches are compared with this frame smeared along the first
             // frame's motion: as cameras of their own, `n` after the real ones, posed and timed
             // as they are.
-            let first_velocity = self.first.as_ref().and_then(|f| f.velocity.as_ref());
-            let first_smeared = match (&smear_v, first_velocity) {
-                (Some(v), Some(velocity)) if set.patches.iter().any(|p| p.first) => {
-                    for p in set.patches.iter_mut().filter(|p| p.first) {
-                        p.camera += n as u16;
-                        p.source += n as u16;
-                    }
-                    let motions = smear::Motions {
-                        template: velocity,
-                        target: &v.target,
-                    };
-                    Some(self.smeared_targets(frame, level, &next, estimate, &motions))
+            let first_smeared = (0..n).any(|c| smeared_of(c, 1).is_some());
+            let targets: Vec<&RgbImage> = if first_smeared && set.patches.iter().any(|p| p.first) {
+                for p in set.patches.iter_mut().filter(|p| p.first) {
+                    p.camera += n as u16;
+                    p.source += n as u16;
                 }
-                _ => None,
-            };
-            let targets: Vec<&RgbImage> = match &first_smeared {
-                Some(own) => {
-                    let firsts: Vec<&RgbImage> = (0..n)
-                        .map(|c| own[c].as_ref().map_or(targets[c], |(image, _)| image))
-                        .collect();
-                    targets.iter().copied().chain(firsts).collect()
-                }
-                None => targets,
+                let firsts: Vec<&RgbImage> = (0..n)
+                    .map(|c| smeared_of(c, 1).unwrap_or(targets[c]))
+                    .collect();
+                targets.iter().copied().chain(firsts).collect()
+            } else {
+                targets
             };
             let offsets_used: Vec<f64> = if targets.len() > n {
                 offsets.iter().chain(&offsets).copied().collect()

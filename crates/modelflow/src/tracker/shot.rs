@@ -167,7 +167,7 @@ fn track_into(
             let first_next = if scene
                 .cameras
                 .iter()
-                .any(|c| c.time_offset != 0.0 || opts.shutter.unwrap_or(c.shutter) > 0.0)
+                .any(|c| c.time_offset != 0.0 || opts.shutter_of(c) > 0.0)
             {
                 Some(folder.read_positions(scene.first + 1)?)
             } else {

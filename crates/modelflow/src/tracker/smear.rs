@@ -8,13 +8,15 @@
 //! at 40 px per frame with the shutter open all frame: 1.85 % of the object's size against 0.20
 //! % sharp, docs/tracker.md).
 //!
-//! Box smears commute, so each side is smeared once more by the other's: the frame being solved
-//! along the template frame's motion ([`smeared_target`], per pixel, from the triangle that the
-//! mesh puts there), and each template pixel's colour re-read as the mean of its image along
-//! the frame being solved's motion ([`smear_templates`]). Both are then the sharp texture under
-//! both smears. The previous frame and the first frame (the anchor) moved differently, so the
-//! frame being solved is smeared twice, once along each, and each patch is compared with the
-//! one of its template (`Patch::first`).
+//! Each side is smeared by what it lacks of the other's smear, so that both have the same second
+//! moments ([`common`]): the frame being solved per pixel, from the motions of the triangle that
+//! the mesh puts there ([`smeared_targets`]), and each template pixel's colour re-read as the
+//! mean of its image over its part ([`smear_templates`]); a pixel whose smears reach past the
+//! mesh's outline is left out. (Smearing each side by the other's whole smear, as Jin et al.
+//! do, matches more than the second moments but blurs away texture both sides still show.) The
+//! previous frame and the first frame (the anchor) moved differently, so the frame being solved
+//! is smeared once for each, and each patch is compared with the one of its template
+//! (`Patch::first`).
 //!
 //! The velocities are the solved meshes' differences: at the frame being solved the
 //! second-order backward difference through its current estimate (the prediction at the
@@ -32,12 +34,12 @@ use nalgebra::{Point2, Point3, Vector2, Vector3};
 use rayon::prelude::*;
 
 /// A smear shorter than this (pixels of the level) is left alone.
-pub(crate) const MIN_SMEAR_PX: f64 = 0.25;
+const MIN_SMEAR_PX: f64 = 0.25;
 /// The largest spacing of a smear's samples (pixels of the level): the pyramid's images are
 /// smoothed with a sigma of a pixel, so samples this far apart average them without aliasing.
-pub(crate) const TAP_PX: f64 = 1.0;
+const TAP_PX: f64 = 1.0;
 /// The most samples along one smear (a longer one samples more sparsely).
-pub(crate) const MAX_TAPS: usize = 24;
+const MAX_TAPS: usize = 24;
 
 /// Per-vertex velocities, in scene units per frame, around the frame being solved.
 pub(crate) struct Velocities {
@@ -175,65 +177,79 @@ pub(crate) fn common(
     (template, target)
 }
 
-/// `img` (one camera's image of the frame being solved, at one level) smeared by what it
-/// lacks of a template's smear (`motions`; [`common`]) for a shutter of `shutter` frames,
-/// wherever the mesh at `x` covers it (`proj`: that camera at that level): per pixel, from the
-/// motions of the centroid of the triangle that the z-buffer puts there. The rest of the
-/// image, which no template pixel is compared with, is left as it is. Also the texture the
-/// smear left there ([`Texture`]).
-pub(crate) fn smeared_target(
+/// `img` (one camera's image of the frame being solved, at one level) smeared, once for each
+/// template's `motions`, by what it lacks of that template's smear ([`common`]) for a shutter of
+/// `shutter` frames, wherever the mesh at `x` covers it (`proj`: that camera at that level;
+/// one z-buffer for all): per pixel, from the motions of the centroid of the triangle the
+/// z-buffer puts there. The rest of the image, which no template pixel is compared with, is
+/// left as it is. With `measure`, also the texture the first smear left there ([`Texture`]).
+pub(crate) fn smeared_targets(
     img: &RgbImage,
     proj: &Projection,
     triangles: &[[u32; 3]],
     x: &[Point3<f64>],
-    motions: &Motions,
+    motions: &[Motions],
     shutter: f64,
-) -> (RgbImage, Texture) {
+    measure: bool,
+) -> (Vec<RgbImage>, Option<Texture>) {
     let (w, h) = (img.width(), img.height());
     let ib = rasterize(x, triangles, proj, w, h);
-    let per_triangle: Vec<[Vector2<f64>; 2]> = triangles
-        .iter()
-        .map(|t| {
-            let mean =
-                |v: &[Vector3<f64>]| (v[t[0] as usize] + v[t[1] as usize] + v[t[2] as usize]) / 3.0;
-            let c = Point3::from(
-                (x[t[0] as usize].coords + x[t[1] as usize].coords + x[t[2] as usize].coords) / 3.0,
-            );
-            let zero = Vector2::zeros();
-            let own = smear(proj, &c, &mean(motions.template), shutter).unwrap_or(zero);
-            let other = smear(proj, &c, &mean(motions.target), shutter).unwrap_or(zero);
-            common(own, other).1
-        })
-        .collect();
-    let mut out = img.clone();
     let win = ib.window;
     let owners = ib.owners();
-    if win.width == 0 {
-        return (out, Texture::default());
-    }
-    out.pixels_mut()
-        .par_chunks_mut(w)
-        .enumerate()
-        .skip(win.y0)
-        .take(win.height)
-        .for_each(|(y, row)| {
-            let own = &owners[(y - win.y0) * win.width..(y - win.y0 + 1) * win.width];
-            for (i, &t) in own.iter().enumerate() {
-                if t == NONE {
-                    continue;
-                }
-                let x = win.x0 + i;
-                let [a, b] = per_triangle[t as usize];
-                if a.norm() >= MIN_SMEAR_PX || b.norm() >= MIN_SMEAR_PX {
-                    row[x] = along(img, Point2::new(x as f64, y as f64), a, b);
-                }
+    let smeared: Vec<RgbImage> = motions
+        .iter()
+        .map(|m| {
+            let mut out = img.clone();
+            if win.width == 0 {
+                return out;
             }
+            let per_triangle: Vec<[Vector2<f64>; 2]> = triangles
+                .iter()
+                .map(|t| {
+                    let mean = |v: &[Vector3<f64>]| {
+                        (v[t[0] as usize] + v[t[1] as usize] + v[t[2] as usize]) / 3.0
+                    };
+                    let c = Point3::from(
+                        (x[t[0] as usize].coords
+                            + x[t[1] as usize].coords
+                            + x[t[2] as usize].coords)
+                            / 3.0,
+                    );
+                    let zero = Vector2::zeros();
+                    let own = smear(proj, &c, &mean(m.template), shutter).unwrap_or(zero);
+                    let other = smear(proj, &c, &mean(m.target), shutter).unwrap_or(zero);
+                    common(own, other).1
+                })
+                .collect();
+            out.pixels_mut()
+                .par_chunks_mut(w)
+                .enumerate()
+                .skip(win.y0)
+                .take(win.height)
+                .for_each(|(y, row)| {
+                    let own = &owners[(y - win.y0) * win.width..(y - win.y0 + 1) * win.width];
+                    for (i, &t) in own.iter().enumerate() {
+                        if t == NONE {
+                            continue;
+                        }
+                        let x = win.x0 + i;
+                        let [a, b] = per_triangle[t as usize];
+                        if a.norm() >= MIN_SMEAR_PX || b.norm() >= MIN_SMEAR_PX {
+                            row[x] = along(img, Point2::new(x as f64, y as f64), a, b);
+                        }
+                    }
+                });
+            out
+        })
+        .collect();
+    let texture = (measure && win.width > 0)
+        .then(|| smeared.first())
+        .flatten()
+        .map(|after| Texture {
+            before: structure(img, &ib),
+            after: structure(after, &ib),
         });
-    let texture = Texture {
-        before: structure(img, &ib),
-        after: structure(&out, &ib),
-    };
-    (out, texture)
+    (smeared, texture)
 }
 
 /// How much texture a smear left where the mesh is: the structure tensor (`Σ ∇I·∇Iᵀ` over the
