@@ -96,7 +96,9 @@ def track_scene(
     "blank" | "repeated" | "late" | "early" | "ahead" | "rejoined" | "moved" | "disagree" | "jumped", ...their figures}]}."""
 
 def evaluate(scene: Scene, run: _Path) -> Dict[str, Any]:
-    """Scores a run folder against the scene's ground truth (per-frame and mean RMS error)."""
+    """Scores a run folder against the scene's ground truth: per-frame and mean RMS error, over
+    all vertices, the seen ones, by how many cameras see them (`by_views`), and of the shape alone
+    after the best rigid fit (`shape_rms`, `pose_turn_deg`, `pose_shift`); docs/scene-format.md."""
 
 def frames_to_check(scene: Scene, run: _Path) -> Optional[List[Dict[str, Any]]]:
     """The frames of the scene's range that the tracker's own checks flag in the run folder, and

@@ -56,25 +56,27 @@ fn table(r: &EvalReport) -> String {
     let len = Length::of(r.units);
     let u = len.unit();
     let mut s = format!(
-        "{:>6}  {:>14}  {:>8}  {:>14}  {:>8}  {:>6}  {:>8}\n",
+        "{:>6}  {:>14}  {:>8}  {:>14}  {:>8}  {:>6}  {:>8}  {:>8}\n",
         "frame",
         format!("rms ({u})"),
         "rms %",
         format!("max ({u})"),
         "seen %",
         "seen",
-        "followed"
+        "followed",
+        "shape %"
     );
     for e in &r.per_frame {
         s += &format!(
-            "{:>6}  {:>14}  {:>8.4}  {:>14}  {:>8.4}  {:>6}  {:>8}\n",
+            "{:>6}  {:>14}  {:>8.4}  {:>14}  {:>8.4}  {:>6}  {:>8}  {:>8.4}\n",
             e.frame,
             len.show(e.rms),
             e.rms_pct,
             len.show(e.max),
             e.seen_rms_pct,
             e.seen,
-            e.followed.map_or("-".to_string(), |f| format!("{f:.3}"))
+            e.followed.map_or("-".to_string(), |f| format!("{f:.3}")),
+            e.shape_rms_pct
         );
     }
     s += &format!(
@@ -92,6 +94,27 @@ fn table(r: &EvalReport) -> String {
         r.seen_rms_mean_pct,
         len.show(r.seen_rms_final),
         r.seen_rms_final_pct
+    );
+    s += &format!(
+        "shape alone (after each frame's best rigid fit to the truth): rms mean {:.4} %, final {:.4} %; that fit turns {:.3}° and shifts {} {u} on average\n",
+        r.shape_rms_mean_pct,
+        r.shape_rms_final_pct,
+        r.pose_turn_deg_mean,
+        len.show(r.pose_shift_mean)
+    );
+    let groups: Vec<String> = r
+        .by_views
+        .iter()
+        .map(|v| {
+            format!(
+                "{} ({:.0} vertices): {:.4} %",
+                v.cameras, v.vertices_mean, v.rms_mean_pct
+            )
+        })
+        .collect();
+    s += &format!(
+        "by cameras seeing a vertex (in the truth), rms mean: {}\n",
+        groups.join(", ")
     );
     if let Some(f) = r.followed_median {
         s += &format!(

@@ -62,9 +62,18 @@ fn shifted_run_scores_the_shift_in_a_table() {
     assert!(out.status.success(), "{}", text(&out.stderr));
     let table = text(&out.stdout);
     assert!(table.starts_with(" frame"), "{table}");
-    // rms and max per frame, mean and final, and mean and final over the seen vertices.
+    // rms and max per frame, mean and final, mean and final over the seen vertices, and the
+    // whole mesh's mean shift (the shape itself is right: 0 % after the rigid fit).
     // Lengths with three significant digits (`base::units::significant`).
-    assert_eq!(table.matches(" 0.0100 ").count(), 2 * 12 + 4, "{table}");
+    assert_eq!(table.matches(" 0.0100 ").count(), 2 * 12 + 5, "{table}");
+    assert!(
+        table.contains("shape alone (after each frame's best rigid fit to the truth): rms mean 0.0000 %, final 0.0000 %; that fit turns 0.000° and shifts 0.0100 scene units on average"),
+        "{table}"
+    );
+    assert!(
+        table.contains("by cameras seeing a vertex (in the truth), rms mean: "),
+        "{table}"
+    );
     assert!(
         table.contains("seen vertices (by some camera, in the truth): rms mean 0.0100 scene units"),
         "{table}"
@@ -89,7 +98,7 @@ fn shifted_run_scores_the_shift_in_a_table() {
     assert!(out.status.success(), "{}", text(&out.stderr));
     let table = text(&out.stdout);
     assert!(table.contains("rms (mm)"), "{table}");
-    assert_eq!(table.matches(" 10.0 ").count(), 2 * 12 + 4, "{table}");
+    assert_eq!(table.matches(" 10.0 ").count(), 2 * 12 + 5, "{table}");
     assert!(table.contains("rms final 10.0 mm (0.3536 %)"), "{table}");
     let out = eval(&metres, dir.path(), true);
     let j: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();

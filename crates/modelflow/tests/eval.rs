@@ -122,7 +122,19 @@ fn known_offset_is_measured() {
         // Both cameras see the whole sheet: the seen-vertex figure is the same.
         assert_eq!(e.seen, 25, "{e:?}");
         assert!((e.seen_rms - 0.05).abs() < 1e-12, "{e:?}");
+        assert_eq!(e.by_views.len(), 1, "{e:?}");
+        assert_eq!((e.by_views[0].cameras, e.by_views[0].vertices), (2, 25));
+        assert!((e.by_views[0].rms - 0.05).abs() < 1e-12, "{e:?}");
+        // A shift of the whole mesh is a misplacement, not a misshaping.
+        assert!(e.shape_rms < 1e-12, "{e:?}");
+        assert!(
+            (e.pose_shift - 0.05).abs() < 1e-12 && e.pose_turn_deg < 1e-6,
+            "{e:?}"
+        );
     }
+    assert!(r.shape_rms_mean < 1e-12 && (r.pose_shift_mean - 0.05).abs() < 1e-12);
+    assert_eq!(r.by_views.len(), 1);
+    assert_eq!(r.by_views[0].vertices_mean, 25.0);
     assert!((r.rms_mean - 0.05).abs() < 1e-12 && (r.rms_final - 0.05).abs() < 1e-12);
     assert!((r.rms_final_pct - 5.0 / 2f64.sqrt()).abs() < 1e-9);
     let json = serde_json::to_value(&r).unwrap();
@@ -136,6 +148,9 @@ fn known_offset_is_measured() {
         "seen_rms_mean_pct",
         "seen_rms_final_pct",
         "followed_median",
+        "shape_rms_mean_pct",
+        "pose_turn_deg_mean",
+        "by_views",
         "scale",
     ] {
         assert!(json.get(key).is_some(), "{key}");
@@ -153,6 +168,8 @@ fn one_vertex_off_gives_rms_and_max() {
     let e = &r.per_frame[2];
     assert_eq!(e.max, 0.5);
     assert!((e.rms - (0.25f64 / 25.0).sqrt()).abs() < 1e-15);
+    // A dent is a misshaping: the best rigid fit takes out only part of it.
+    assert!(e.shape_rms > 0.5 * e.rms && e.shape_rms < e.rms, "{e:?}");
     assert_eq!(r.rms_final, e.rms);
     assert!((r.rms_mean - e.rms / 3.0).abs() < 1e-15);
 }

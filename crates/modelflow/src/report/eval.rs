@@ -3,7 +3,9 @@
 //! percentage of the scene mesh's size (its bounding-box diagonal); and the same over the
 //! *seen* vertices only, those of a triangle that owns at least one pixel of some camera's
 //! z-buffered view of the ground truth at that frame (what the images can tell; the rest is the
-//! regularisers' guess).
+//! regularisers' guess). Where the error lies: per number of cameras that see a vertex (none,
+//! one, two, ...), and split into the whole mesh's misplacement (the rigid motion that best maps
+//! the run's mesh onto the truth) and its misshaping (what is left after it).
 
 use crate::base::camera::Camera;
 use crate::base::mesh::Mesh;
@@ -36,6 +38,40 @@ pub struct FrameError {
     /// run lags (and, frame after frame, drifts); above 1 it overshoots. `None` for the first
     /// frame, and where the truth did not move (its step under 10⁻⁹ of the scale).
     pub followed: Option<f64>,
+    /// The RMS left after the rigid motion that best maps the run's mesh onto the truth (least
+    /// squares over all vertices) is taken out: the error of the shape alone. 0 for a run that is
+    /// the truth moved rigidly; equal to `rms` when the run's best placement is where it is.
+    pub shape_rms: f64,
+    pub shape_rms_pct: f64,
+    /// That rigid motion: its rotation, degrees, and the distance between the run's and the
+    /// truth's centroids (the misplacement of the whole mesh).
+    pub pose_turn_deg: f64,
+    pub pose_shift: f64,
+    /// The RMS over the vertices seen by each number of cameras (in the truth; only the counts
+    /// that occur, fewest cameras first).
+    pub by_views: Vec<ViewsError>,
+}
+
+/// The error over the vertices that `cameras` cameras see (see [`FrameError::by_views`]).
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct ViewsError {
+    /// How many cameras see them (0: none; their place is the regularisers' guess).
+    pub cameras: usize,
+    /// How many vertices that is.
+    pub vertices: usize,
+    pub rms: f64,
+    pub rms_pct: f64,
+}
+
+/// [`ViewsError`] over a run: for each number of cameras, the mean over the frames where some
+/// vertex is seen by that many of the per-frame RMS.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct ViewsSummary {
+    pub cameras: usize,
+    /// The mean number of such vertices per frame (over all frames).
+    pub vertices_mean: f64,
+    pub rms_mean: f64,
+    pub rms_mean_pct: f64,
 }
 
 /// The score of a run.
@@ -56,6 +92,16 @@ pub struct EvalReport {
     pub seen_rms_final_pct: f64,
     /// The median over frames of [`FrameError::followed`] (`None` when no frame has one).
     pub followed_median: Option<f64>,
+    /// Mean and last value of [`FrameError::shape_rms`].
+    pub shape_rms_mean: f64,
+    pub shape_rms_final: f64,
+    pub shape_rms_mean_pct: f64,
+    pub shape_rms_final_pct: f64,
+    /// Means over the frames of [`FrameError::pose_turn_deg`] and [`FrameError::pose_shift`].
+    pub pose_turn_deg_mean: f64,
+    pub pose_shift_mean: f64,
+    /// [`FrameError::by_views`] over the run.
+    pub by_views: Vec<ViewsSummary>,
     /// The bounding-box diagonal of the scene mesh (frame `first`), the 100 % of the `_pct` values.
     pub scale: f64,
     /// The unit of every length above (the scene's `units`; `null`: scene units). Lengths here
@@ -108,7 +154,8 @@ pub fn evaluate(scene: &Scene, run: &[(u32, Mesh)]) -> Result<EvalReport> {
                 format!("{} vertices", mesh.positions.len()),
             ));
         }
-        let seen = seen_vertices(&scene.cameras, frame, truth);
+        let views = views_of_vertices(&scene.cameras, frame, truth);
+        let seen: Vec<bool> = views.iter().map(|&v| v > 0).collect();
         let followed = match (frame.checked_sub(1), before) {
             (Some(p), Some(before)) => followed(
                 &by_frame[&p].positions,
@@ -133,12 +180,34 @@ pub fn evaluate(scene: &Scene, run: &[(u32, Mesh)]) -> Result<EvalReport> {
             }
         }
         let rms = (sum / mesh.positions.len() as f64).sqrt();
+        let seen_rms = (seen_sum / seen_count.max(1) as f64).sqrt();
+        let most = views.iter().copied().max().unwrap_or(0) as usize;
+        let mut groups = vec![(0usize, 0.0f64); most + 1];
+        for (&k, d2) in views.iter().zip(&d2s) {
+            groups[k as usize].0 += 1;
+            groups[k as usize].1 += d2;
+        }
+        let by_views = groups
+            .iter()
+            .enumerate()
+            .filter(|(_, (n, _))| *n > 0)
+            .map(|(cameras, &(n, sum))| {
+                let rms = (sum / n as f64).sqrt();
+                ViewsError {
+                    cameras,
+                    vertices: n,
+                    rms,
+                    rms_pct: pct(rms, scale),
+                }
+            })
+            .collect();
+        let fit = rigid_fit(&mesh.positions, &truth.positions);
+        let shape_rms = fit.rms;
         d2s.sort_by(f64::total_cmp);
         let quantile = |q: f64| {
             d2s.get(((d2s.len().max(1) - 1) as f64 * q).round() as usize)
                 .map_or(0.0, |d2| d2.sqrt())
         };
-        let seen_rms = (seen_sum / seen_count.max(1) as f64).sqrt();
         Ok(FrameError {
             frame,
             rms,
@@ -150,6 +219,11 @@ pub fn evaluate(scene: &Scene, run: &[(u32, Mesh)]) -> Result<EvalReport> {
             seen_rms_pct: pct(seen_rms, scale),
             seen: seen_count,
             followed,
+            shape_rms,
+            shape_rms_pct: pct(shape_rms, scale),
+            pose_turn_deg: fit.turn_deg,
+            pose_shift: fit.shift,
+            by_views,
         })
     };
     // Runs of consecutive frames in parallel, each read in order: a frame's ground truth is the
@@ -193,7 +267,40 @@ pub fn evaluate(scene: &Scene, run: &[(u32, Mesh)]) -> Result<EvalReport> {
             0.5 * (f[m - 1] + f[m])
         }
     });
+    let frames_n = per_frame.len().max(1) as f64;
+    let mean_of = |f: &dyn Fn(&FrameError) -> f64| per_frame.iter().map(f).sum::<f64>() / frames_n;
+    let shape_rms_mean = mean_of(&|e| e.shape_rms);
+    let shape_rms_final = per_frame.last().map_or(0.0, |e| e.shape_rms);
+    let most = per_frame
+        .iter()
+        .flat_map(|e| e.by_views.iter().map(|v| v.cameras))
+        .max();
+    let by_views: Vec<ViewsSummary> = (0..most.map_or(0, |m| m + 1))
+        .filter_map(|cameras| {
+            let groups: Vec<&ViewsError> = per_frame
+                .iter()
+                .filter_map(|e| e.by_views.iter().find(|v| v.cameras == cameras))
+                .collect();
+            if groups.is_empty() {
+                return None;
+            }
+            let rms_mean = groups.iter().map(|v| v.rms).sum::<f64>() / groups.len() as f64;
+            Some(ViewsSummary {
+                cameras,
+                vertices_mean: groups.iter().map(|v| v.vertices as f64).sum::<f64>() / frames_n,
+                rms_mean,
+                rms_mean_pct: pct(rms_mean, scale),
+            })
+        })
+        .collect();
     Ok(EvalReport {
+        shape_rms_mean,
+        shape_rms_final,
+        shape_rms_mean_pct: pct(shape_rms_mean, scale),
+        shape_rms_final_pct: pct(shape_rms_final, scale),
+        pose_turn_deg_mean: mean_of(&|e| e.pose_turn_deg),
+        pose_shift_mean: mean_of(&|e| e.pose_shift),
+        by_views,
         frames: per_frame.len(),
         per_frame,
         rms_mean,
@@ -249,11 +356,12 @@ fn followed(
 /// Frames per task of [`evaluate`] (each task reads its frames' ground truth in order).
 const EVAL_CHUNK: usize = 8;
 
-/// Which vertices of `truth` (the mesh at `frame`) some camera sees: those of a triangle that
-/// owns at least one pixel of the camera's z-buffered index buffer.
-fn seen_vertices(cameras: &[Camera], frame: u32, truth: &Mesh) -> Vec<bool> {
-    let mut seen = vec![false; truth.positions.len()];
+/// How many cameras see each vertex of `truth` (the mesh at `frame`): a camera sees the vertices
+/// of a triangle that owns at least one pixel of its z-buffered index buffer.
+fn views_of_vertices(cameras: &[Camera], frame: u32, truth: &Mesh) -> Vec<u16> {
+    let mut views = vec![0u16; truth.positions.len()];
     for cam in cameras {
+        let mut seen = vec![false; truth.positions.len()];
         let ib = rasterize(
             &truth.positions,
             &truth.triangles,
@@ -270,8 +378,61 @@ fn seen_vertices(cameras: &[Camera], frame: u32, truth: &Mesh) -> Vec<bool> {
                 seen[v as usize] = true;
             }
         }
+        for (n, s) in views.iter_mut().zip(seen) {
+            *n += s as u16;
+        }
     }
-    seen
+    views
+}
+
+/// The rigid motion that best maps `run` onto `truth` (least squares over the points; Kabsch:
+/// the SVD of the centred points' cross-covariance, reflections excluded) and what it leaves.
+struct RigidFit {
+    /// RMS distance from the moved run to the truth.
+    rms: f64,
+    /// The motion's rotation angle, degrees.
+    turn_deg: f64,
+    /// The distance between the two centroids.
+    shift: f64,
+}
+
+fn rigid_fit(run: &[nalgebra::Point3<f64>], truth: &[nalgebra::Point3<f64>]) -> RigidFit {
+    use nalgebra::{Matrix3, Vector3};
+    let n = run.len().min(truth.len());
+    if n == 0 {
+        return RigidFit {
+            rms: 0.0,
+            turn_deg: 0.0,
+            shift: 0.0,
+        };
+    }
+    let mean = |p: &[nalgebra::Point3<f64>]| {
+        p[..n].iter().fold(Vector3::zeros(), |a, q| a + q.coords) / n as f64
+    };
+    let (ca, cb) = (mean(run), mean(truth));
+    let mut h = Matrix3::zeros();
+    for (a, b) in run[..n].iter().zip(&truth[..n]) {
+        h += (a.coords - ca) * (b.coords - cb).transpose();
+    }
+    let svd = h.svd(true, true);
+    let rotation = match (svd.u, svd.v_t) {
+        (Some(u), Some(v_t)) => {
+            let d = (v_t.transpose() * u.transpose()).determinant().signum();
+            v_t.transpose() * Matrix3::from_diagonal(&Vector3::new(1.0, 1.0, d)) * u.transpose()
+        }
+        _ => Matrix3::identity(),
+    };
+    let sum: f64 = run[..n]
+        .iter()
+        .zip(&truth[..n])
+        .map(|(a, b)| (rotation * (a.coords - ca) + cb - b.coords).norm_squared())
+        .sum();
+    let cos = ((rotation.trace() - 1.0) / 2.0).clamp(-1.0, 1.0);
+    RigidFit {
+        rms: (sum / n as f64).sqrt(),
+        turn_deg: cos.acos().to_degrees(),
+        shift: (cb - ca).norm(),
+    }
 }
 
 fn pct(v: f64, scale: f64) -> f64 {
@@ -457,8 +618,60 @@ mod tests {
         );
         let k = Matrix3::new(200.0, 0.0, 99.5, 0.0, 200.0, 74.5, 0.0, 0.0, 1.0);
         let cam = Camera::fixed("c", 200, 150, Projection::from_krt(&k, &r, &t).unwrap());
-        let seen = seen_vertices(&[cam], 0, &mesh);
-        assert_eq!(seen[..16], [true; 16]);
-        assert_eq!(seen[16..], [false; 32]);
+        let views = views_of_vertices(std::slice::from_ref(&cam), 0, &mesh);
+        assert_eq!(views[..16], [1; 16]);
+        assert_eq!(views[16..], [0; 32]);
+        // A second camera in front of the side sheet, and the first one again: the front sheet
+        // is seen twice, the side sheet once, the hidden one never.
+        let (r2, t2) = look_at(
+            &Point3::new(5.0, 0.0, 3.0),
+            &Point3::new(5.0, 0.0, 0.0),
+            &Vector3::y(),
+        );
+        let side = Camera::fixed("s", 200, 150, Projection::from_krt(&k, &r2, &t2).unwrap());
+        let views = views_of_vertices(&[cam.clone(), side, cam], 0, &mesh);
+        assert_eq!(views[..16], [2; 16]);
+        assert_eq!(views[16..32], [0; 16]);
+        assert_eq!(views[32..], [1; 16]);
+    }
+
+    #[test]
+    fn the_rigid_fit_takes_out_a_turn_and_a_shift_and_leaves_the_shape() {
+        use nalgebra::Rotation3;
+        let truth: Vec<Point3<f64>> = grid(5, 4, |u, v| Point3::new(u, 0.3 * v, u * v))
+            .positions
+            .to_vec();
+        let centre = truth.iter().fold(Vector3::zeros(), |a, p| a + p.coords) / truth.len() as f64;
+        // Turned 10° about a tilted axis through the centroid and shifted by (0.3, 0, -0.4).
+        let turn = Rotation3::from_axis_angle(
+            &nalgebra::Unit::new_normalize(Vector3::new(1.0, 2.0, 0.5)),
+            10f64.to_radians(),
+        );
+        let shift = Vector3::new(0.3, 0.0, -0.4);
+        let moved: Vec<Point3<f64>> = truth
+            .iter()
+            .map(|p| Point3::from(turn * (p.coords - centre) + centre + shift))
+            .collect();
+        let fit = rigid_fit(&moved, &truth);
+        assert!(fit.rms < 1e-12, "{}", fit.rms);
+        assert!((fit.turn_deg - 10.0).abs() < 1e-9, "{}", fit.turn_deg);
+        assert!((fit.shift - 0.5).abs() < 1e-12, "{}", fit.shift);
+        // Scaled about the centroid: no rigid motion does better than none, so the shape's
+        // error is the whole error.
+        let scaled: Vec<Point3<f64>> = truth
+            .iter()
+            .map(|p| Point3::from((p.coords - centre) * 1.1 + centre))
+            .collect();
+        let fit = rigid_fit(&scaled, &truth);
+        let whole = (scaled
+            .iter()
+            .zip(&truth)
+            .map(|(a, b)| (a - b).norm_squared())
+            .sum::<f64>()
+            / truth.len() as f64)
+            .sqrt();
+        assert!((fit.rms - whole).abs() < 1e-12 && fit.turn_deg < 1e-6 && fit.shift < 1e-12);
+        // Nothing to fit.
+        assert_eq!(rigid_fit(&[], &[]).rms, 0.0);
     }
 }

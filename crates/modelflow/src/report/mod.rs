@@ -19,7 +19,7 @@ pub(crate) mod plot;
 mod residual;
 
 pub use alignment::alignment_picture;
-pub use eval::{evaluate, surface_rms, EvalReport, FrameError};
+pub use eval::{evaluate, surface_rms, EvalReport, FrameError, ViewsError, ViewsSummary};
 pub use page::{
     seconds_per_frame, write_report, ReportOptions, ReportSummary, ResidualRow, RunSummary,
 };
