@@ -341,6 +341,10 @@ pub(super) fn page(
             o,
             "<figure><img src=\"vertex_error_bands.png\" alt=\"median, 90th percentile and largest vertex error per frame, per run\"><figcaption>How the error spreads over the mesh: per frame, the median, 90th percentile and largest vertex error of each run (lighter: higher percentile). Also as <a href=\"vertex_error_bands.svg\">SVG</a>.</figcaption></figure>"
         );
+        let _ = writeln!(
+            o,
+            "<figure><img src=\"error_where.png\" alt=\"RMS vertex error per frame: all vertices, the shape alone after the best rigid fit, and the vertices no camera or one camera sees, per run\"><figcaption>Where the error lies: all vertices; the shape alone, once each frame's best rigid fit to the truth is taken out (the rest is the whole mesh misplaced); the vertices no camera sees (the regularisers' guess) and those only one camera sees (depth from one view), in the truth. Also as <a href=\"error_where.svg\">SVG</a>.</figcaption></figure>"
+        );
     }
     let _ = writeln!(o, "<table>");
     if has_truth {

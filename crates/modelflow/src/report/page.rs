@@ -291,6 +291,67 @@ pub fn write_report(
                 .collect(),
             ..plot.clone()
         };
+        // Where the error lies, per frame: the whole mesh's, the shape's alone once the best
+        // rigid fit is taken out (misshaping against misplacement), and that of the vertices no
+        // camera and only one camera sees (the regularisers' guess and depth from one view).
+        let where_plot = LinePlot {
+            title: "Where the error lies: the shape alone, and what few cameras see".into(),
+            y_label: "RMS vertex error (% of bbox diagonal)".into(),
+            series: reports
+                .iter()
+                .zip(&loaded)
+                .enumerate()
+                .flat_map(|(i, (rep, r))| {
+                    let c = colormap::run_colour(i);
+                    let fade = |t: f32| c.map(|v| v + (1.0 - v) * t);
+                    let seen_by = |k: usize| -> Vec<[f64; 2]> {
+                        rep.per_frame
+                            .iter()
+                            .filter_map(|e| {
+                                let v = e.by_views.iter().find(|v| v.cameras == k)?;
+                                Some([e.frame as f64, v.rms_pct])
+                            })
+                            .collect()
+                    };
+                    let lines: [(&str, f32, Vec<[f64; 2]>); 4] = [
+                        (
+                            "all",
+                            0.0,
+                            rep.per_frame
+                                .iter()
+                                .map(|e| [e.frame as f64, e.rms_pct])
+                                .collect(),
+                        ),
+                        (
+                            "shape alone",
+                            0.25,
+                            rep.per_frame
+                                .iter()
+                                .map(|e| [e.frame as f64, e.shape_rms_pct])
+                                .collect(),
+                        ),
+                        ("seen by none", 0.45, seen_by(0)),
+                        ("seen by one", 0.65, seen_by(1)),
+                    ];
+                    lines
+                        .into_iter()
+                        .filter(|(_, _, points)| !points.is_empty())
+                        .map(move |(what, t, points)| Series {
+                            name: format!("{} {what}", r.name),
+                            colour: fade(t),
+                            points,
+                        })
+                        .collect::<Vec<_>>()
+                })
+                .collect(),
+            ..plot.clone()
+        };
+        let png = out_dir.join("error_where.png");
+        let svg = out_dir.join("error_where.svg");
+        imageio::write_png(&png, &where_plot.render())?;
+        fsutil::write_atomic(&svg, where_plot.to_svg().as_bytes())?;
+        files.push(png);
+        files.push(svg);
         let png = out_dir.join("vertex_error_bands.png");
         let svg = out_dir.join("vertex_error_bands.svg");
         imageio::write_png(&png, &bands_plot.render())?;

@@ -207,6 +207,21 @@ fn report_with_ground_truth_shows_errors_overlays_and_only_local_decodable_files
         assert!(bands.contains(&format!(">{name}</text>")), "{name}");
     }
     assert!(links.contains(&"vertex_error_bands.png".to_string()));
+    // Where the error lies: the drifting run is the truth shifted, so its shape alone is exact
+    // (0) while all its vertices are off; every vertex of the sheet is seen, so there is no
+    // line for the unseen ones.
+    let place = std::fs::read_to_string(out.join("error_where.svg")).unwrap();
+    assert_well_formed(&place);
+    for name in [
+        "exact all",
+        "exact shape alone",
+        "drift &amp; co all",
+        "drift &amp; co shape alone",
+    ] {
+        assert!(place.contains(&format!(">{name}</text>")), "{name}");
+    }
+    assert!(!place.contains("seen by none"));
+    assert!(links.contains(&"error_where.png".to_string()));
 
     // Error maps: each run on its own scale (a colour bar per run) unless shared (one bar).
     let shared_out = tmp.path().join("shared");
