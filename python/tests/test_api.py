@@ -91,6 +91,11 @@ def test_track_scene_evaluate_and_export(cli_run, tmp_path):
         assert np.abs(ours[f] - theirs[f]).max() <= 1e-9
     report = modelflow.evaluate(s, tmp_path / "run")
     assert report["frames"] == 12 and report["rms_mean_pct"] < 0.1
+    # Where the error lies: the shape alone is at most the whole error, and every vertex of the
+    # cloth is seen by its two cameras.
+    assert report["shape_rms_mean_pct"] <= report["rms_mean_pct"] + 1e-12
+    assert [g["cameras"] for g in report["by_views"]] == [2]
+    assert report["per_frame"][5]["by_views"][0]["vertices"] == 1681
     files = modelflow.export(tmp_path / "run", tmp_path / "cloth.pc2")
     assert [pathlib.Path(f).name for f in files] == ["cloth.pc2", "cloth.obj"]
     data = (tmp_path / "cloth.pc2").read_bytes()
