@@ -117,6 +117,51 @@ pub fn polyline(img: &mut RgbImage, pts: &[[f64; 2]], colour: Rgb, width: f64, a
     }
 }
 
+/// A polyline drawn dashed: `[on, off]` pixels measured along the whole path (the pattern
+/// carries over from one segment to the next, as SVG's `stroke-dasharray` does), opaque.
+pub fn dashed_polyline(
+    img: &mut RgbImage,
+    pts: &[[f64; 2]],
+    colour: Rgb,
+    width: f64,
+    dash: [f64; 2],
+) {
+    let [on, off] = dash;
+    if !(on > 0.0 && off >= 0.0 && on.is_finite() && off.is_finite()) {
+        return polyline(img, pts, colour, width, 1.0);
+    }
+    let period = on + off;
+    // How far into the pattern the path is at the start of each segment.
+    let mut phase = 0.0f64;
+    for s in pts.windows(2) {
+        let (a, b) = (s[0], s[1]);
+        let len = ((b[0] - a[0]).powi(2) + (b[1] - a[1]).powi(2)).sqrt();
+        if !len.is_finite() || len == 0.0 {
+            continue;
+        }
+        let at = |d: f64| {
+            [
+                a[0] + (b[0] - a[0]) * d / len,
+                a[1] + (b[1] - a[1]) * d / len,
+            ]
+        };
+        let mut d = 0.0;
+        while d < len {
+            let into = phase % period;
+            if into < on {
+                let end = (d + on - into).min(len);
+                line(img, at(d), at(end), colour, width, 1.0);
+                phase += end - d;
+                d = end;
+            } else {
+                let end = (d + period - into).min(len);
+                phase += end - d;
+                d = end;
+            }
+        }
+    }
+}
+
 #[inline]
 fn segment_distance(a: [f64; 2], d: [f64; 2], len2: f64, p: [f64; 2]) -> f64 {
     let ap = [p[0] - a[0], p[1] - a[1]];

@@ -22,7 +22,7 @@ use crate::report::draw::{self, Rgb};
 use crate::report::eval::{self, EvalReport, FrameError};
 use crate::report::flipbook;
 use crate::report::overlay::{self, WireStyle};
-use crate::report::plot::{Band, LinePlot, Series};
+use crate::report::plot::{Band, Dash, LinePlot, Series};
 use crate::synth::render::{self, RenderOptions, Surface};
 use crate::tracker::{FrameCheck, VertexConfidence};
 use nalgebra::Point3;
@@ -227,6 +227,7 @@ pub fn write_report(
                 .zip(&loaded)
                 .enumerate()
                 .map(|(i, (rep, r))| Series {
+                    dash: None,
                     name: r.name.clone(),
                     colour: colormap::run_colour(i),
                     points: rep
@@ -279,6 +280,7 @@ pub fn write_report(
                         ("max", 0.6, |e| e.max),
                     ];
                     band.map(|(what, t, value)| Series {
+                        dash: None,
                         name: format!("{} {what}", r.name),
                         colour: fade(t),
                         points: rep
@@ -313,10 +315,11 @@ pub fn write_report(
                             })
                             .collect()
                     };
-                    let lines: [(&str, f32, Vec<[f64; 2]>); 4] = [
+                    let lines: [(&str, f32, Dash, Vec<[f64; 2]>); 4] = [
                         (
                             "all",
                             0.0,
+                            None,
                             rep.per_frame
                                 .iter()
                                 .map(|e| [e.frame as f64, e.rms_pct])
@@ -325,21 +328,23 @@ pub fn write_report(
                         (
                             "shape alone",
                             0.25,
+                            Some([10.0, 5.0]),
                             rep.per_frame
                                 .iter()
                                 .map(|e| [e.frame as f64, e.shape_rms_pct])
                                 .collect(),
                         ),
-                        ("seen by none", 0.45, seen_by(0)),
-                        ("seen by one", 0.65, seen_by(1)),
+                        ("seen by none", 0.45, Some([2.0, 4.0]), seen_by(0)),
+                        ("seen by one", 0.6, Some([6.0, 3.0]), seen_by(1)),
                     ];
                     lines
                         .into_iter()
-                        .filter(|(_, _, points)| !points.is_empty())
-                        .map(move |(what, t, points)| Series {
+                        .filter(|(_, _, _, points)| !points.is_empty())
+                        .map(move |(what, t, dash, points)| Series {
                             name: format!("{} {what}", r.name),
                             colour: fade(t),
                             points,
+                            dash,
                         })
                         .collect::<Vec<_>>()
                 })
@@ -394,6 +399,7 @@ pub fn write_report(
                 .zip(&loaded)
                 .enumerate()
                 .map(|(i, (c, r))| Series {
+                    dash: None,
                     name: r.name.clone(),
                     colour: colormap::run_colour(i),
                     points: scene
@@ -788,6 +794,7 @@ fn health_plots(
             .enumerate()
             .filter_map(|(i, (r, h))| {
                 h.as_ref().map(|h| Series {
+                    dash: None,
                     name: r.name.clone(),
                     colour: colormap::run_colour(i),
                     points: h
@@ -810,6 +817,7 @@ fn health_plots(
         let named = 100.0 * crate::tracker::DISAGREE_RISE;
         let series = (0..n)
             .map(|c| Series {
+                dash: None,
                 name: scene
                     .cameras
                     .get(c)

@@ -7,12 +7,18 @@ use crate::base::image::RgbImage;
 use crate::report::draw::{self, Anchor, Rgb};
 use std::fmt::Write;
 
+/// A line's dash pattern: `[on, off]` pixels along it; `None`: solid.
+pub type Dash = Option<[f64; 2]>;
+
 /// One line of a plot: `(x, y)` points in order; a non-finite `y` breaks the line.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Series {
     pub name: String,
     pub colour: Rgb,
     pub points: Vec<[f64; 2]>,
+    /// Drawn dashed, `[on, off]` pixels along the line (`None`: solid), so that lines of one
+    /// colour family stay apart in grey print and for colour-blind readers.
+    pub dash: Dash,
 }
 
 /// A line plot with a title, axis labels (with units) and a legend naming every series.
@@ -197,7 +203,7 @@ impl LinePlot {
         let legend_w = self
             .legend()
             .iter()
-            .map(|(name, _, _)| draw::text_width(name, LABEL_PX))
+            .map(|(name, _, _, _)| draw::text_width(name, LABEL_PX))
             .fold(0.0, f64::max)
             + 46.0;
         let (w, h) = (self.width as f64, self.height as f64);
@@ -213,15 +219,15 @@ impl LinePlot {
     }
 
     /// The legend's entries: every series (a line), then every band label once (a swatch).
-    fn legend(&self) -> Vec<(String, Rgb, bool)> {
-        let mut items: Vec<(String, Rgb, bool)> = self
+    fn legend(&self) -> Vec<(String, Rgb, bool, Dash)> {
+        let mut items: Vec<(String, Rgb, bool, Dash)> = self
             .series
             .iter()
-            .map(|s| (s.name.clone(), s.colour, false))
+            .map(|s| (s.name.clone(), s.colour, false, s.dash))
             .collect();
         for b in &self.bands {
-            if !items.iter().any(|(n, _, band)| *band && *n == b.label) {
-                items.push((b.label.clone(), b.colour, true));
+            if !items.iter().any(|(n, _, band, _)| *band && *n == b.label) {
+                items.push((b.label.clone(), b.colour, true, None));
             }
         }
         items
@@ -331,7 +337,10 @@ impl LinePlot {
         }
         for (s, parts) in self.series.iter().zip(self.runs(&lay)) {
             for part in &parts {
-                draw::polyline(&mut img, part, s.colour, 2.0, 1.0);
+                match s.dash {
+                    Some(dash) => draw::dashed_polyline(&mut img, part, s.colour, 2.0, dash),
+                    None => draw::polyline(&mut img, part, s.colour, 2.0, 1.0),
+                }
                 if self.show_markers() || part.len() == 1 {
                     for p in part {
                         draw::line(&mut img, *p, *p, s.colour, 5.0, 1.0);
@@ -365,11 +374,13 @@ impl LinePlot {
             LABEL_PX,
             INK,
         );
-        for (i, (name, colour, band)) in self.legend().iter().enumerate() {
+        for (i, (name, colour, band, dash)) in self.legend().iter().enumerate() {
             let y = t + 12.0 + 22.0 * i as f64;
             let x = lay.legend_x;
             if *band {
                 draw::fill_rect(&mut img, x, y - 7.0, x + 26.0, y + 7.0, *colour, BAND_ALPHA);
+            } else if let Some(dash) = dash {
+                draw::dashed_polyline(&mut img, &[[x, y], [x + 26.0, y]], *colour, 2.5, *dash);
             } else {
                 draw::line(&mut img, [x, y], [x + 26.0, y], *colour, 2.5, 1.0);
             }
@@ -490,8 +501,9 @@ impl LinePlot {
                     .collect();
                 let _ = writeln!(
                     o,
-                    r#"<polyline points="{}" fill="none" stroke-width="2" stroke-linejoin="round" stroke-linecap="round"/>"#,
-                    pts.join(" ")
+                    r#"<polyline points="{}" fill="none" stroke-width="2" stroke-linejoin="round" stroke-linecap="round"{}/>"#,
+                    pts.join(" "),
+                    dash_attribute(s.dash)
                 );
                 if self.show_markers() || part.len() == 1 {
                     for p in part {
@@ -525,7 +537,7 @@ impl LinePlot {
             xml_escape(&self.y_label)
         );
         let _ = writeln!(o, r#"<g class="legend">"#);
-        for (i, (name, colour, band)) in self.legend().iter().enumerate() {
+        for (i, (name, colour, band, dash)) in self.legend().iter().enumerate() {
             let y = t + 12.0 + 22.0 * i as f64;
             let x = lay.legend_x;
             if *band {
@@ -538,9 +550,10 @@ impl LinePlot {
             } else {
                 let _ = writeln!(
                     o,
-                    r#"<line x1="{x:.1}" y1="{y:.1}" x2="{:.1}" y2="{y:.1}" stroke="{}" stroke-width="2.5"/>"#,
+                    r#"<line x1="{x:.1}" y1="{y:.1}" x2="{:.1}" y2="{y:.1}" stroke="{}" stroke-width="2.5"{}/>"#,
                     x + 26.0,
-                    draw::css(*colour)
+                    draw::css(*colour),
+                    dash_attribute(*dash)
                 );
             }
             let _ = writeln!(
@@ -553,6 +566,13 @@ impl LinePlot {
         let _ = writeln!(o, "</g>\n</svg>");
         o
     }
+}
+
+/// The SVG attribute that dashes a line (nothing for a solid one).
+fn dash_attribute(dash: Dash) -> String {
+    dash.map_or(String::new(), |[on, off]| {
+        format!(r#" stroke-dasharray="{on} {off}""#)
+    })
 }
 
 /// Escapes text for XML/HTML element content and attribute values.
@@ -617,6 +637,7 @@ pub(crate) mod tests {
                     name: "tracker <v2> & co".into(),
                     colour: crate::report::colormap::run_colour(0),
                     points: (0..12).map(|f| [f as f64, 0.1 * f as f64]).collect(),
+                    dash: None,
                 },
                 Series {
                     name: "baseline".into(),
@@ -624,6 +645,7 @@ pub(crate) mod tests {
                     points: (0..12)
                         .map(|f| [f as f64, if f == 5 { f64::NAN } else { 0.3 * f as f64 }])
                         .collect(),
+                    dash: Some([6.0, 4.0]),
                 },
             ],
             bands: Vec::new(),
@@ -649,6 +671,7 @@ pub(crate) mod tests {
                 name: "tracker".into(),
                 colour: crate::report::colormap::run_colour(0),
                 points: (0..12).map(|f| [f as f64, 0.05 * f as f64]).collect(),
+                dash: None,
             }],
             ..sample()
         }
@@ -696,6 +719,30 @@ pub(crate) mod tests {
         assert!(svg.contains(">RMS vertex error (% of bbox diagonal)</text>"));
         // The NaN splits the baseline into two polylines: 3 polylines in all.
         assert_eq!(svg.matches("<polyline").count(), 3);
+        // The baseline is dashed, in both its pieces and in the legend; the tracker is solid.
+        assert_eq!(svg.matches(r#"stroke-dasharray="6 4""#).count(), 3);
+    }
+
+    #[test]
+    fn a_dashed_line_is_drawn_on_and_off_along_its_length() {
+        let ink = [0.0f32, 0.0, 0.0];
+        let mut img = draw::filled(60, 9, [1.0; 3]);
+        // 50 px along row 4, 6 on and 4 off, the pattern carried across the segments' joint.
+        draw::dashed_polyline(
+            &mut img,
+            &[[5.0, 4.0], [28.0, 4.0], [55.0, 4.0]],
+            ink,
+            2.0,
+            [6.0, 4.0],
+        );
+        let dark = |x: usize| img.get(x, 4)[0] < 0.5;
+        // Dashes over 5–11, 15–21, 25–31, 35–41, 45–51; gaps between.
+        for x in [7, 9, 17, 19, 27, 29, 37, 39, 47, 49] {
+            assert!(dark(x), "on at x = {x}");
+        }
+        for x in [13, 23, 33, 43, 53] {
+            assert!(!dark(x), "off at x = {x}");
+        }
     }
 
     #[test]

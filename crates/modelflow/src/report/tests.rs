@@ -221,6 +221,8 @@ fn report_with_ground_truth_shows_errors_overlays_and_only_local_decodable_files
         assert!(place.contains(&format!(">{name}</text>")), "{name}");
     }
     assert!(!place.contains("seen by none"));
+    // The shape alone is dashed, so it reads apart from the whole error in grey too.
+    assert!(place.contains(r#"stroke-dasharray="10 5""#));
     assert!(links.contains(&"error_where.png".to_string()));
 
     // Error maps: each run on its own scale (a colour bar per run) unless shared (one bar).
