@@ -148,16 +148,19 @@ pub fn dashed_polyline(
         let mut d = 0.0;
         while d < len {
             let into = phase % period;
-            if into < on {
-                let end = (d + on - into).min(len);
-                line(img, at(d), at(end), colour, width, 1.0);
-                phase += end - d;
-                d = end;
+            let (drawn, left) = if into < on {
+                (true, on - into)
             } else {
-                let end = (d + period - into).min(len);
-                phase += end - d;
-                d = end;
+                (false, period - into)
+            };
+            // At least a millionth of a pixel a step, so that rounding at a dash's end cannot
+            // stall the walk.
+            let end = (d + left.max(1e-6)).min(len);
+            if drawn {
+                line(img, at(d), at(end), colour, width, 1.0);
             }
+            phase += end - d;
+            d = end;
         }
     }
 }
