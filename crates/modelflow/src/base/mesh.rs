@@ -399,6 +399,41 @@ pub fn centroid(points: &[Point3<f64>]) -> Point3<f64> {
     Point3::from(points.iter().map(|p| p.coords).sum::<Vector3<f64>>() / n)
 }
 
+/// The motion `X' = s·R·X + t` that maps `a` onto `b` (corresponding points) in the least-squares
+/// sense: rotation, translation and, when `scaled`, one uniform scale (Umeyama 1991; `s` is 1
+/// otherwise, the rigid fit of Kabsch). Reflections are excluded. Degenerate input (no spread)
+/// gives the identity rotation and the shift between the centroids.
+pub fn best_motion(
+    a: &[Point3<f64>],
+    b: &[Point3<f64>],
+    scaled: bool,
+) -> (nalgebra::Matrix3<f64>, Vector3<f64>, f64) {
+    use nalgebra::Matrix3;
+    let (ca, cb) = (centroid(a).coords, centroid(b).coords);
+    let mut cov = Matrix3::zeros();
+    let mut var_a = 0.0;
+    for (p, q) in a.iter().zip(b) {
+        let (da, db) = (p.coords - ca, q.coords - cb);
+        cov += db * da.transpose();
+        var_a += da.norm_squared();
+    }
+    let svd = cov.svd(true, true);
+    let (Some(u), Some(vt)) = (svd.u, svd.v_t) else {
+        return (Matrix3::identity(), cb - ca, 1.0);
+    };
+    let mut d = Matrix3::identity();
+    if (u * vt).determinant() < 0.0 {
+        d[(2, 2)] = -1.0;
+    }
+    let r = u * d * vt;
+    let s = if scaled && var_a > 0.0 {
+        (svd.singular_values.component_mul(&d.diagonal())).sum() / var_a
+    } else {
+        1.0
+    };
+    (r, cb - r * ca * s, s)
+}
+
 /// The RMS distance of `points` from `c` (their spread about it).
 pub fn rms_radius(points: &[Point3<f64>], c: &Point3<f64>) -> f64 {
     let n = points.len().max(1) as f64;

@@ -385,8 +385,8 @@ fn views_of_vertices(cameras: &[Camera], frame: u32, truth: &Mesh) -> Vec<u16> {
     views
 }
 
-/// The rigid motion that best maps `run` onto `truth` (least squares over the points; Kabsch:
-/// the SVD of the centred points' cross-covariance, reflections excluded) and what it leaves.
+/// The rigid motion that best maps `run` onto `truth` (`base::mesh::best_motion`, no scale)
+/// and what it leaves.
 struct RigidFit {
     /// RMS distance from the moved run to the truth.
     rms: f64,
@@ -397,7 +397,6 @@ struct RigidFit {
 }
 
 fn rigid_fit(run: &[nalgebra::Point3<f64>], truth: &[nalgebra::Point3<f64>]) -> RigidFit {
-    use nalgebra::{Matrix3, Vector3};
     let n = run.len().min(truth.len());
     if n == 0 {
         return RigidFit {
@@ -406,32 +405,19 @@ fn rigid_fit(run: &[nalgebra::Point3<f64>], truth: &[nalgebra::Point3<f64>]) -> 
             shift: 0.0,
         };
     }
-    let mean = |p: &[nalgebra::Point3<f64>]| {
-        p[..n].iter().fold(Vector3::zeros(), |a, q| a + q.coords) / n as f64
-    };
-    let (ca, cb) = (mean(run), mean(truth));
-    let mut h = Matrix3::zeros();
-    for (a, b) in run[..n].iter().zip(&truth[..n]) {
-        h += (a.coords - ca) * (b.coords - cb).transpose();
-    }
-    let svd = h.svd(true, true);
-    let rotation = match (svd.u, svd.v_t) {
-        (Some(u), Some(v_t)) => {
-            let d = (v_t.transpose() * u.transpose()).determinant().signum();
-            v_t.transpose() * Matrix3::from_diagonal(&Vector3::new(1.0, 1.0, d)) * u.transpose()
-        }
-        _ => Matrix3::identity(),
-    };
-    let sum: f64 = run[..n]
+    let (run, truth) = (&run[..n], &truth[..n]);
+    let (rotation, t, _) = crate::base::mesh::best_motion(run, truth, false);
+    let sum: f64 = run
         .iter()
-        .zip(&truth[..n])
-        .map(|(a, b)| (rotation * (a.coords - ca) + cb - b.coords).norm_squared())
+        .zip(truth)
+        .map(|(a, b)| (rotation * a.coords + t - b.coords).norm_squared())
         .sum();
     let cos = ((rotation.trace() - 1.0) / 2.0).clamp(-1.0, 1.0);
+    let shift = crate::base::mesh::centroid(truth) - crate::base::mesh::centroid(run);
     RigidFit {
         rms: (sum / n as f64).sqrt(),
         turn_deg: cos.acos().to_degrees(),
-        shift: (cb - ca).norm(),
+        shift: shift.norm(),
     }
 }
 

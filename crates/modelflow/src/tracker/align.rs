@@ -791,32 +791,9 @@ fn max_move_px(a: &[Point3<f64>], b: &[Point3<f64>], projections: &[Projection])
         .fold(0.0, f64::max)
 }
 
-/// The similarity `X' = s·R·X + t` that maps `a` onto `b` in the least-squares sense
-/// (Umeyama 1991; exact here, since `b` is a similarity of `a`).
+/// The similarity that maps `a` onto `b` (`base::mesh::best_motion` with the scale).
 fn similarity(a: &[Point3<f64>], b: &[Point3<f64>]) -> (Matrix3<f64>, Vector3<f64>, f64) {
-    let (ca, cb) = (centroid(a).coords, centroid(b).coords);
-    let mut cov = Matrix3::zeros();
-    let mut var_a = 0.0;
-    for (p, q) in a.iter().zip(b) {
-        let (da, db) = (p.coords - ca, q.coords - cb);
-        cov += db * da.transpose();
-        var_a += da.norm_squared();
-    }
-    let svd = cov.svd(true, true);
-    let (Some(u), Some(vt)) = (svd.u, svd.v_t) else {
-        return (Matrix3::identity(), cb - ca, 1.0);
-    };
-    let mut d = Matrix3::identity();
-    if (u * vt).determinant() < 0.0 {
-        d[(2, 2)] = -1.0;
-    }
-    let r = u * d * vt;
-    let s = if var_a > 0.0 {
-        (svd.singular_values.component_mul(&d.diagonal())).sum() / var_a
-    } else {
-        1.0
-    };
-    (r, cb - r * ca * s, s)
+    crate::base::mesh::best_motion(a, b, true)
 }
 
 /// The centroid of `x` and its RMS radius (1 for a single point), the frame in which pose
