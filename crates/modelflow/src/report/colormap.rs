@@ -23,6 +23,11 @@ pub fn run_colour(i: usize) -> Rgb {
     RUNS[i % RUNS.len()]
 }
 
+/// `c` lightened toward white by `t` (0: itself, 1: white): a run's secondary lines.
+pub fn lighter(c: Rgb, t: f32) -> Rgb {
+    c.map(|v| v + (1.0 - v) * t)
+}
+
 /// Bright colours for drawing runs over photographs (same order as [`run_colour`]).
 const OVERLAY: [Rgb; 6] = [
     hex(0x00e5ff), // cyan

@@ -273,7 +273,7 @@ pub fn write_report(
                 .enumerate()
                 .flat_map(|(i, (rep, r))| {
                     let c = colormap::run_colour(i);
-                    let fade = |t: f32| c.map(|v| v + (1.0 - v) * t);
+                    let fade = |t: f32| colormap::lighter(c, t);
                     let band: [(&str, f32, Statistic); 3] = [
                         ("median", 0.0, |e| e.median),
                         ("90th percentile", 0.35, |e| e.p90),
@@ -305,7 +305,7 @@ pub fn write_report(
                 .enumerate()
                 .flat_map(|(i, (rep, r))| {
                     let c = colormap::run_colour(i);
-                    let fade = |t: f32| c.map(|v| v + (1.0 - v) * t);
+                    let fade = |t: f32| colormap::lighter(c, t);
                     let seen_by = |k: usize| -> Vec<[f64; 2]> {
                         rep.per_frame
                             .iter()
