@@ -649,13 +649,7 @@ mod tests {
             .map(|p| Point3::from((p.coords - centre) * 1.1 + centre))
             .collect();
         let fit = rigid_fit(&scaled, &truth);
-        let whole = (scaled
-            .iter()
-            .zip(&truth)
-            .map(|(a, b)| (a - b).norm_squared())
-            .sum::<f64>()
-            / truth.len() as f64)
-            .sqrt();
+        let whole = crate::base::mesh::rms_distance(&scaled, &truth);
         assert!((fit.rms - whole).abs() < 1e-12 && fit.turn_deg < 1e-6 && fit.shift < 1e-12);
         // Nothing to fit.
         assert_eq!(rigid_fit(&[], &[]).rms, 0.0);
