@@ -1964,13 +1964,18 @@ fn the_gpu_tracks_the_default_cloth_as_the_cpu_does() {
     eprintln!("worst frame: {worst:.2e} of the size");
 }
 
-/// The blob at rest in the first frame and turned 10° per frame from then on, in front of its
-/// four cameras (90° apart) at 320×240, tracked over `frames` frames with `opts`: the last
-/// frame's RMS vertex error, % of the mesh's size.
-fn turning_blob_final_error(frames: u32, opts: TrackOptions) -> f64 {
-    use crate::synth::{Preset, SynthOptions, Synthetic};
+/// `preset` at rest in the first frame and turned 10° per frame from then on, in front of its
+/// four cameras (90° apart) at 320×240, tracked over `frames` frames with `opts`, each frame's
+/// report handed to `check`: the last frame's RMS vertex error, % of the mesh's size.
+fn turning_final_error(
+    preset: crate::synth::Preset,
+    frames: u32,
+    opts: TrackOptions,
+    check: &mut dyn FnMut(u32, &FrameReport),
+) -> f64 {
+    use crate::synth::{SynthOptions, Synthetic};
     let syn = Synthetic::generate(&SynthOptions {
-        preset: Preset::Blob,
+        preset,
         width: 320,
         height: 240,
         frames,
@@ -1982,11 +1987,17 @@ fn turning_blob_final_error(frames: u32, opts: TrackOptions) -> f64 {
     let images = |f: u32| -> Vec<RgbImage> { (0..4).map(|c| syn.render(c, f)).collect() };
     let mut t = Tracker::new(&syn.mesh, syn.cameras.clone(), 0, &images(0), opts).unwrap();
     for f in 1..frames {
-        let r = t.step(f, &images(f)).unwrap();
-        assert!(!r.stalled && !r.suspect, "frame {f}: {r:?}");
+        check(f, &t.step(f, &images(f)).unwrap());
     }
     let truth = &syn.truth[frames as usize - 1];
     100.0 * rms_distance(t.positions(), truth) / syn.mesh.bbox_diagonal()
+}
+
+/// [`turning_final_error`] of the blob, every frame neither stalled nor suspect.
+fn turning_blob_final_error(frames: u32, opts: TrackOptions) -> f64 {
+    turning_final_error(crate::synth::Preset::Blob, frames, opts, &mut |f, r| {
+        assert!(!r.stalled && !r.suspect, "frame {f}: {r:?}")
+    })
 }
 
 /// [`turning_blob_final_error`] over ten frames with and without the first frame's view lent
@@ -2027,38 +2038,19 @@ fn an_open_surface_turned_half_round_reads_no_change_of_colour_balance() {
     // through the front and taken for a change of white balance (one camera 70 % more blue
     // by frame 14 here, after which every comparison in it was made in wrong colours). Nothing
     // in this footage changes colour.
-    use crate::synth::{Preset, SynthOptions, Synthetic};
-    let frames = 16;
-    let syn = Synthetic::generate(&SynthOptions {
-        preset: Preset::Irregular,
-        width: 320,
-        height: 240,
-        frames,
-        turn: 10.0,
-        supersample: 2,
-        ..SynthOptions::default()
-    })
-    .unwrap();
-    let images = |f: u32| -> Vec<RgbImage> { (0..4).map(|c| syn.render(c, f)).collect() };
-    let mut t = Tracker::new(
-        &syn.mesh,
-        syn.cameras.clone(),
-        0,
-        &images(0),
+    let e = turning_final_error(
+        crate::synth::Preset::Irregular,
+        16,
         TrackOptions::default(),
-    )
-    .unwrap();
-    for f in 1..frames {
-        let r = t.step(f, &images(f)).unwrap();
-        for (c, b) in r.colour_balance.iter().enumerate() {
-            assert!(
-                b.iter().all(|v| (v - 1.0).abs() < 0.01),
-                "frame {f}, camera {c}: colour balance {b:?} read from footage whose colours never change"
-            );
-        }
-    }
-    let e = 100.0 * rms_distance(t.positions(), &syn.truth[frames as usize - 1])
-        / syn.mesh.bbox_diagonal();
+        &mut |f, r| {
+            for (c, b) in r.colour_balance.iter().enumerate() {
+                assert!(
+                    b.iter().all(|v| (v - 1.0).abs() < 0.01),
+                    "frame {f}, camera {c}: colour balance {b:?} read from footage whose colours never change"
+                );
+            }
+        },
+    );
     eprintln!("irregular mesh turned 150°: final error {e:.3} %");
     assert!(e < 0.6, "final error {e:.3} %");
 }
