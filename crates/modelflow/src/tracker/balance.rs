@@ -18,7 +18,7 @@
 
 use crate::base::camera::Projection;
 use crate::base::image::RgbImage;
-use crate::base::raster::{rasterize, IndexBuffer, NONE};
+use crate::base::raster::{rasterize, usable_triangles, IndexBuffer, NONE};
 use crate::tracker::patch::PatchSet;
 use crate::tracker::pyramid::Pyramid;
 use nalgebra::{Point3, Vector3};
@@ -66,16 +66,17 @@ pub(crate) fn change(
     // summed: consecutive patches (neighbouring triangles, mostly) until it holds `GROUP`
     // pixels, so that small triangles count together and a large one alone.
     let ncam = projections.len();
-    let views: Vec<Option<IndexBuffer>> = (0..ncam)
+    // Per camera read: the solution's view (which triangle each pixel shows) and which
+    // triangles face it, for a closed surface its outside, more than edge-on.
+    let views: Vec<Option<(IndexBuffer, Vec<bool>)>> = (0..ncam)
         .into_par_iter()
         .map(|c| {
             (!skip.get(c).copied().unwrap_or(true)).then(|| {
-                rasterize(
-                    positions,
-                    triangles,
-                    &projections[c],
-                    images[c].width(),
-                    images[c].height(),
+                let proj = &projections[c];
+                let (w, h) = (images[c].width(), images[c].height());
+                (
+                    rasterize(positions, triangles, proj, w, h),
+                    usable_triangles(positions, triangles, proj, two_sided, MIN_FACING),
                 )
             })
         })
@@ -110,21 +111,13 @@ pub(crate) fn change(
         // In front of the camera, and for a closed surface its outside facing it (the back,
         // hidden behind the front, would read the front's colours); either side of an open
         // one. Not seen edge-on: there a pixel mixes the surface with what lies beyond it.
-        if y.iter().any(|v| v.z <= 0.0) {
+        let Some((view, usable)) = &views[c] else {
             continue;
-        }
-        let x = t.map(|i| positions[i as usize]);
-        let normal = (x[1] - x[0]).cross(&(x[2] - x[0]));
-        let to_camera = proj.center() - (x[0] + x[1].coords + x[2].coords) / 3.0;
-        let facing = normal.dot(&to_camera) / (normal.norm() * to_camera.norm());
-        let facing = if two_sided { facing.abs() } else { facing };
-        if facing.is_nan() || facing < MIN_FACING {
+        };
+        if y.iter().any(|v| v.z <= 0.0) || !usable[p.triangle as usize] {
             continue;
         }
         let img = images[c];
-        let Some(view) = &views[c] else {
-            continue;
-        };
         // What the camera shows at a pixel centre is this triangle's surface when the
         // triangle, or one sharing a corner with it (the point lies near its edge), owns it.
         let shown = |x: f64, y: f64| {
