@@ -338,6 +338,26 @@ pub fn usable_triangles(
     two_sided: bool,
     min_cos: f64,
 ) -> Vec<bool> {
+    facing_cosines(positions, triangles, proj)
+        .into_iter()
+        .map(|cos| {
+            if two_sided {
+                cos.abs() >= min_cos
+            } else {
+                cos >= min_cos
+            }
+        })
+        .collect()
+}
+
+/// Per triangle, the cosine between its normal (by its corners' order) and the way from its
+/// centroid to the camera: positive where the camera sees its front, negative its back, NaN for
+/// a degenerate triangle or one whose centroid is the camera's centre.
+pub(crate) fn facing_cosines(
+    positions: &[Point3<f64>],
+    triangles: &[[u32; 3]],
+    proj: &Projection,
+) -> Vec<f64> {
     let c = proj.center();
     triangles
         .iter()
@@ -348,17 +368,19 @@ pub fn usable_triangles(
             let to_cam = c - centroid;
             let denom = n.norm() * to_cam.norm();
             if denom <= 0.0 {
-                return false;
+                return f64::NAN;
             }
-            let cos = n.dot(&to_cam) / denom;
-            if two_sided {
-                cos.abs() >= min_cos
-            } else {
-                cos >= min_cos
-            }
+            n.dot(&to_cam) / denom
         })
         .collect()
 }
+
+/// A triangle seen more edge-on than this (the cosine between its normal and the way to the
+/// camera) shows a camera little of its surface: its pixels mix the surface with what lies
+/// beyond its outline, and a small error in the mesh moves where they fall a long way. What a
+/// camera *reads* of a surface (the colour balance, one camera's disagreement with the others)
+/// is read only where it faces the camera at least this much.
+pub(crate) const WELL_FACING: f64 = 0.25;
 
 /// How far (in pixels seen at that depth) a neighbouring pixel's surface may lie off the plane
 /// of a pixel's triangle and still count as the same surface (see [`trackable_mask`]).

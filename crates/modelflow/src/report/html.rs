@@ -132,7 +132,7 @@ fn checks_section(o: &mut String, runs: &[RunSummary], figs: &Figures, len: Leng
     if figs.cameras_plotted {
         let _ = writeln!(
             o,
-            "<figure><img src=\"checks_cameras.png\" alt=\"rise of each camera's own contradicted share per frame, one line per camera\"><figcaption>The same share camera by camera: of each camera's own template pixels, those the other cameras contradict, less that camera's share at the first frame (<code>contradicted_by_camera − contradicted_by_camera_at_first</code>, the first run whose log has them). Cameras above the dashed line for {} frames running, and not all at once, are named as disagreeing with the others: a camera knocked off its calibration in front of a plain background raises the two cameras that share its part of the surface, frame after frame. Also as <a href=\"checks_cameras.svg\">SVG</a>.</figcaption></figure>",
+            "<figure><img src=\"checks_cameras.png\" alt=\"rise of each camera's own contradicted share per frame, one line per camera\"><figcaption>The same share camera by camera: of each camera's own template pixels that another camera sees alike (same side, not edge-on, at comparable detail), those all such cameras contradict, less that camera's share at the first frame (<code>contradicted_by_camera − contradicted_by_camera_at_first</code>, the first run whose log has them). Cameras above the dashed line for {} frames running, and not all at once, are named as disagreeing with the others: a camera knocked off its calibration in front of a plain background raises the two cameras that share its part of the surface, frame after frame. Also as <a href=\"checks_cameras.svg\">SVG</a>.</figcaption></figure>",
             crate::tracker::DISAGREE_FRAMES
         );
     }

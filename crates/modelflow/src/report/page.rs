@@ -845,7 +845,7 @@ fn health_plots(
                 levels: vec![(
                     named,
                     format!(
-                        "named above {named:.0} points for {} frames",
+                        "named above {named:.1} points for {} frames",
                         crate::tracker::DISAGREE_FRAMES
                     ),
                 )],

@@ -488,7 +488,7 @@ fn each_cameras_own_disagreement_is_plotted_and_a_camera_named_by_it_is_listed()
     make_run(&scene, &run, 0.0, None);
     let log: String = (1..=19u32)
         .map(|f| {
-            let up = if f >= 6 { 0.08 } else { 0.0 };
+            let up = if f >= 6 { 0.15 } else { 0.0 };
             format!(
                 "{{\"frame\": {f}, \"seconds\": 0.1, \"load_seconds\": 0, \"wall_seconds\": 0.1, \
                  \"method\": \"model_flow\", \"iterations\": 9, \"cost_before\": 1e-3, \
@@ -527,7 +527,7 @@ fn each_cameras_own_disagreement_is_plotted_and_a_camera_named_by_it_is_listed()
             "{name} not in the legend"
         );
     }
-    assert!(svg.contains(">named above 5 points for 5 frames</text>"));
+    assert!(svg.contains(">named above 7.5 points for 5 frames</text>"));
     // Reports 6..=10 rise: the fifth names frames 5..=9 (the solutions they judged), and every
     // later one the frame before it.
     let frames: Vec<u32> = summary.runs[0]

@@ -18,7 +18,7 @@
 
 use crate::base::camera::Projection;
 use crate::base::image::RgbImage;
-use crate::base::raster::{rasterize, usable_triangles, IndexBuffer, NONE};
+use crate::base::raster::{rasterize, usable_triangles, IndexBuffer, NONE, WELL_FACING};
 use crate::tracker::patch::PatchSet;
 use crate::tracker::pyramid::Pyramid;
 use nalgebra::{Point3, Vector3};
@@ -35,10 +35,6 @@ const STEP: usize = 4;
 /// A channel whose patch mean is below this (in either frame) says nothing about its balance
 /// (a dark or saturated-away channel: a ratio of noise).
 const MIN_MEAN: f64 = 0.02;
-/// A triangle seen more edge-on than this (the cosine between its normal and the way to the
-/// camera) is not read: its pixels mix the surface with what lies beyond its outline, and
-/// the last of the first frame's surface to turn out of view is seen that way.
-const MIN_FACING: f64 = 0.25;
 /// Rec. 709 luminance weights: the balance is normalised to keep luminance, which the
 /// per-patch gains follow.
 const LUMA: [f64; 3] = [0.2126, 0.7152, 0.0722];
@@ -76,7 +72,7 @@ pub(crate) fn change(
                 let (w, h) = (images[c].width(), images[c].height());
                 (
                     rasterize(positions, triangles, proj, w, h),
-                    usable_triangles(positions, triangles, proj, two_sided, MIN_FACING),
+                    usable_triangles(positions, triangles, proj, two_sided, WELL_FACING),
                 )
             })
         })

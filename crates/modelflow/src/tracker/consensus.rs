@@ -25,6 +25,7 @@
 
 use crate::base::camera::Projection;
 use crate::base::image::RgbImage;
+use crate::base::raster::{facing_cosines, WELL_FACING};
 use crate::tracker::occluder::{Ahead, StillMarks};
 use crate::tracker::patch::{Patch, PatchSet, PixelSample};
 use nalgebra::Point3;
@@ -49,25 +50,31 @@ pub(crate) struct ConsensusStats {
     /// Pixels dropped because their way into the frame being solved crosses a still occluder
     /// (`occluder`; only when asked, with [`drop_contradicted_ahead`]).
     pub near_still: usize,
-    /// Per camera (the patches' `source`), the pixels of its own that were dropped as
-    /// contradicted and the pixels it took: what tells one camera's disagreement with the
-    /// others from the whole rig's (`health`'s cameras that disagree). Empty when nothing was
-    /// checked (one camera, no patches).
+    /// Per camera (the patches' `source`), of its own pixels that a camera seeing their
+    /// triangle alike ([`Footprint::alike`]) checked, those that every such camera contradicted: what
+    /// tells one camera's disagreement with the others from the whole rig's (`health`'s
+    /// cameras that disagree). Empty when nothing was checked (one camera, no patches).
     pub by_camera: Vec<CameraShare>,
 }
 
-/// One camera's part of a template's cross-camera check.
+/// One camera's part of a template's cross-camera check, as the cameras that see the surface as
+/// it does judge it ([`Footprint::alike`]). A camera that sees a triangle nearly edge-on, or
+/// much more obliquely than another, contradicts much of what the other sees however well both
+/// are calibrated (its pixels blur or mix the surface with what lies beyond the outline, and the
+/// mesh's own error moves where they fall a long way): an object turning in front of the rig
+/// brings such views and takes them away again, frame after frame, and a share counted over
+/// them rose and fell with the turn by as much as a knocked camera's.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub(crate) struct CameraShare {
-    /// Its pixels dropped as contradicted.
+    /// Its pixels that every camera seeing their triangle alike contradicted.
     pub dropped: usize,
-    /// Its pixels the template took, before the check.
+    /// Its pixels that a camera seeing their triangle alike checked.
     pub taken: usize,
 }
 
 impl CameraShare {
-    /// `dropped` as a share of `taken`; `None` when it took none (left out, blank, out of view):
-    /// not measured.
+    /// `dropped` as a share of `taken`; `None` when none was checked so (left out, blank, out of
+    /// view, or seen alike by no other camera): not measured.
     pub fn share(&self) -> Option<f64> {
         (self.taken > 0).then(|| self.dropped as f64 / self.taken as f64)
     }
@@ -131,7 +138,15 @@ pub(crate) fn drop_contradicted_asking(
         return (ConsensusStats::default(), None);
     }
     let covered = set.coverage(triangles.len(), ncam);
+    let footprints: Vec<Footprint> = projections
+        .par_iter()
+        .map(|p| Footprint {
+            facing: facing_cosines(positions, triangles, p),
+            area: projected_areas(positions, triangles, p),
+        })
+        .collect();
     let view = View {
+        footprints: &footprints,
         stride: stride(ncam),
         pixels: &set.pixels,
         positions,
@@ -152,20 +167,23 @@ pub(crate) fn drop_contradicted_asking(
     let first = limit(view.median_residual(patches, &sampled, &gains));
     let gains = view.pair_gains(patches, &sampled, Some((&gains, &first)));
     let limit = limit(view.median_residual(patches, &sampled, &gains));
-    let (mut keep, contradicted): (Vec<Vec<bool>>, Vec<Vec<bool>>) = patches
+    let verdicts: Vec<Verdict> = patches
         .par_iter()
-        .map_init(Vec::new, |buf, p| {
-            view.verdict(p, &gains, &limit, buf, ask_all, ahead.is_some())
+        .map_init(Scratch::default, |scratch, p| {
+            view.verdict(p, &gains, &limit, scratch, ask_all, ahead.is_some())
         })
-        .unzip();
+        .collect();
     // Counted before the still occluders' pixels are left out: those are not contradicted.
     let mut by_camera = vec![CameraShare::default(); ncam];
-    for (p, k) in patches.iter().zip(&keep) {
-        let n = (p.end - p.start) as usize;
+    for (p, v) in patches.iter().zip(&verdicts) {
         let c = &mut by_camera[p.source as usize];
-        c.taken += n;
-        c.dropped += n - k.iter().filter(|&&k| k).count();
+        c.taken += v.alike.taken;
+        c.dropped += v.alike.dropped;
     }
+    let (mut keep, contradicted): (Vec<Vec<bool>>, Vec<Vec<bool>>) = verdicts
+        .into_iter()
+        .map(|v| (v.keep, v.contradicted))
+        .unzip();
     let marks = ahead.and_then(|a| a.still_marks(set, &contradicted, &limit));
     let near_still = match (ahead, &marks) {
         (Some(a), Some(m)) => m.leave_out(set, &mut keep, &a.way),
@@ -262,6 +280,8 @@ struct View<'a> {
     projections: &'a [Projection],
     images: &'a [&'a RgbImage],
     covered: &'a [bool],
+    /// Per camera, how it sees each triangle.
+    footprints: &'a [Footprint],
     /// The statistics' stride ([`stride`]).
     stride: usize,
 }
@@ -501,24 +521,40 @@ impl View<'_> {
     /// camera that checks it contradicts it, and a patch dropped whole has most of its checked
     /// pixels contradicted, so the cameras not yet asked cannot change the verdict then (on
     /// footage without occluders most patches are settled by the first camera asked, which
-    /// matters with many cameras). `ask_all` asks them all anyway (tests).
+    /// matters with many cameras). `ask_all` asks them all anyway (tests). The cameras that see
+    /// the triangle as the patch's camera does ([`Footprint::alike`]) are asked first, in camera
+    /// order, then the rest: the verdict does not depend on the order, and what those cameras
+    /// alone say of each pixel (the camera's share, [`CameraShare`]) is then settled before any
+    /// early end.
     fn verdict(
         &self,
         p: &Patch,
         gains: &[[f32; 3]],
         limit: &Limit,
-        buf: &mut Vec<Option<Seen>>,
+        scratch: &mut Scratch,
         ask_all: bool,
         contradictions: bool,
-    ) -> (Vec<bool>, Vec<bool>) {
+    ) -> Verdict {
+        let Scratch { seen: buf, marks } = scratch;
         let ncam = self.projections.len();
         let n = (p.end - p.start) as usize;
         let src = p.source as usize;
+        let t = p.triangle as usize;
         let px = &self.pixels[p.start as usize..p.end as usize];
-        let mut checked = vec![false; n];
-        let mut agreed = vec![false; n];
+        let sees_alike = |c: usize| self.footprints[src].alike(&self.footprints[c], t);
+        let order = (0..ncam)
+            .filter(|&c| c != src && sees_alike(c))
+            .chain((0..ncam).filter(|&c| c != src && !sees_alike(c)));
+        // Per pixel: checked by some camera, agreed with by one, and the same by the cameras
+        // that see the triangle alike (bits; reused from patch to patch).
+        const CHECKED: u8 = 1;
+        const AGREED: u8 = 2;
+        const CHECKED_ALIKE: u8 = 4;
+        const AGREED_ALIKE: u8 = 8;
+        marks.clear();
+        marks.resize(n, 0);
         let mut open = n;
-        for other in (0..ncam).filter(|&c| c != src) {
+        for other in order {
             if open == 0 && !ask_all {
                 break;
             }
@@ -537,29 +573,111 @@ impl View<'_> {
                 buf[i].is_some_and(|seen| limit.admits(residual2(&px[i], &seen, s), seen.g2))
             };
             let s = own_gain(px, buf, 1, 0, 1, Some(&|i| fits(i, s0)));
-            for i in 0..n {
+            let alike = if sees_alike(other) { CHECKED_ALIKE } else { 0 };
+            for (i, m) in marks.iter_mut().enumerate() {
                 if buf[i].is_some() {
-                    checked[i] = true;
-                    if !agreed[i] && fits(i, s) {
-                        agreed[i] = true;
-                        open -= 1;
+                    let fit = fits(i, s);
+                    *m |= CHECKED | alike;
+                    if fit {
+                        if *m & AGREED == 0 {
+                            open -= 1;
+                        }
+                        *m |= AGREED | if alike != 0 { AGREED_ALIKE } else { 0 };
                     }
                 }
             }
         }
-        let nc = checked.iter().filter(|&&c| c).count();
-        let nd = (0..n).filter(|&i| checked[i] && !agreed[i]).count();
+        let count = |mask: u8, want: u8| marks.iter().filter(|&&m| m & mask == want).count();
+        let nc = count(CHECKED, CHECKED);
+        let nd = count(CHECKED | AGREED, CHECKED);
         let whole = 2 * nd > nc;
-        let keep = (0..n)
-            .map(|i| !checked[i] || (agreed[i] && !whole))
+        let keep = marks
+            .iter()
+            .map(|&m| m & CHECKED == 0 || (m & AGREED != 0 && !whole))
             .collect();
         let contradicted = if contradictions {
-            (0..n).map(|i| checked[i] && !agreed[i]).collect()
+            marks
+                .iter()
+                .map(|&m| m & (CHECKED | AGREED) == CHECKED)
+                .collect()
         } else {
             Vec::new()
         };
-        (keep, contradicted)
+        Verdict {
+            keep,
+            contradicted,
+            alike: CameraShare {
+                taken: count(CHECKED_ALIKE, CHECKED_ALIKE),
+                dropped: count(CHECKED_ALIKE | AGREED_ALIKE, CHECKED_ALIKE),
+            },
+        }
     }
+}
+
+/// How one camera sees each triangle of the template's mesh.
+struct Footprint {
+    /// The cosine of its facing the camera ([`facing_cosines`]).
+    facing: Vec<f64>,
+    /// Its projection's area in pixels of the level (NaN when a corner is behind the camera).
+    area: Vec<f64>,
+}
+
+/// How much larger one camera's image of a triangle may be than another's for the two to see
+/// its surface at comparable detail: each pixel of one spans at most three of the other's.
+const AREA_RATIO: f64 = 3.0;
+
+impl Footprint {
+    /// Whether `other` sees triangle `t` as this camera does: the same side of it, both facing
+    /// it well ([`WELL_FACING`]), and at comparable detail ([`AREA_RATIO`]). Where a camera sees
+    /// the surface much more obliquely or from much further than the other, its pixels blur
+    /// what the other's show sharp, and the mesh's own error moves them further: its checks
+    /// contradict the other's pixels however well both are calibrated.
+    fn alike(&self, other: &Footprint, t: usize) -> bool {
+        let (a, b) = (self.facing[t], other.facing[t]);
+        let r = other.area[t] / self.area[t];
+        a * b > 0.0
+            && a.abs() >= WELL_FACING
+            && b.abs() >= WELL_FACING
+            && r <= AREA_RATIO
+            && r * AREA_RATIO >= 1.0
+    }
+}
+
+/// Per triangle, the area of its projection through `proj` (NaN when a corner is behind the
+/// camera).
+fn projected_areas(
+    positions: &[Point3<f64>],
+    triangles: &[[u32; 3]],
+    proj: &Projection,
+) -> Vec<f64> {
+    triangles
+        .iter()
+        .map(|t| {
+            let [a, b, c] = t.map(|v| proj.project(&positions[v as usize]));
+            match (a, b, c) {
+                (Some(a), Some(b), Some(c)) => 0.5 * (b - a).perp(&(c - a)).abs(),
+                _ => f64::NAN,
+            }
+        })
+        .collect()
+}
+
+/// What [`View::verdict`] writes per pixel, reused from patch to patch: what the camera being
+/// asked sees of each pixel, and the pixel's marks.
+#[derive(Default)]
+struct Scratch {
+    seen: Vec<Option<Seen>>,
+    marks: Vec<u8>,
+}
+
+/// One patch's verdict ([`View::verdict`]).
+struct Verdict {
+    /// Per pixel, whether it is kept.
+    keep: Vec<bool>,
+    /// Per pixel, whether every camera that checked it contradicted it (empty unless asked).
+    contradicted: Vec<bool>,
+    /// What the cameras seeing the triangle alike said of its pixels.
+    alike: CameraShare,
 }
 
 /// The patch's own gain on top of the pair's for one other camera (`slot`), over its every

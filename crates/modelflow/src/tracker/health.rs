@@ -26,21 +26,23 @@ use serde::{Deserialize, Serialize};
 pub const SUSPECT_RISE: f64 = 0.1;
 
 /// How far one camera's own share of the previous frame's finest template that the other
-/// cameras contradict (`FrameReport::contradicted_by_camera`) may rise above its share at the
-/// first frame, frame after frame ([`DISAGREE_FRAMES`]), before its view is named as
-/// disagreeing with the others' ([`Concern::Disagree`]). Judged in rigs of three cameras or
+/// cameras contradict (`FrameReport::contradicted_by_camera`: counted over the pixels that a
+/// camera seeing their triangle alike checked, `consensus::CameraShare`) may rise above its
+/// share at the first frame, frame after frame ([`DISAGREE_FRAMES`]), before its view is named
+/// as disagreeing with the others' ([`Concern::Disagree`]). Judged in rigs of three cameras or
 /// more, and not when every camera rises at once (that is the rig's disagreement with the
-/// mesh, which [`SUSPECT_RISE`] judges; two cameras always rise together). A camera knocked 0.5° off its
-/// calibration in front of a flat grey background (the blob, 4 cameras: 2.5 px at 320×240, 4
-/// px at 480×360) raised the two cameras that share its part of the surface by 0.053–0.081
-/// and 0.08–0.14 at every frame after; the rig's share rose by 0.03–0.07, under
-/// [`SUSPECT_RISE`], while the mesh ended 0.76 % of its size off in both (0.20 and 0.35 %
-/// unknocked). Tracked clips stay lower or come back within two frames: the Blender hard
-/// sample's cameras within 0.036 for long (one frame 0.28, the rod), the real board's within
-/// 0.05 but for single frames up to 0.13 (two frames running at most), synthetic clips
-/// (limb, irregular, crossing, noisy, blurred, out of sync) within 0.04 (docs/tracker.md, "A
-/// camera whose view disagrees with the others'").
-pub const DISAGREE_RISE: f64 = 0.05;
+/// mesh, which [`SUSPECT_RISE`] judges; two cameras always rise together). A camera knocked
+/// 0.5° off its calibration in front of a flat grey background (the blob, 4 cameras: 2.5 px at
+/// 320×240, 4 px at 480×360) raised the two cameras that share its part of the surface by
+/// 0.09–0.14 and 0.14–0.19 at every frame after (the irregular mesh 0.076–0.094, the crossing
+/// 0.12–0.18); the rig's share rose by 0.03–0.07, under [`SUSPECT_RISE`], while the mesh
+/// ended 0.76 % of its size off in both (0.20 and 0.35 % unknocked). Tracked clips stay lower
+/// or come back within three frames: the Blender hard sample's cameras within 0.06 (one frame
+/// 0.24, the rod), the real board's within 0.08 but for single frames up to 0.16 (two frames
+/// running above this at most), objects turned all the way round in front of four cameras
+/// within 0.1 for a frame or two (docs/tracker.md, "A camera whose view disagrees with the
+/// others'").
+pub const DISAGREE_RISE: f64 = 0.075;
 
 /// How many reports running a camera's own contradicted share must stay above
 /// [`DISAGREE_RISE`] before its view is named (the frames it judged are all flagged then).
@@ -195,7 +197,7 @@ impl Concern {
                 counted(cameras, "1 camera has turned", "cameras have turned")
             ),
             Concern::Disagree { cameras, rise, since } => format!(
-                "{} disagreed with the other cameras' about where the surface is at every frame since frame {since} (the share of {} own pixels the others contradict rose up to {:.0} points above {} first frame's, more than {:.0} points for {} frames or more): a camera may have been knocked off its calibration in front of a background too plain to show it, or run out of step, or something stands in front of the surface in {} view; the mesh is pulled between them: check these cameras' overlays, and recalibrate or leave out (--cameras) the one that moved",
+                "{} disagreed with the other cameras' about where the surface is at every frame since frame {since} (the share of {} own pixels the others contradict rose up to {:.0} points above {} first frame's, more than {:.1} points for {} frames or more): a camera may have been knocked off its calibration in front of a background too plain to show it, or run out of step, or something stands in front of the surface in {} view; the mesh is pulled between them: check these cameras' overlays, and recalibrate or leave out (--cameras) the one that moved",
                 counted(cameras, "1 camera's view has", "cameras' views have"),
                 if cameras == 1 { "its" } else { "their" },
                 100.0 * rise,
@@ -945,7 +947,7 @@ mod tests {
         // name the disagreement at report 8, as the whole run does, listing only what reports
         // 7.. add (frames 3..=7 at once, then 8). Started afresh instead, the resumed call
         // would see a run of 3 reports and name nothing.
-        let knocked = [0.066, 0.073, -0.001, -0.007];
+        let knocked = [0.121, 0.103, -0.008, -0.004];
         let mut reps = vec![(1, by_camera(&[0.0; 4])), (2, by_camera(&[0.0; 4]))];
         reps.push((3, by_camera(&[0.01, 0.0, 0.0, 0.0])));
         for f in 4..=9 {
@@ -977,8 +979,8 @@ mod tests {
         // already, so it adds 9..=11, and report 13 frame 12, resumed after frame 10 as whole.
         let up = |a: bool, b: bool| {
             by_camera(&[
-                if a { 0.07 } else { 0.0 },
-                if b { 0.07 } else { 0.0 },
+                if a { 0.14 } else { 0.0 },
+                if b { 0.14 } else { 0.0 },
                 0.0,
                 0.0,
             ])
@@ -1004,8 +1006,8 @@ mod tests {
     #[test]
     fn two_cameras_that_disagree_frame_after_frame_are_named_and_every_frame_they_judged_flagged() {
         // The knocked blob at 320×240 (camera 1 turned 0.5° from frame 3): from report 4 on,
-        // cameras 0 and 1 rise 0.05–0.08 while the rig's share stays under SUSPECT_RISE.
-        let knocked = [0.066, 0.073, -0.001, -0.007];
+        // cameras 0 and 1 rise 0.09–0.14 while the rig's share stays under SUSPECT_RISE.
+        let knocked = [0.121, 0.103, -0.008, -0.004];
         let mut reps = vec![(1, by_camera(&[0.0; 4])), (2, by_camera(&[0.0; 4]))];
         reps.push((3, by_camera(&[0.01, 0.0, 0.0, 0.0])));
         for f in 4..=9 {
@@ -1023,7 +1025,7 @@ mod tests {
         // judged, all at once; then frame 8 by report 9.
         let disagree = Concern::Disagree {
             cameras: 2,
-            rise: 0.073,
+            rise: 0.121,
             since: 3,
         };
         for (f, a) in &added[..7] {
@@ -1038,11 +1040,11 @@ mod tests {
         assert_eq!(frames, [3, 4, 5, 6, 7, 8]);
         assert!(checks.frames().iter().all(FrameCheck::suspect));
         assert!(disagree.describe().starts_with(
-            "2 cameras' views have disagreed with the other cameras' about where the surface is at every frame since frame 3 (the share of their own pixels the others contradict rose up to 7 points"
+            "2 cameras' views have disagreed with the other cameras' about where the surface is at every frame since frame 3 (the share of their own pixels the others contradict rose up to 12 points"
         ));
         assert_eq!(
             serde_json::to_value(disagree).unwrap(),
-            serde_json::json!({"kind": "disagree", "cameras": 2, "rise": 0.073, "since": 3})
+            serde_json::json!({"kind": "disagree", "cameras": 2, "rise": 0.121, "since": 3})
         );
         // Back within the footage's level: the run ends, and a new one starts from nothing.
         let mut after = checks.clone();
@@ -1053,17 +1055,27 @@ mod tests {
 
     #[test]
     fn a_camera_that_disagrees_for_a_few_frames_or_by_the_footages_own_level_is_not_named() {
-        // The real board: one camera rises up to 0.13 for a frame or two (a hand, glare), then
-        // falls back; the hard sample's first camera sits 0.03 above its start for long.
+        // The real board: one camera rises by up to 0.16 for a frame (a hand, glare) and sits
+        // about the threshold around it, then falls back; the hard sample's first cameras sit
+        // up to 0.06 above their start for a while.
         let board = [
-            0.09, 0.037, 0.056, 0.109, 0.025, 0.127, 0.13, 0.032, 0.11, 0.12, 0.0,
+            [0.006, 0.078, 0.009],
+            [0.006, 0.071, 0.077],
+            [0.005, 0.076, 0.034],
+            [0.026, 0.147, 0.044],
+            [0.063, 0.047, 0.040],
+            [0.006, 0.019, 0.031],
+            [0.012, 0.064, -0.053],
+            [0.012, 0.052, -0.021],
+            [0.006, 0.158, -0.039],
+            [0.005, 0.043, -0.017],
         ];
         let mut reps = Vec::new();
         for (i, d) in board.iter().enumerate() {
-            reps.push((i as u32 + 1, by_camera(&[0.0, *d, 0.03, -0.01])));
+            reps.push((i as u32 + 1, by_camera(&[d[0], d[1], 0.005, d[2]])));
         }
         for f in 12..40 {
-            reps.push((f, by_camera(&[0.036, 0.02, 0.01])));
+            reps.push((f, by_camera(&[0.060, 0.031, 0.010])));
         }
         assert!(check_reports(0, reps.iter().map(|(f, r)| (*f, r))).is_empty());
         // At the threshold itself a camera agrees; and one camera, or a log written before
@@ -1073,8 +1085,8 @@ mod tests {
         let old = report(0.05, 0.8, false);
         // Two cameras rise together whatever happens (the rig's share judges them), and every
         // camera up at once is the rig's disagreement with the mesh, not some cameras'.
-        let two = by_camera(&[0.08, 0.08]);
-        let all = by_camera(&[0.08, 0.07, 0.09]);
+        let two = by_camera(&[0.15, 0.15]);
+        let all = by_camera(&[0.15, 0.14, 0.16]);
         for r in [&at, &one, &old, &two, &all] {
             let reps: Vec<(u32, &FrameReport)> = (1..20).map(|f| (f, r)).collect();
             assert!(check_reports(0, reps).is_empty());
@@ -1084,7 +1096,7 @@ mod tests {
     #[test]
     fn cameras_not_measured_neither_count_nor_break_a_run_and_a_frame_with_nothing_checked_keeps_it(
     ) {
-        let knocked = || by_camera(&[0.07, 0.08, 0.0, 0.0]);
+        let knocked = || by_camera(&[0.14, 0.15, 0.0, 0.0]);
         // Camera 3 left out at report 4 (blank: it took no pixels), report 5 checked nothing
         // (empty), report 6 from a log written before the field existed: the run of cameras
         // 0 and 1 from report 2 goes on, and report 8 is its fifth.
@@ -1112,11 +1124,11 @@ mod tests {
         assert!(checks.iter().all(|c| c.concerns
             == [Concern::Disagree {
                 cameras: 2,
-                rise: 0.08,
+                rise: 0.15,
                 since: 1
             }]));
         // A three-camera rig with one camera left out is two cameras: never named.
-        let mut two = by_camera(&[0.07, 0.08, 0.0]);
+        let mut two = by_camera(&[0.14, 0.15, 0.0]);
         two.contradicted_by_camera[2] = None;
         let reps: Vec<(u32, &FrameReport)> = (1..12).map(|f| (f, &two)).collect();
         assert!(check_reports(0, reps).is_empty());
@@ -1131,7 +1143,7 @@ mod tests {
             reps.push((f, knocked()));
         }
         for f in 13..=16 {
-            reps.push((f, by_camera(&[0.07, 0.08, 0.0, 0.0, 0.0])));
+            reps.push((f, by_camera(&[0.14, 0.15, 0.0, 0.0, 0.0])));
         }
         let checks = check_reports(0, reps.iter().map(|(f, r)| (*f, r)));
         let since: Vec<(u32, u32)> = checks

@@ -2038,6 +2038,13 @@ fn an_open_surface_turned_half_round_reads_no_change_of_colour_balance() {
     // through the front and taken for a change of white balance (one camera 70 % more blue
     // by frame 14 here, after which every comparison in it was made in wrong colours). Nothing
     // in this footage changes colour.
+    //
+    // Nor is any camera knocked: the cameras' own contradicted shares must not name one. A
+    // camera that sees a triangle nearly edge-on, or from its other side (the hole shows the
+    // inside), contradicted much of what another sees head-on, and as the object turned such
+    // views came and went: one camera was named at frames 8–12 here before those checks
+    // were left out of the share (2026-12-06).
+    let mut reports = Vec::new();
     let e = turning_final_error(
         crate::synth::Preset::Irregular,
         16,
@@ -2049,10 +2056,21 @@ fn an_open_surface_turned_half_round_reads_no_change_of_colour_balance() {
                     "frame {f}, camera {c}: colour balance {b:?} read from footage whose colours never change"
                 );
             }
+            reports.push((f, r.clone()));
         },
     );
     eprintln!("irregular mesh turned 150°: final error {e:.3} %");
     assert!(e < 0.6, "final error {e:.3} %");
+    let named: Vec<_> =
+        crate::tracker::health::check_reports(0, reports.iter().map(|(f, r)| (*f, r)))
+            .into_iter()
+            .filter(|c| {
+                c.concerns
+                    .iter()
+                    .any(|k| matches!(k, crate::tracker::Concern::Disagree { .. }))
+            })
+            .collect();
+    assert!(named.is_empty(), "no camera moved: {named:?}");
 }
 
 /// [`turning_blob_final_error`] after the first frame of the turn, with the membrane's
