@@ -2032,7 +2032,7 @@ fn sides_turned_into_view_are_held_by_the_first_frames_view_from_another_camera(
 }
 
 #[test]
-fn an_open_surface_turned_half_round_reads_no_change_of_colour_balance() {
+fn an_open_surface_turned_half_round_reads_no_change_of_colour_balance_and_names_no_camera() {
     // The irregular preset has a hole, so no facing test leaves its back out: once the object
     // had turned far enough, the first frame's pixels of a side now at the back were read
     // through the front and taken for a change of white balance (one camera 70 % more blue
