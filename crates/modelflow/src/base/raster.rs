@@ -118,6 +118,11 @@ pub(crate) struct Projected {
 }
 
 impl Projected {
+    /// The area it covers, in square pixels.
+    pub(crate) fn pixel_area(&self) -> f64 {
+        0.5 * self.area.abs()
+    }
+
     /// The perspective-correct barycentric coordinates of pixel centre `(x, y)` on the 3-D
     /// triangle (weights of its corners for the surface point seen there).
     pub(crate) fn surface_barycentric(&self, x: f64, y: f64) -> [f64; 3] {

@@ -25,7 +25,7 @@
 
 use crate::base::camera::Projection;
 use crate::base::image::RgbImage;
-use crate::base::raster::{facing_cosines, WELL_FACING};
+use crate::base::raster::{facing_cosines, project_triangle, WELL_FACING};
 use crate::tracker::occluder::{Ahead, StillMarks};
 use crate::tracker::patch::{Patch, PatchSet, PixelSample};
 use nalgebra::Point3;
@@ -618,7 +618,8 @@ impl View<'_> {
 struct Footprint {
     /// The cosine of its facing the camera ([`facing_cosines`]).
     facing: Vec<f64>,
-    /// Its projection's area in pixels of the level (NaN when a corner is behind the camera).
+    /// Its projection's area in pixels of the level (NaN when a corner is behind the camera or
+    /// the projection is degenerate).
     area: Vec<f64>,
 }
 
@@ -643,8 +644,8 @@ impl Footprint {
     }
 }
 
-/// Per triangle, the area of its projection through `proj` (NaN when a corner is behind the
-/// camera).
+/// Per triangle, the area of its projection through `proj` (`raster::project_triangle`'s; NaN
+/// when a corner is behind the camera or the projection is degenerate).
 fn projected_areas(
     positions: &[Point3<f64>],
     triangles: &[[u32; 3]],
@@ -652,13 +653,7 @@ fn projected_areas(
 ) -> Vec<f64> {
     triangles
         .iter()
-        .map(|t| {
-            let [a, b, c] = t.map(|v| proj.project(&positions[v as usize]));
-            match (a, b, c) {
-                (Some(a), Some(b), Some(c)) => 0.5 * (b - a).perp(&(c - a)).abs(),
-                _ => f64::NAN,
-            }
-        })
+        .map(|t| project_triangle(positions, t, proj).map_or(f64::NAN, |p| p.pixel_area()))
         .collect()
 }
 
