@@ -577,8 +577,19 @@ impl ResidualHistogram {
         (STARTS.0, &STARTS.1)
     }
 
+    #[cfg(test)]
     fn add(&mut self, e2: f64, weight: f64) {
-        self.bins[Self::bin(e2)] += (weight * 1024.0).round().max(1.0) as u64;
+        self.add_units(e2, Self::units(weight));
+    }
+
+    /// A weight as the integer units the bins count (at least one), so that a patch's weight is
+    /// converted once, not per pixel.
+    fn units(weight: f64) -> u64 {
+        (weight * 1024.0).round().max(1.0) as u64
+    }
+
+    fn add_units(&mut self, e2: f64, units: u64) {
+        self.bins[Self::bin(e2)] += units;
     }
 
     fn from_bins(bins: Vec<u64>) -> Self {
@@ -754,6 +765,7 @@ impl Problem<'_> {
                 to_current = Some(sw.t);
             }
             let pw = patch.weight as f64;
+            let units = ResidualHistogram::units(pw);
             // Per-patch sums of the six distinct 3×3 vertex-pair blocks, each kept as its six
             // distinct entries (every block is symmetric), folded into the triangle once.
             // Entries 6..9 of each: the pair's share of the positions–gains coupling and of the
@@ -882,7 +894,7 @@ impl Problem<'_> {
                 ];
                 let e2 = r[0] * r[0] + r[1] * r[1] + r[2] * r[2];
                 if let Some(h) = hist.as_mut() {
-                    h.add(e2, pw);
+                    h.add_units(e2, units);
                 }
                 let (rho, w) = match opts.loss {
                     // Huber: ρ(e²) = e² below the threshold, 2δe − δ² above; IRLS weight ρ'.
