@@ -577,11 +577,6 @@ impl ResidualHistogram {
         (STARTS.0, &STARTS.1)
     }
 
-    #[cfg(test)]
-    fn add(&mut self, e2: f64, weight: f64) {
-        self.add_units(e2, Self::units(weight));
-    }
-
     /// A weight as the integer units the bins count (at least one), so that a patch's weight is
     /// converted once, not per pixel.
     fn units(weight: f64) -> u64 {
@@ -1966,7 +1961,7 @@ mod histogram_tests {
         assert_eq!(H::bin(1e10), H::BINS - 1);
         // The median of one pixel of norm 0.05 lies in that pixel's bin.
         let mut h = H::new();
-        h.add(0.05 * 0.05, 1.0);
+        h.add_units(0.05 * 0.05, H::units(1.0));
         let m = h.median().unwrap();
         assert!((0.05 / m).log10().abs() < 1.0 / H::PER_DECADE, "{m}");
     }
