@@ -22,7 +22,6 @@ module="$root/target/python-module"
 rm -rf "$module"
 mkdir -p "$module"
 cp target/debug/libmodelflow_py.so "$module/modelflow.abi3.so"
-cp python/modelflow.pyi "$module/"
 export MODELFLOW_BIN="${MODELFLOW_BIN:-$root/target/debug/modelflow}"
 export PYTHONPATH="$module${PYTHONPATH:+:$PYTHONPATH}"
 # The module just built, not a wheel installed earlier.
