@@ -137,6 +137,11 @@ def coverage(scene: Scene, options: Optional[Dict[str, Any]] = None) -> Dict[str
     """How much of the mesh's surface (by area, at the first frame) is seen by two or more
     cameras ("two_or_more"), by one only ("one"), by none ("none")."""
 
+def blind_cameras(scene: Scene) -> List[Dict[str, Any]]:
+    """The cameras that see none of the mesh at the first frame: [{"camera": name, "index":
+    int, "why": "behind" | "outside_image", "message": str}] (the message names the likely
+    mistake in the camera's calibration, as `track` prints it). Empty when all see some of it."""
+
 def align(
     scene: Scene,
     positions: Optional[npt.NDArray[np.float64]] = None,

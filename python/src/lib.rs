@@ -10,7 +10,7 @@ use numpy::{IntoPyArray, PyArray1, PyArray2, PyArray3, PyReadonlyArray2, PyReado
 use pyo3::create_exception;
 use pyo3::exceptions::PyException;
 use pyo3::prelude::*;
-use pyo3::types::PyDict;
+use pyo3::types::{PyDict, PyList};
 use std::path::PathBuf;
 
 create_exception!(
@@ -499,6 +499,30 @@ fn coverage<'py>(
     )
 }
 
+/// The cameras that see none of the mesh at the scene's first frame, as a list of dicts:
+/// "camera" (its name), "index", "why" ("behind": every vertex is behind it;
+/// "outside_image": in front, but none projects inside its image) and "message" (what `track`
+/// prints: the likely mistake in its calibration). Empty when every camera sees some of it.
+#[pyfunction]
+fn blind_cameras<'py>(py: Python<'py>, scene: &Scene) -> PyResult<Bound<'py, PyList>> {
+    let out = PyList::empty(py);
+    for b in scene.inner.blind_cameras() {
+        let d = PyDict::new(py);
+        d.set_item("camera", &b.name)?;
+        d.set_item("index", b.index)?;
+        d.set_item(
+            "why",
+            match b.why {
+                mf::input::Blind::Behind => "behind",
+                mf::input::Blind::OutsideImage { .. } => "outside_image",
+            },
+        )?;
+        d.set_item("message", b.to_string())?;
+        out.append(d)?;
+    }
+    Ok(out)
+}
+
 /// The scene's mesh, or the same triangles at `positions` ((V, 3), checked).
 fn scene_mesh(
     s: &mf::Scene,
@@ -584,6 +608,7 @@ fn modelflow_py(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(export, m)?)?;
     m.add_function(wrap_pyfunction!(read_run, m)?)?;
     m.add_function(wrap_pyfunction!(coverage, m)?)?;
+    m.add_function(wrap_pyfunction!(blind_cameras, m)?)?;
     m.add_function(wrap_pyfunction!(first_mesh_check, m)?)?;
     m.add_function(wrap_pyfunction!(align, m)?)?;
     Ok(())

@@ -194,6 +194,29 @@ def test_coverage_says_how_much_of_the_surface_two_cameras_see():
     assert strict["two_or_more"] < 0.01 and strict["none"] > 0.9
 
 
+def test_a_camera_in_another_convention_is_named_by_blind_cameras(tmp_path):
+    import json
+    assert modelflow.blind_cameras(modelflow.Scene.load(SCENE)) == []
+    # A third camera: cam1 as OpenGL or Blender would give it (looking down -z, y up).
+    scene = json.loads(SCENE.read_text())
+    folder = SCENE.parent
+    scene["mesh"] = str(folder / scene["mesh"])
+    for c in scene["cameras"]:
+        c["images"] = str(folder / c["images"])
+    flipped = json.loads(json.dumps(scene["cameras"][1]))
+    flipped["name"] = "gl"
+    for i in (1, 2):
+        flipped["R"][i] = [-v for v in flipped["R"][i]]
+        flipped["t"][i] = -flipped["t"][i]
+    scene["cameras"].append(flipped)
+    scene.pop("ground_truth", None)
+    path = tmp_path / "scene.json"
+    path.write_text(json.dumps(scene))
+    blind = modelflow.blind_cameras(modelflow.Scene.load(path))
+    assert [(b["camera"], b["index"], b["why"]) for b in blind] == [("gl", 2, "behind")]
+    assert "negate the second and third rows of its R" in blind[0]["message"]
+
+
 def test_first_mesh_check_names_a_misplaced_mesh(tmp_path):
     s = modelflow.Scene.load(SCENE)
     c = modelflow.first_mesh_check(s)

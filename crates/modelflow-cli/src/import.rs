@@ -137,8 +137,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         cameras.len()
     );
     // The scene is complete only with its mesh and images in place: say what is missing.
-    if let Err(e) = Scene::load(&args.out) {
-        eprintln!("note: the scene does not load yet: {e}");
+    match Scene::load(&args.out) {
+        Ok(scene) => crate::select::warn_blind_cameras(&scene),
+        Err(e) => eprintln!("note: the scene does not load yet: {e}"),
     }
     println!("{}", args.out.display());
     Ok(())

@@ -45,6 +45,17 @@ impl MemoryArgs {
     }
 }
 
+/// Says on stderr which cameras see none of the mesh at the scene's first frame, and why
+/// (`Scene::blind_cameras`): a calibration in another convention loads, and would otherwise
+/// be tracked past in silence.
+pub fn warn_blind_cameras(scene: &Scene) {
+    for b in scene.blind_cameras() {
+        eprintln!(
+            "warning: {b}. The other cameras are used as they are; if the mesh enters this camera's view only later, ignore this."
+        );
+    }
+}
+
 impl SelectArgs {
     /// The scene at `path`, restricted as asked: only the chosen cameras' images over the
     /// chosen frames are checked (`Scene::load_selected`), so a camera with broken footage can

@@ -300,6 +300,40 @@ fn a_rig_whose_views_do_not_overlap_is_named_before_tracking() {
 
 /// The per cent of frame 1's surface the other cameras contradict, as its warning says (0 when
 /// there is no such warning).
+#[test]
+fn a_camera_calibrated_in_another_convention_is_named_and_the_others_tracked() {
+    use modelflow::input::SceneFile;
+    let dir = tempfile::tempdir().unwrap();
+    let opts = SynthOptions {
+        preset: modelflow::synth::Preset::Blob,
+        cameras: Some(4),
+        width: 160,
+        height: 120,
+        frames: 2,
+        supersample: 1,
+        ..SynthOptions::default()
+    };
+    let scene = write_dataset(&opts, &dir.path().join("footage"), &|_, _| {}).unwrap();
+    // cam2 written as OpenGL or Blender give a camera: looking down −z, y up.
+    let mut file = SceneFile::read(&scene).unwrap();
+    let c = &mut file.cameras[2];
+    let (r, t) = (c.r.as_mut().unwrap(), c.t.as_mut().unwrap());
+    for i in 1..3 {
+        r[i] = r[i].map(|v| -v);
+        t[i] = -t[i];
+    }
+    file.write(&scene).unwrap();
+    let err = track_ok(&scene, &dir.path().join("run"));
+    assert!(
+        err.contains(
+            "warning: camera cam2 sees none of the mesh at frame 0: every vertex is behind it"
+        ) && err.contains("negate the second and third rows of its R and entries of its t"),
+        "{err}"
+    );
+    assert!(!err.contains("camera cam0 sees none"), "{err}");
+    assert!(dir.path().join("run/0001.obj").is_file(), "{err}");
+}
+
 fn contradicted_in_frame_1(err: &str) -> u32 {
     const SAYS: &str = "warning: frame 1: the other cameras contradict ";
     err.find(SAYS)

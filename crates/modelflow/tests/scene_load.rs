@@ -866,3 +866,73 @@ fn a_mesh_path_that_is_a_folder_is_named_as_one() {
     });
     assert_names(&msg, &["mesh", "meshdir", "is a folder"]);
 }
+
+#[test]
+fn a_camera_that_sees_none_of_the_mesh_is_named_with_why() {
+    use modelflow::base::{Camera, Projection};
+    use modelflow::input::{blind_cameras, Blind};
+    use nalgebra::{Matrix3, Vector3};
+    let dir = tempfile::tempdir().unwrap();
+    let (path, _) = write_scene(dir.path());
+    let scene = Scene::load(&path).unwrap();
+    assert!(scene.blind_cameras().is_empty(), "both cameras see it");
+    let good = &scene.cameras[0];
+    let (k, r, t) = good.at(0).krt();
+    let camera = |name: &str, k: &Matrix3<f64>, r: &Matrix3<f64>, t: &Vector3<f64>| {
+        Camera::fixed(name, W, H, Projection::from_krt(k, r, t).unwrap())
+    };
+    // The same pose in OpenGL's convention (looking down −z, y up): the mesh is behind it.
+    let flip = Matrix3::from_diagonal(&Vector3::new(1.0, -1.0, -1.0));
+    let gl = camera("gl", &k, &(flip * r), &(flip * t));
+    // The principal point ten image widths off: in front, outside the image.
+    let mut shifted = k;
+    shifted[(0, 2)] += 10.0 * W as f64;
+    let off = camera("off", &shifted, &r, &t);
+    let cams = vec![good.clone(), gl, off, scene.cameras[1].clone()];
+    let blind = blind_cameras(&cams, 0, &scene.mesh);
+    assert_eq!(
+        blind.iter().map(|b| b.index).collect::<Vec<_>>(),
+        vec![1, 2]
+    );
+    assert_eq!(blind[0].why, Blind::Behind);
+    assert_names(
+        &blind[0].to_string(),
+        &[
+            "camera gl sees none of the mesh at frame 0: every vertex is behind it",
+            "x = R·X + t",
+            "negate the second and third rows of its R and entries of its t",
+        ],
+    );
+    match blind[1].why {
+        Blind::OutsideImage { centre: Some(c) } => {
+            assert!(c.x > 9.0 * W as f64, "{c}");
+        }
+        ref other => panic!("{other:?}"),
+    }
+    assert_names(
+        &blind[1].to_string(),
+        &[
+            "camera off sees none of the mesh at frame 0",
+            "projects outside its 64×48 image",
+            "Check its K",
+        ],
+    );
+    // With two cameras, one of them turned the wrong way round, the scene is refused, and the
+    // error says why that camera sees nothing.
+    let e = broken(|file, _| {
+        let c = &mut file.cameras[1];
+        let (r, t) = (c.r.as_mut().unwrap(), c.t.as_mut().unwrap());
+        for i in 1..3 {
+            r[i] = r[i].map(|v| -v);
+            t[i] = -t[i];
+        }
+    });
+    assert_names(
+        &e,
+        &[
+            "fewer than two cameras",
+            "cam1 sees 0%",
+            "camera cam1 sees none of the mesh at frame 0: every vertex is behind it",
+        ],
+    );
+}

@@ -179,6 +179,12 @@ impl Scene {
         pixels + self.mesh.positions.len() as u64 * 4096 + 32 * 1024 * 1024
     }
 
+    /// The cameras that see none of the mesh at the first frame, each with why
+    /// ([`blind_cameras`]).
+    pub fn blind_cameras(&self) -> Vec<BlindCamera> {
+        blind_cameras(&self.cameras, self.first, &self.mesh)
+    }
+
     /// Refuses a scene whose [`Scene::memory_estimate`] exceeds `limit` bytes, before anything
     /// is allocated, saying how much it would need (`option` names the setting that raises the
     /// limit).
@@ -858,14 +864,18 @@ fn check_seen(path: &Path, cameras: &[Camera], first: u32, mesh: &Mesh) -> Resul
             .zip(&shares)
             .map(|(c, s)| format!("{} sees {:.0}%", c.name, 100.0 * s))
             .collect();
+        let why: String = blind_cameras(cameras, first, mesh)
+            .iter()
+            .map(|b| format!(". {b}"))
+            .collect();
         return Err(Error::invalid(
                 path,
                 "cameras",
                 format!(
                     "the mesh is seen by fewer than two cameras at frame {first} (a camera sees it when at least {:.0}% of its vertices project inside the image, in front of the camera): {}",
                     100.0 * MIN_VISIBLE_SHARE,
-                    detail.join(", ")
-                ),
+                    detail.join(", "),
+                ) + &why,
             ));
     }
     Ok(())
@@ -935,6 +945,104 @@ pub fn visible_share(cam: &Camera, frame: u32, mesh: &Mesh) -> f64 {
         .filter(|x| p.project(x).is_some_and(|q| cam.contains(&q)))
         .count();
     seen as f64 / mesh.positions.len() as f64
+}
+
+/// Why a camera sees none of the mesh at a frame ([`blind_cameras`]).
+#[derive(Clone, Debug, PartialEq)]
+pub enum Blind {
+    /// Every vertex lies behind the camera (depth ≤ 0).
+    Behind,
+    /// Some vertices lie in front of the camera but none projects inside its image; `centre` is
+    /// the pixel where the mesh's centroid projects (`None` when the centroid is behind it).
+    OutsideImage {
+        centre: Option<nalgebra::Point2<f64>>,
+    },
+}
+
+/// A camera that sees none of the mesh at a frame, and why: almost always a calibration that
+/// does not follow the scene's convention (docs/scene-format.md, "Convention"), which the
+/// tracker would otherwise pass over in silence (it compares what each camera sees, and this
+/// one sees nothing).
+#[derive(Clone, Debug, PartialEq)]
+pub struct BlindCamera {
+    /// The camera's index in the scene.
+    pub index: usize,
+    pub name: String,
+    pub width: u32,
+    pub height: u32,
+    pub frame: u32,
+    pub why: Blind,
+}
+
+impl std::fmt::Display for BlindCamera {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let (name, frame) = (&self.name, self.frame);
+        match &self.why {
+            Blind::Behind => write!(
+                f,
+                "camera {name} sees none of the mesh at frame {frame}: every vertex is behind it. \
+                 Its R and t must map a world point into the camera (x = R·X + t), not give the \
+                 camera's pose in the world (for a camera-to-world R_c, C: R = R_cᵀ, t = −R_cᵀ·C), \
+                 and it must look down +z with image y downwards, as OpenCV's cameras do; a camera \
+                 from OpenGL or Blender looks down −z with y up: negate the second and third rows \
+                 of its R and entries of its t (docs/scene-format.md, \"Convention\")"
+            ),
+            Blind::OutsideImage { centre } => {
+                let at = match centre {
+                    Some(c) => format!(" (its centre lands at pixel ({:.0}, {:.0}))", c.x, c.y),
+                    None => String::new(),
+                };
+                write!(
+                    f,
+                    "camera {name} sees none of the mesh at frame {frame}: the mesh is in front \
+                     of it but projects outside its {}×{} image{at}. Check its K (focal lengths \
+                     and principal point in pixels of this image size, not millimetres or \
+                     normalised units) and its pose: R and t map a world point into the camera \
+                     (x = R·X + t), not the camera into the world (docs/scene-format.md, \
+                     \"Convention\")",
+                    self.width, self.height
+                )
+            }
+        }
+    }
+}
+
+/// The cameras of `cameras` that see none of `mesh`'s vertices at `frame` (none projects inside
+/// the image, in front of the camera), each with why. A rig needs two cameras that see the mesh
+/// to load at all ([`MIN_VISIBLE_SHARE`]); a third that sees nothing loads, and is named here.
+pub fn blind_cameras(cameras: &[Camera], frame: u32, mesh: &Mesh) -> Vec<BlindCamera> {
+    if mesh.positions.is_empty() {
+        return Vec::new();
+    }
+    let centroid = nalgebra::Point3::from(
+        mesh.positions
+            .iter()
+            .fold(Vector3::zeros(), |s, p| s + p.coords)
+            / mesh.positions.len() as f64,
+    );
+    cameras
+        .iter()
+        .enumerate()
+        .filter(|(_, c)| visible_share(c, frame, mesh) == 0.0)
+        .map(|(index, c)| {
+            let p = c.at(frame);
+            let why = if mesh.positions.iter().all(|x| p.depth(x) <= 0.0) {
+                Blind::Behind
+            } else {
+                Blind::OutsideImage {
+                    centre: p.project(&centroid),
+                }
+            };
+            BlindCamera {
+                index,
+                name: c.name.clone(),
+                width: c.width,
+                height: c.height,
+                frame,
+                why,
+            }
+        })
+        .collect()
 }
 
 impl Scene {
