@@ -142,6 +142,11 @@ def blind_cameras(scene: Scene) -> List[Dict[str, Any]]:
     int, "why": "behind" | "outside_image", "message": str}] (the message names the likely
     mistake in the camera's calibration, as `track` prints it). Empty when all see some of it."""
 
+def mesh_out_of_scale(scene: Scene) -> Optional[Dict[str, Any]]:
+    """The mesh's size in the images at the first frame when it is under 8 px or over 10 times
+    the images' diagonal: {"pixels": float, "image": float, "message": str}; None otherwise.
+    Almost always a mesh in another unit than the calibration."""
+
 def align(
     scene: Scene,
     positions: Optional[npt.NDArray[np.float64]] = None,

@@ -523,6 +523,26 @@ fn blind_cameras<'py>(py: Python<'py>, scene: &Scene) -> PyResult<Bound<'py, PyL
     Ok(out)
 }
 
+/// The mesh's size in the images at the scene's first frame when it is too small to track
+/// (under 8 px) or many times the images (over 10 times their diagonal), as a dict: "pixels"
+/// (the projected vertices' bounding-box diagonal, median over the cameras), "image" (the
+/// images' diagonal) and "message"; `None` otherwise. Almost always a mesh in another unit
+/// than the calibration.
+#[pyfunction]
+fn mesh_out_of_scale<'py>(py: Python<'py>, scene: &Scene) -> PyResult<Option<Bound<'py, PyDict>>> {
+    scene
+        .inner
+        .mesh_out_of_scale()
+        .map(|m| {
+            let d = PyDict::new(py);
+            d.set_item("pixels", m.pixels)?;
+            d.set_item("image", m.image)?;
+            d.set_item("message", m.to_string())?;
+            Ok(d)
+        })
+        .transpose()
+}
+
 /// The scene's mesh, or the same triangles at `positions` ((V, 3), checked).
 fn scene_mesh(
     s: &mf::Scene,
@@ -609,6 +629,7 @@ fn modelflow_py(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(read_run, m)?)?;
     m.add_function(wrap_pyfunction!(coverage, m)?)?;
     m.add_function(wrap_pyfunction!(blind_cameras, m)?)?;
+    m.add_function(wrap_pyfunction!(mesh_out_of_scale, m)?)?;
     m.add_function(wrap_pyfunction!(first_mesh_check, m)?)?;
     m.add_function(wrap_pyfunction!(align, m)?)?;
     Ok(())

@@ -217,6 +217,32 @@ def test_a_camera_in_another_convention_is_named_by_blind_cameras(tmp_path):
     assert "negate the second and third rows of its R" in blind[0]["message"]
 
 
+def test_a_mesh_in_another_unit_is_named_by_mesh_out_of_scale(tmp_path):
+    import json
+    assert modelflow.mesh_out_of_scale(modelflow.Scene.load(SCENE)) is None
+    # The sheet written a thousand times smaller about its centre (metres for millimetres).
+    scene = json.loads(SCENE.read_text())
+    folder = SCENE.parent
+    for c in scene["cameras"]:
+        c["images"] = str(folder / c["images"])
+    scene.pop("ground_truth", None)
+    lines = (folder / scene["mesh"]).read_text().splitlines()
+    v = np.array([[float(x) for x in l.split()[1:4]] for l in lines if l.startswith("v ")])
+    c = v.mean(axis=0)
+    small = iter(c + (v - c) * 1e-3)
+    out = [
+        ("v %r %r %r" % tuple(float(x) for x in next(small))) if l.startswith("v ") else l
+        for l in lines
+    ]
+    (tmp_path / "small.obj").write_text("\n".join(out) + "\n")
+    scene["mesh"] = str(tmp_path / "small.obj")
+    path = tmp_path / "scene.json"
+    path.write_text(json.dumps(scene))
+    m = modelflow.mesh_out_of_scale(modelflow.Scene.load(path))
+    assert m is not None and m["pixels"] < 8 and m["image"] == pytest.approx(400.0)
+    assert "too small to track" in m["message"]
+
+
 def test_first_mesh_check_names_a_misplaced_mesh(tmp_path):
     s = modelflow.Scene.load(SCENE)
     c = modelflow.first_mesh_check(s)

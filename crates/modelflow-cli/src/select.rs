@@ -46,9 +46,13 @@ impl MemoryArgs {
 }
 
 /// Says on stderr which cameras see none of the mesh at the scene's first frame, and why
-/// (`Scene::blind_cameras`): a calibration in another convention loads, and would otherwise
-/// be tracked past in silence.
+/// (`Scene::blind_cameras`), and when the mesh is far too small or large in the images
+/// (`Scene::mesh_out_of_scale`): a calibration in another convention or unit loads, and would
+/// otherwise be tracked past in silence.
 pub fn warn_blind_cameras(scene: &Scene) {
+    if let Some(m) = scene.mesh_out_of_scale() {
+        eprintln!("warning: {m} (docs/scene-format.md, \"Convention\").");
+    }
     for b in scene.blind_cameras() {
         eprintln!(
             "warning: {b}. The other cameras are used as they are; if the mesh enters this camera's view only later, ignore this."

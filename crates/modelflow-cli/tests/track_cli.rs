@@ -334,6 +334,33 @@ fn a_camera_calibrated_in_another_convention_is_named_and_the_others_tracked() {
     assert!(dir.path().join("run/0001.obj").is_file(), "{err}");
 }
 
+#[test]
+fn a_mesh_in_another_unit_than_the_cameras_is_named() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = small_cloth(dir.path());
+    // The cloth written in metres where the cameras are in millimetres: 1000 times too small.
+    let obj = dir.path().join("footage/mesh/initial.obj");
+    let mesh = modelflow::input::read_mesh(&obj).unwrap();
+    let c = modelflow::base::centroid(&mesh.positions);
+    let mut text = String::new();
+    for p in &mesh.positions {
+        let q = c + (p - c) * 1e-3;
+        text += &format!("v {} {} {}\n", q.x, q.y, q.z);
+    }
+    for t in &mesh.triangles {
+        text += &format!("f {} {} {}\n", t[0] + 1, t[1] + 1, t[2] + 1);
+    }
+    std::fs::write(&obj, text).unwrap();
+    let err = track_ok(&scene, &dir.path().join("run"));
+    assert!(
+        err.contains("warning: the mesh is only ")
+            && err.contains(
+                "too small to track. Are the mesh and the calibration's t in the same unit?"
+            ),
+        "{err}"
+    );
+}
+
 fn contradicted_in_frame_1(err: &str) -> u32 {
     const SAYS: &str = "warning: frame 1: the other cameras contradict ";
     err.find(SAYS)

@@ -936,3 +936,48 @@ fn a_camera_that_sees_none_of_the_mesh_is_named_with_why() {
         ],
     );
 }
+
+#[test]
+fn a_mesh_in_another_unit_than_the_calibration_is_named() {
+    use modelflow::input::{mesh_out_of_scale, TINY_MESH_PX};
+    let dir = tempfile::tempdir().unwrap();
+    let (path, _) = write_scene(dir.path());
+    let scene = Scene::load(&path).unwrap();
+    // The 1 m sheet is about 50 px across in the 64×48 images: nothing to say.
+    assert_eq!(scene.mesh_out_of_scale(), None);
+    let m = mesh();
+    let c = modelflow::base::centroid(&m.positions);
+    let scaled = |f: f64| m.with_positions(m.positions.iter().map(|p| c + (p - c) * f).collect());
+    // In millimetres' worth of metres: a twentieth of a pixel.
+    let tiny = mesh_out_of_scale(&scene.cameras, 0, &scaled(1e-3)).unwrap();
+    assert!(tiny.pixels < 0.1 && tiny.pixels < TINY_MESH_PX, "{tiny:?}");
+    assert_names(
+        &tiny.to_string(),
+        &[
+            "px across in the cameras' images at frame 0",
+            "too small to track",
+            "same unit",
+        ],
+    );
+    // A thousand times too large: the cameras stand inside it.
+    let huge = mesh_out_of_scale(&scene.cameras, 0, &scaled(1e3)).unwrap();
+    assert!(huge.pixels > 10.0 * huge.image, "{huge:?}");
+    assert_names(
+        &huge.to_string(),
+        &["times their size", "1000 times larger"],
+    );
+    // Such a mesh is seen by no camera, and the load error says why.
+    let obj = dir.path().join("huge.obj");
+    let mut text = String::new();
+    for p in &scaled(1e3).positions {
+        text += &format!("v {} {} {}\n", p.x, p.y, p.z);
+    }
+    for t in &m.triangles {
+        text += &format!("f {} {} {}\n", t[0] + 1, t[1] + 1, t[2] + 1);
+    }
+    std::fs::write(&obj, text).unwrap();
+    assert_names(
+        &scene.with_mesh(&obj).unwrap_err().to_string(),
+        &["fewer than two cameras", "times their size", "same unit"],
+    );
+}

@@ -15,7 +15,8 @@ pub mod video;
 pub use imageio::{image_size, read_rgb, write_png, write_png16};
 pub use meshio::{parse_obj, parse_ply, read_mesh, read_mesh_with, validate, write_obj, Checks};
 pub use scene::{
-    blind_cameras, visible_share, Blind, BlindCamera, CameraEntry, DistortionEntry, FramePattern,
-    FrameRange, PoseEntry, Scene, SceneFile, Selection, BYTES_PER_PIXEL, FORMAT,
-    LENS_BYTES_PER_PIXEL, MIN_VISIBLE_SHARE, ROTATION_TOLERANCE,
+    blind_cameras, mesh_out_of_scale, visible_share, Blind, BlindCamera, CameraEntry,
+    DistortionEntry, FramePattern, FrameRange, MeshOutOfScale, PoseEntry, Scene, SceneFile,
+    Selection, BYTES_PER_PIXEL, FORMAT, HUGE_MESH_IMAGES, LENS_BYTES_PER_PIXEL, MIN_VISIBLE_SHARE,
+    ROTATION_TOLERANCE, TINY_MESH_PX,
 };

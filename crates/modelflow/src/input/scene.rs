@@ -185,6 +185,12 @@ impl Scene {
         blind_cameras(&self.cameras, self.first, &self.mesh)
     }
 
+    /// The mesh's size in the images at the first frame when it is too small to track or many
+    /// times the images ([`mesh_out_of_scale`]): a mesh in another unit than the calibration.
+    pub fn mesh_out_of_scale(&self) -> Option<MeshOutOfScale> {
+        mesh_out_of_scale(&self.cameras, self.first, &self.mesh)
+    }
+
     /// Refuses a scene whose [`Scene::memory_estimate`] exceeds `limit` bytes, before anything
     /// is allocated, saying how much it would need (`option` names the setting that raises the
     /// limit).
@@ -864,9 +870,14 @@ fn check_seen(path: &Path, cameras: &[Camera], first: u32, mesh: &Mesh) -> Resul
             .zip(&shares)
             .map(|(c, s)| format!("{} sees {:.0}%", c.name, 100.0 * s))
             .collect();
-        let why: String = blind_cameras(cameras, first, mesh)
-            .iter()
-            .map(|b| format!(". {b}"))
+        let why: String = mesh_out_of_scale(cameras, first, mesh)
+            .map(|m| format!("; {m}"))
+            .into_iter()
+            .chain(
+                blind_cameras(cameras, first, mesh)
+                    .iter()
+                    .map(|b| format!("; {b}")),
+            )
             .collect();
         return Err(Error::invalid(
                 path,
@@ -1043,6 +1054,87 @@ pub fn blind_cameras(cameras: &[Camera], frame: u32, mesh: &Mesh) -> Vec<BlindCa
             }
         })
         .collect()
+}
+
+/// Below this many pixels across (median over the cameras) a mesh is too small to track, and is
+/// named by [`mesh_out_of_scale`].
+pub const TINY_MESH_PX: f64 = 8.0;
+/// Above this many times the images' diagonal (median over the cameras) a mesh is named by
+/// [`mesh_out_of_scale`].
+pub const HUGE_MESH_IMAGES: f64 = 10.0;
+
+/// A mesh whose size in the images is far from anything a tracker can follow: almost always a
+/// mesh in another unit than the calibration's `t` (metres against millimetres: 1000 times).
+#[derive(Clone, Debug, PartialEq)]
+pub struct MeshOutOfScale {
+    pub frame: u32,
+    /// The mesh's size in the images: the diagonal of its projected vertices' bounding box
+    /// (those in front of each camera), median over the cameras that have any in front.
+    pub pixels: f64,
+    /// The images' diagonal, median over the same cameras.
+    pub image: f64,
+}
+
+impl std::fmt::Display for MeshOutOfScale {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let frame = self.frame;
+        if self.pixels < self.image {
+            write!(
+                f,
+                "the mesh is only {:.1} px across in the cameras' images at frame {frame} \
+                 (median over the cameras): too small to track. Are the mesh and the \
+                 calibration's t in the same unit? A mesh in metres with cameras calibrated in \
+                 millimetres looks 1000 times smaller",
+                self.pixels
+            )
+        } else {
+            write!(
+                f,
+                "the mesh is about {:.0} px across in the cameras' images at frame {frame}, \
+                 {:.0} times their size (median over the cameras). Are the mesh and the \
+                 calibration's t in the same unit? A mesh in millimetres with cameras \
+                 calibrated in metres looks 1000 times larger",
+                self.pixels,
+                self.pixels / self.image
+            )
+        }
+    }
+}
+
+/// The mesh's size in the cameras' images at `frame` when it is below [`TINY_MESH_PX`] or above
+/// [`HUGE_MESH_IMAGES`] times the images (`None` otherwise, and when no vertex is in front of
+/// any camera: [`blind_cameras`] says that).
+pub fn mesh_out_of_scale(cameras: &[Camera], frame: u32, mesh: &Mesh) -> Option<MeshOutOfScale> {
+    let median = |mut v: Vec<f64>| {
+        v.sort_by(f64::total_cmp);
+        v[v.len() / 2]
+    };
+    let mut pixels = Vec::new();
+    let mut image = Vec::new();
+    for c in cameras {
+        let p = c.at(frame);
+        let mut lo = nalgebra::Point2::new(f64::INFINITY, f64::INFINITY);
+        let mut hi = nalgebra::Point2::new(f64::NEG_INFINITY, f64::NEG_INFINITY);
+        let mut any = false;
+        for q in mesh.positions.iter().filter_map(|x| p.project(x)) {
+            lo = lo.inf(&q);
+            hi = hi.sup(&q);
+            any = true;
+        }
+        if any && (hi - lo).norm().is_finite() {
+            pixels.push((hi - lo).norm());
+            image.push((c.width as f64).hypot(c.height as f64));
+        }
+    }
+    if pixels.is_empty() {
+        return None;
+    }
+    let out = MeshOutOfScale {
+        frame,
+        pixels: median(pixels),
+        image: median(image),
+    };
+    (out.pixels < TINY_MESH_PX || out.pixels > HUGE_MESH_IMAGES * out.image).then_some(out)
 }
 
 impl Scene {
