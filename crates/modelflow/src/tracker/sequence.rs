@@ -1035,6 +1035,13 @@ impl Tracker {
                     .into_iter()
                     .chain(mesh_window(cam, this.prev.frame, predicted))
                     .collect();
+                // The mesh out of this camera's view: its pose does not enter the solve, and
+                // its whole image, the moving subject in it too when the camera's calibration
+                // is wrong (`input::blind_cameras`), would pass for background. Read again
+                // once the mesh is in view (against the same first frame).
+                if windows.is_empty() {
+                    return None;
+                }
                 let just_moved = matches!(this.moved_at[c], Some((f, _)) if f == this.prev.frame);
                 steady::read(
                     reference,
