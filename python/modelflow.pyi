@@ -123,7 +123,9 @@ def first_mesh_check(
     cameras agree best (or None), "placement": how far `align` would move the mesh (or None;
     only for a mesh on the surface, off it by more than a quarter of its size, or off it by
     less where `align`'s rigid move makes the cameras agree better than the move along the
-    normals does: misplaced, not off the surface), "surface_off": bool, "misplaced": bool}.
+    normals does: misplaced, not off the surface), "surface_off": bool, "misplaced": bool,
+    "axes_swapped": None or {"swap": "y_up_to_z_up" | "z_up_to_y_up", "gain": float, "message":
+    str} when the cameras agree at least 1.25 times better about the mesh with its axes swapped}.
     `track` moves the mesh onto the surface when "surface_off" holds within a quarter of its
     size and "placement" is None. Both findings
     carry "compared" (pixels the cameras compare where the mesh is) and "texture_kept" (their

@@ -582,8 +582,10 @@ fn scene_mesh(
 /// cameras' cost where the mesh is over that where `align` ends); "surface_off" and
 /// "misplaced" say whether either is worth a warning (not from fewer than 200 pixels, nor
 /// keeping under a quarter of the texture, nor a placement where the cameras agree less than
-/// 1.05 times better). `positions` ((V, 3)): another placement
-/// of the scene's mesh.
+/// 1.05 times better); "axes_swapped": None, or {"swap": "y_up_to_z_up" | "z_up_to_y_up",
+/// "gain", "message"} when the cameras agree at least 1.25 times better about the mesh with
+/// its axes so swapped (a mesh exported with another up axis). `positions` ((V, 3)): another
+/// placement of the scene's mesh.
 #[pyfunction]
 #[pyo3(signature = (scene, positions=None))]
 fn first_mesh_check<'py>(
@@ -602,6 +604,23 @@ fn first_mesh_check<'py>(
     d.set_item("placement", to_py(py, &c.placement)?)?;
     d.set_item("surface_off", c.surface.is_some_and(|o| o.is_off()))?;
     d.set_item("misplaced", c.placement.is_some_and(|p| p.is_off()))?;
+    let axes = match mf::tracker::axes_swapped(&mesh, &s.cameras, s.first, &images) {
+        None => None,
+        Some(a) => {
+            let e = PyDict::new(py);
+            e.set_item(
+                "swap",
+                match a.swap {
+                    mf::base::AxisSwap::YUpToZUp => "y_up_to_z_up",
+                    mf::base::AxisSwap::ZUpToYUp => "z_up_to_y_up",
+                },
+            )?;
+            e.set_item("gain", a.gain)?;
+            e.set_item("message", a.to_string())?;
+            Some(e)
+        }
+    };
+    d.set_item("axes_swapped", axes)?;
     Ok(d)
 }
 

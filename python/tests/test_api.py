@@ -247,6 +247,7 @@ def test_first_mesh_check_names_a_misplaced_mesh(tmp_path):
     s = modelflow.Scene.load(SCENE)
     c = modelflow.first_mesh_check(s)
     assert not c["surface_off"] and not c["misplaced"]
+    assert c["axes_swapped"] is None
     assert c["placement"]["fraction"] < 0.01
     # The cloth tilted 6° about an axis in its plane (what the images fix of a flat sheet; a
     # lift along its normal is the surface check's, and the tracker moves that onto the

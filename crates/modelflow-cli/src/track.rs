@@ -381,6 +381,14 @@ fn first_mesh_checks(
         );
     }
     let len = modelflow::base::Length::of(scene.units);
+    if let Some(a) =
+        modelflow::tracker::axes_swapped(&scene.mesh, &scene.cameras, scene.first, &images)
+    {
+        eprintln!(
+            "warning: at frame {}, {a} (docs/scene-format.md, \"Convention\"). It is tracked as given.",
+            scene.first
+        );
+    }
     let check =
         modelflow::tracker::first_mesh_check(&scene.mesh, &scene.cameras, scene.first, &images);
     // Farther off than the tracker moves a mesh onto the surface, or better explained by a

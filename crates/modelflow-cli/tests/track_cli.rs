@@ -366,6 +366,38 @@ fn a_mesh_in_another_unit_than_the_cameras_is_named() {
     );
 }
 
+#[test]
+fn a_mesh_exported_y_up_for_a_z_up_rig_is_named() {
+    use modelflow::base::AxisSwap;
+    let dir = tempfile::tempdir().unwrap();
+    let opts = SynthOptions {
+        preset: modelflow::synth::Preset::Blob,
+        width: 160,
+        height: 120,
+        frames: 2,
+        supersample: 1,
+        ..SynthOptions::default()
+    };
+    let scene = write_dataset(&opts, &dir.path().join("footage"), &|_, _| {}).unwrap();
+    let err = track_ok(&scene, &dir.path().join("run"));
+    assert!(!err.contains("with its axes turned"), "{err}");
+    // The blob as a Y-up exporter writes it from the renderer's Z-up world.
+    let obj = dir.path().join("footage/mesh/initial.obj");
+    let mesh = modelflow::input::read_mesh(&obj).unwrap();
+    let written: Vec<_> = mesh
+        .positions
+        .iter()
+        .map(|p| AxisSwap::ZUpToYUp.apply(p))
+        .collect();
+    modelflow::input::write_obj(&obj, &mesh.with_positions(written)).unwrap();
+    let err = track_ok(&scene, &dir.path().join("run2"));
+    assert!(
+        err.contains("warning: at frame 0, the cameras agree ")
+            && err.contains("times better about the mesh with its axes turned from Y-up to Z-up, (x, y, z) → (x, −z, y)"),
+        "{err}"
+    );
+}
+
 fn contradicted_in_frame_1(err: &str) -> u32 {
     const SAYS: &str = "warning: frame 1: the other cameras contradict ";
     err.find(SAYS)

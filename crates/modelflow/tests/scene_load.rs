@@ -939,7 +939,7 @@ fn a_camera_that_sees_none_of_the_mesh_is_named_with_why() {
 
 #[test]
 fn a_mesh_in_another_unit_than_the_calibration_is_named() {
-    use modelflow::input::{mesh_out_of_scale, TINY_MESH_PX};
+    use modelflow::input::mesh_out_of_scale;
     let dir = tempfile::tempdir().unwrap();
     let (path, _) = write_scene(dir.path());
     let scene = Scene::load(&path).unwrap();
@@ -950,7 +950,7 @@ fn a_mesh_in_another_unit_than_the_calibration_is_named() {
     let scaled = |f: f64| m.with_positions(m.positions.iter().map(|p| c + (p - c) * f).collect());
     // In millimetres' worth of metres: a twentieth of a pixel.
     let tiny = mesh_out_of_scale(&scene.cameras, 0, &scaled(1e-3)).unwrap();
-    assert!(tiny.pixels < 0.1 && tiny.pixels < TINY_MESH_PX, "{tiny:?}");
+    assert!(tiny.pixels < 0.1, "{tiny:?}");
     assert_names(
         &tiny.to_string(),
         &[
@@ -979,5 +979,37 @@ fn a_mesh_in_another_unit_than_the_calibration_is_named() {
     assert_names(
         &scene.with_mesh(&obj).unwrap_err().to_string(),
         &["fewer than two cameras", "times their size", "same unit"],
+    );
+}
+
+#[test]
+fn a_mesh_written_with_another_up_axis_out_of_view_is_named_with_the_swap() {
+    use modelflow::base::AxisSwap;
+    use modelflow::input::write_obj;
+    use nalgebra::{Matrix3, Vector3};
+    // The rig and the sheet moved 5 m down the world's z axis, and the sheet written Y-up
+    // (as Blender's OBJ export does from a Z-up world): it lands behind both cameras.
+    let shift = Vector3::new(0.0, 0.0, -5.0);
+    let e = broken(|file, dir| {
+        for c in &mut file.cameras {
+            let r = Matrix3::from_fn(|i, j| c.r.unwrap()[i][j]);
+            let t = Vector3::from(c.t.unwrap()) - r * shift;
+            c.t = Some([t.x, t.y, t.z]);
+        }
+        let m = mesh();
+        let written: Vec<_> = m
+            .positions
+            .iter()
+            .map(|p| AxisSwap::ZUpToYUp.apply(&(p + shift)))
+            .collect();
+        write_obj(&dir.join("mesh/initial.obj"), &m.with_positions(written)).unwrap();
+    });
+    assert_names(
+        &e,
+        &[
+            "fewer than two cameras",
+            "with its axes turned from Y-up to Z-up, (x, y, z) → (x, −z, y)",
+            "2 cameras would see it",
+        ],
     );
 }

@@ -734,3 +734,40 @@ mod tests {
         );
     }
 }
+
+/// A change of axes between the conventions 3D packages write meshes in: what a mesh looks like
+/// when it was written with one up axis and the cameras were calibrated with the other (Blender's
+/// world and most photogrammetry are Z-up; Maya, glTF and Blender's OBJ export by default are
+/// Y-up). Turns about the world's origin, as the exporters do.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum AxisSwap {
+    /// A mesh written Y-up read into a Z-up world: `(x, y, z) → (x, −z, y)`.
+    YUpToZUp,
+    /// A mesh written Z-up read into a Y-up world: `(x, y, z) → (x, z, −y)`.
+    ZUpToYUp,
+}
+
+impl AxisSwap {
+    /// Both swaps, in a fixed order.
+    pub const ALL: [AxisSwap; 2] = [AxisSwap::YUpToZUp, AxisSwap::ZUpToYUp];
+
+    /// The point `p` with its axes swapped.
+    pub fn apply(self, p: &Point3<f64>) -> Point3<f64> {
+        match self {
+            AxisSwap::YUpToZUp => Point3::new(p.x, -p.z, p.y),
+            AxisSwap::ZUpToYUp => Point3::new(p.x, p.z, -p.y),
+        }
+    }
+
+    /// What the swap does, in words a user can act on.
+    pub fn describe(self) -> &'static str {
+        match self {
+            AxisSwap::YUpToZUp => {
+                "turned from Y-up to Z-up, (x, y, z) → (x, −z, y): a mesh written Y-up (Blender's OBJ export by default, Maya, glTF) for cameras in a Z-up world"
+            }
+            AxisSwap::ZUpToYUp => {
+                "turned from Z-up to Y-up, (x, y, z) → (x, z, −y): a mesh written Z-up (Blender's world, most scans) for cameras in a Y-up world"
+            }
+        }
+    }
+}

@@ -15,5 +15,7 @@ pub(crate) mod units;
 pub use camera::{is_rotation, look_at, Camera, Projection, ProjectionError};
 pub use image::{blank_images, comparable, mixes_grey_and_colour, BlockMeans, RgbImage};
 pub use lens::{DistortMap, Distortion, Lens, UndistortMap};
-pub use mesh::{centroid, grid, rms_distance, rms_radius, CornerNormals, CornerTable, Mesh};
+pub use mesh::{
+    centroid, grid, rms_distance, rms_radius, AxisSwap, CornerNormals, CornerTable, Mesh,
+};
 pub use units::{Length, Units};

@@ -870,9 +870,25 @@ fn check_seen(path: &Path, cameras: &[Camera], first: u32, mesh: &Mesh) -> Resul
             .zip(&shares)
             .map(|(c, s)| format!("{} sees {:.0}%", c.name, 100.0 * s))
             .collect();
+        // A mesh written with another up axis than the cameras' world lies turned 90° about
+        // the origin: say which swap the cameras would see.
+        let swapped = crate::base::AxisSwap::ALL.iter().find_map(|&swap| {
+            let turned = mesh.with_positions(mesh.positions.iter().map(|p| swap.apply(p)).collect());
+            let n = cameras
+                .iter()
+                .filter(|c| visible_share(c, first, &turned) >= MIN_VISIBLE_SHARE)
+                .count();
+            (n >= 2).then(|| {
+                format!(
+                    "; with its axes {}, {n} cameras would see it: export it with the cameras' up axis, or check the calibration's",
+                    swap.describe()
+                )
+            })
+        });
         let why: String = mesh_out_of_scale(cameras, first, mesh)
             .map(|m| format!("; {m}"))
             .into_iter()
+            .chain(swapped)
             .chain(
                 blind_cameras(cameras, first, mesh)
                     .iter()

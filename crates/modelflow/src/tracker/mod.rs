@@ -3,11 +3,13 @@
 //! analytic Jacobian (`warp`), the regularisers (`regularise`), the block-sparse normal equations
 //! and their conjugate-gradient solver (`sparse`), and the Gauss–Newton/Levenberg–Marquardt
 //! solve (`solve`). Before a shot, `align` lines a roughly placed mesh up with its first frame
-//! by the same warps between cameras. Over a shot: [`Tracker`] in memory (`sequence`: images in, positions out)
+//! by the same warps between cameras, and `axes` asks whether the mesh was written with another
+//! up axis than the cameras'. Over a shot: [`Tracker`] in memory (`sequence`: images in, positions out)
 //! and [`track_scene`] from a scene on disk into a run folder (`shot`). Only `shot` touches
 //! files, through `run`; everything else takes and returns memory.
 
 pub(crate) mod align;
+mod axes;
 mod balance;
 pub(crate) mod consensus;
 mod coverage;
@@ -39,6 +41,7 @@ pub use align::{
     PLACEMENT_WARN, TEXTURE_PASS_GAIN,
 };
 pub use align::{PassSummary, SEARCH_SHIFT, SEARCH_STARTS, SEARCH_TURN};
+pub use axes::{axes_swapped, AxesSwapped, AXES_GAIN};
 pub use coverage::{coverage, Coverage};
 pub use gpu::{Gpu, GpuStats};
 pub use health::{
