@@ -144,6 +144,11 @@ def blind_cameras(scene: Scene) -> List[Dict[str, Any]]:
     int, "why": "behind" | "outside_image", "message": str}] (the message names the likely
     mistake in the camera's calibration, as `track` prints it). Empty when all see some of it."""
 
+def off_centre_principal_points(scene: Scene) -> List[Dict[str, Any]]:
+    """The cameras whose principal point lies more than a fifth of the image from its centre:
+    [{"camera": name, "index": int, "cx": float, "cy": float, "message": str}] (the message names
+    the likely cause, a K made at another resolution, and the scale to apply)."""
+
 def mesh_out_of_scale(scene: Scene) -> Optional[Dict[str, Any]]:
     """The mesh's size in the images at the first frame when it is under 8 px or over 10 times
     the images' diagonal: {"pixels": float, "image": float, "message": str}; None otherwise.

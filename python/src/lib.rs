@@ -523,6 +523,27 @@ fn blind_cameras<'py>(py: Python<'py>, scene: &Scene) -> PyResult<Bound<'py, PyL
     Ok(out)
 }
 
+/// The cameras whose principal point lies more than a fifth of the image from its centre, as
+/// a list of dicts: "camera", "index", "cx", "cy", "message" (the likely cause: a K made at
+/// another resolution than the footage's, and the scale to apply). Empty when none does.
+#[pyfunction]
+fn off_centre_principal_points<'py>(
+    py: Python<'py>,
+    scene: &Scene,
+) -> PyResult<Bound<'py, PyList>> {
+    let out = PyList::empty(py);
+    for o in scene.inner.off_centre_principal_points() {
+        let d = PyDict::new(py);
+        d.set_item("camera", &o.name)?;
+        d.set_item("index", o.index)?;
+        d.set_item("cx", o.cx)?;
+        d.set_item("cy", o.cy)?;
+        d.set_item("message", o.to_string())?;
+        out.append(d)?;
+    }
+    Ok(out)
+}
+
 /// The mesh's size in the images at the scene's first frame when it is too small to track
 /// (under 8 px) or many times the images (over 10 times their diagonal), as a dict: "pixels"
 /// (the projected vertices' bounding-box diagonal, median over the cameras), "image" (the
@@ -649,6 +670,7 @@ fn modelflow_py(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(coverage, m)?)?;
     m.add_function(wrap_pyfunction!(blind_cameras, m)?)?;
     m.add_function(wrap_pyfunction!(mesh_out_of_scale, m)?)?;
+    m.add_function(wrap_pyfunction!(off_centre_principal_points, m)?)?;
     m.add_function(wrap_pyfunction!(first_mesh_check, m)?)?;
     m.add_function(wrap_pyfunction!(align, m)?)?;
     Ok(())

@@ -197,6 +197,7 @@ def test_coverage_says_how_much_of_the_surface_two_cameras_see():
 def test_a_camera_in_another_convention_is_named_by_blind_cameras(tmp_path):
     import json
     assert modelflow.blind_cameras(modelflow.Scene.load(SCENE)) == []
+    assert modelflow.off_centre_principal_points(modelflow.Scene.load(SCENE)) == []
     # A third camera: cam1 as OpenGL or Blender would give it (looking down -z, y up).
     scene = json.loads(SCENE.read_text())
     folder = SCENE.parent
@@ -214,6 +215,14 @@ def test_a_camera_in_another_convention_is_named_by_blind_cameras(tmp_path):
     path.write_text(json.dumps(scene))
     blind = modelflow.blind_cameras(modelflow.Scene.load(path))
     assert [(b["camera"], b["index"], b["why"]) for b in blind] == [("gl", 2, "behind")]
+    # A K calibrated at twice the footage's resolution: its principal point is named.
+    scene["cameras"][2]["K"][0][2] = 319.5
+    scene["cameras"][2]["K"][1][2] = 239.5
+    path.write_text(json.dumps(scene))
+    off = modelflow.off_centre_principal_points(modelflow.Scene.load(path))
+    assert [o["camera"] for o in off] == ["gl"]
+    assert (off[0]["cx"], off[0]["cy"]) == (pytest.approx(319.5), pytest.approx(239.5))
+    assert "the centre of a 640×480 image: scale K's first two rows by 320/640" in off[0]["message"]
     assert "negate the second and third rows of its R" in blind[0]["message"]
 
 

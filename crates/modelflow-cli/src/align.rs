@@ -102,7 +102,7 @@ fn parse_perturb(s: &str) -> Result<(f64, f64), String> {
 
 pub fn run(args: Args) -> anyhow::Result<()> {
     let scene = args.select.load(&args.scene)?;
-    crate::select::warn_blind_cameras(&scene);
+    crate::select::warn_calibration(&scene);
     let frame = scene.first;
     let mut mesh = scene.mesh.clone();
     if let Some((pct, deg)) = args.perturb {

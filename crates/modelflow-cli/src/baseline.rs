@@ -74,7 +74,7 @@ pub fn run(args: Args, invocation: &Invocation) -> anyhow::Result<()> {
     opts.validate()?;
     let scene = args.select.load(&args.scene)?;
     args.memory.check(&scene)?;
-    crate::select::warn_blind_cameras(&scene);
+    crate::select::warn_calibration(&scene);
     let run = run_options(args.out.mode(false), invocation);
     let progress = Progress::new("baseline", (scene.last - scene.first) as u64);
     let result = baseline::run(&scene, &opts, &args.out.out, &run, &|f| {

@@ -138,7 +138,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     );
     // The scene is complete only with its mesh and images in place: say what is missing.
     match Scene::load(&args.out) {
-        Ok(scene) => crate::select::warn_blind_cameras(&scene),
+        Ok(scene) => crate::select::warn_calibration(&scene),
         Err(e) => eprintln!("note: the scene does not load yet: {e}"),
     }
     println!("{}", args.out.display());

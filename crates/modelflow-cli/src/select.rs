@@ -46,10 +46,11 @@ impl MemoryArgs {
 }
 
 /// Says on stderr which cameras see none of the mesh at the scene's first frame, and why
-/// (`Scene::blind_cameras`), and when the mesh is far too small or large in the images
-/// (`Scene::mesh_out_of_scale`): a calibration in another convention or unit loads, and would
-/// otherwise be tracked past in silence.
-pub fn warn_blind_cameras(scene: &Scene) {
+/// (`Scene::blind_cameras`), when the mesh is far too small or large in the images
+/// (`Scene::mesh_out_of_scale`), and which cameras' principal points lie far from their images'
+/// centres (`Scene::off_centre_principal_points`): a calibration in another convention, unit
+/// or resolution loads, and would otherwise be tracked past in silence.
+pub fn warn_calibration(scene: &Scene) {
     if let Some(m) = scene.mesh_out_of_scale() {
         eprintln!("warning: {m} (docs/scene-format.md, \"Convention\").");
     }
@@ -57,6 +58,9 @@ pub fn warn_blind_cameras(scene: &Scene) {
         eprintln!(
             "warning: {b}. The other cameras are used as they are; if the mesh enters this camera's view only later, ignore this."
         );
+    }
+    for o in scene.off_centre_principal_points() {
+        eprintln!("warning: {o} (docs/scene-format.md, \"Convention\").");
     }
 }
 

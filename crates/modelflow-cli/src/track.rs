@@ -449,7 +449,7 @@ pub fn run(args: Args, invocation: &Invocation) -> anyhow::Result<()> {
     args.memory.check(&scene)?;
     // Before anything is printed: a GPU asked for and missing ends the command here.
     let gpu = args.device.open()?;
-    crate::select::warn_blind_cameras(&scene);
+    crate::select::warn_calibration(&scene);
     let slivers = scene.mesh.slivers(SLIVER_RATIO);
     if let Some(&(first, r)) = slivers.first() {
         let [a, b, c] = scene.mesh.triangles[first].map(|v| v + 1);

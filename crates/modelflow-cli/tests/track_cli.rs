@@ -384,12 +384,7 @@ fn a_mesh_exported_y_up_for_a_z_up_rig_is_named() {
     // The blob as a Y-up exporter writes it from the renderer's Z-up world.
     let obj = dir.path().join("footage/mesh/initial.obj");
     let mesh = modelflow::input::read_mesh(&obj).unwrap();
-    let written: Vec<_> = mesh
-        .positions
-        .iter()
-        .map(|p| AxisSwap::ZUpToYUp.apply(p))
-        .collect();
-    modelflow::input::write_obj(&obj, &mesh.with_positions(written)).unwrap();
+    modelflow::input::write_obj(&obj, &AxisSwap::ZUpToYUp.mesh(&mesh)).unwrap();
     let err = track_ok(&scene, &dir.path().join("run2"));
     assert!(
         err.contains("warning: at frame 0, the cameras agree ")

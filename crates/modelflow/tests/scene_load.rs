@@ -1013,3 +1013,34 @@ fn a_mesh_written_with_another_up_axis_out_of_view_is_named_with_the_swap() {
         ],
     );
 }
+
+#[test]
+fn a_k_made_at_another_resolution_is_named_by_its_principal_point() {
+    use modelflow::base::{Camera, Projection};
+    use modelflow::input::off_centre_principal_points;
+    let dir = tempfile::tempdir().unwrap();
+    let (path, _) = write_scene(dir.path());
+    let scene = Scene::load(&path).unwrap();
+    assert!(scene.off_centre_principal_points().is_empty());
+    // cam0 calibrated on 96×72 stills (K scaled by 1.5) and filmed at 64×48.
+    let (k, r, t) = scene.cameras[0].at(0).krt();
+    let mut big = k * 1.5;
+    big[(2, 2)] = 1.0;
+    big[(0, 2)] = 47.5;
+    big[(1, 2)] = 35.5;
+    let cam = Camera::fixed("stills", W, H, Projection::from_krt(&big, &r, &t).unwrap());
+    let off = off_centre_principal_points(&[scene.cameras[1].clone(), cam], 0);
+    assert_eq!(off.len(), 1);
+    assert_eq!(off[0].index, 1);
+    assert!(
+        (off[0].cx - 47.5).abs() < 1e-9 && (off[0].cy - 35.5).abs() < 1e-9,
+        "{off:?}"
+    );
+    assert_names(
+        &off[0].to_string(),
+        &[
+            "camera stills: its principal point (47.5, 35.5) lies 25 % of the width and 25 % of the height from the centre of its 64×48 image (31.5, 23.5)",
+            "(cx, cy) is the centre of a 96×72 image: scale K's first two rows by 64/96",
+        ],
+    );
+}

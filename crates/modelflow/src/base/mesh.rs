@@ -759,6 +759,11 @@ impl AxisSwap {
         }
     }
 
+    /// `mesh` with its axes swapped (same triangles).
+    pub fn mesh(self, mesh: &Mesh) -> Mesh {
+        mesh.with_positions(mesh.positions.iter().map(|p| self.apply(p)).collect())
+    }
+
     /// What the swap does, in words a user can act on.
     pub fn describe(self) -> &'static str {
         match self {

@@ -185,6 +185,12 @@ impl Scene {
         blind_cameras(&self.cameras, self.first, &self.mesh)
     }
 
+    /// The cameras whose principal point at the first frame lies far from the image's centre
+    /// ([`off_centre_principal_points`]): a `K` made at another resolution than the footage's.
+    pub fn off_centre_principal_points(&self) -> Vec<OffCentre> {
+        off_centre_principal_points(&self.cameras, self.first)
+    }
+
     /// The mesh's size in the images at the first frame when it is too small to track or many
     /// times the images ([`mesh_out_of_scale`]): a mesh in another unit than the calibration.
     pub fn mesh_out_of_scale(&self) -> Option<MeshOutOfScale> {
@@ -873,7 +879,7 @@ fn check_seen(path: &Path, cameras: &[Camera], first: u32, mesh: &Mesh) -> Resul
         // A mesh written with another up axis than the cameras' world lies turned 90° about
         // the origin: say which swap the cameras would see.
         let swapped = crate::base::AxisSwap::ALL.iter().find_map(|&swap| {
-            let turned = mesh.with_positions(mesh.positions.iter().map(|p| swap.apply(p)).collect());
+            let turned = swap.mesh(mesh);
             let n = cameras
                 .iter()
                 .filter(|c| visible_share(c, first, &turned) >= MIN_VISIBLE_SHARE)
@@ -1151,6 +1157,82 @@ pub fn mesh_out_of_scale(cameras: &[Camera], frame: u32, mesh: &Mesh) -> Option<
         image: median(image),
     };
     (out.pixels < TINY_MESH_PX || out.pixels > HUGE_MESH_IMAGES * out.image).then_some(out)
+}
+
+/// How far from its image's centre a camera's principal point may lie, as a share of the image's
+/// width (height) along each axis, before [`off_centre_principal_points`] names it. A lens puts
+/// it within a few per cent of the centre (the real webcams of `caliscope-board-sample`: within
+/// 5 % of the height, 2 % of the width); a calibration made at another resolution than the
+/// footage's (a camera calibrated from 1920×1080 stills and filmed at 1280×720) puts it a
+/// quarter of the image off or more.
+pub const PRINCIPAL_POINT_OFF: f64 = 0.2;
+
+/// A camera whose principal point lies far from its image's centre
+/// ([`off_centre_principal_points`]).
+#[derive(Clone, Debug, PartialEq)]
+pub struct OffCentre {
+    pub index: usize,
+    pub name: String,
+    pub width: u32,
+    pub height: u32,
+    /// The principal point (pixels, centres at integers).
+    pub cx: f64,
+    pub cy: f64,
+}
+
+impl std::fmt::Display for OffCentre {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let (w, h) = (self.width as f64, self.height as f64);
+        let (mx, my) = ((w - 1.0) / 2.0, (h - 1.0) / 2.0);
+        // The image whose centre the principal point is.
+        let (pw, ph) = ((2.0 * self.cx + 1.0).round(), (2.0 * self.cy + 1.0).round());
+        let other = if pw >= 1.0 && ph >= 1.0 {
+            format!(
+                " ((cx, cy) is the centre of a {pw:.0}×{ph:.0} image: scale K's first two rows by {}/{pw:.0})",
+                self.width
+            )
+        } else {
+            String::new()
+        };
+        write!(
+            f,
+            "camera {}: its principal point ({:.1}, {:.1}) lies {:.0} % of the width and {:.0} % of \
+             the height from the centre of its {}×{} image ({mx:.1}, {my:.1}), where a lens puts \
+             it within a few per cent. A K made at another resolution than the footage's puts it \
+             there{other}, as does a cropped image: check its K, width and height",
+            self.name,
+            self.cx,
+            self.cy,
+            100.0 * (self.cx - mx).abs() / w,
+            100.0 * (self.cy - my).abs() / h,
+            self.width,
+            self.height
+        )
+    }
+}
+
+/// The cameras whose principal point at `frame` lies more than [`PRINCIPAL_POINT_OFF`] of the
+/// image's width (or height) from its centre.
+pub fn off_centre_principal_points(cameras: &[Camera], frame: u32) -> Vec<OffCentre> {
+    cameras
+        .iter()
+        .enumerate()
+        .filter_map(|(index, c)| {
+            let (k, _, _) = c.at(frame).krt();
+            let (cx, cy) = (k[(0, 2)], k[(1, 2)]);
+            let (w, h) = (c.width as f64, c.height as f64);
+            let off = (cx - (w - 1.0) / 2.0).abs() > PRINCIPAL_POINT_OFF * w
+                || (cy - (h - 1.0) / 2.0).abs() > PRINCIPAL_POINT_OFF * h;
+            off.then(|| OffCentre {
+                index,
+                name: c.name.clone(),
+                width: c.width,
+                height: c.height,
+                cx,
+                cy,
+            })
+        })
+        .collect()
 }
 
 impl Scene {

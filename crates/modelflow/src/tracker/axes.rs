@@ -68,9 +68,7 @@ pub fn axes_swapped(
     AxisSwap::ALL
         .iter()
         .filter_map(|&swap| {
-            let turned =
-                mesh.with_positions(mesh.positions.iter().map(|p| swap.apply(p)).collect());
-            let there = per_texture(&turned)?;
+            let there = per_texture(&swap.mesh(mesh))?;
             let gain = given / there;
             (gain >= AXES_GAIN).then_some(AxesSwapped { swap, gain })
         })
@@ -96,13 +94,7 @@ mod tests {
         let images: Vec<RgbImage> = (0..syn.cameras.len()).map(|c| syn.render(c, 0)).collect();
         assert_eq!(axes_swapped(&syn.mesh, &syn.cameras, 0, &images), None);
         // The same mesh as a Y-up exporter writes it from the renderer's Z-up world.
-        let written = syn.mesh.with_positions(
-            syn.mesh
-                .positions
-                .iter()
-                .map(|p| AxisSwap::ZUpToYUp.apply(p))
-                .collect(),
-        );
+        let written = AxisSwap::ZUpToYUp.mesh(&syn.mesh);
         let found = axes_swapped(&written, &syn.cameras, 0, &images).unwrap();
         assert_eq!(found.swap, AxisSwap::YUpToZUp);
         assert!(found.gain > 2.5, "{found:?}");
