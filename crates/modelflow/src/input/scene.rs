@@ -1047,12 +1047,7 @@ pub fn blind_cameras(cameras: &[Camera], frame: u32, mesh: &Mesh) -> Vec<BlindCa
     if mesh.positions.is_empty() {
         return Vec::new();
     }
-    let centroid = nalgebra::Point3::from(
-        mesh.positions
-            .iter()
-            .fold(Vector3::zeros(), |s, p| s + p.coords)
-            / mesh.positions.len() as f64,
-    );
+    let centroid = crate::base::centroid(&mesh.positions);
     cameras
         .iter()
         .enumerate()
