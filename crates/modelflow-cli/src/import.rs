@@ -1,8 +1,11 @@
 //! `modelflow import`: writes a scene file from a calibration made by another tool (a COLMAP
-//! sparse model, an OpenCV `FileStorage` file, a Metashape camera XML), with the user's mesh, image pattern and frames.
+//! sparse model, an OpenCV `FileStorage` file, a Metashape camera XML, a nerfstudio / instant-ngp /
+//! NeRF `transforms.json`), with the user's mesh, image pattern and frames.
 //! The readers and the conversion of conventions are the library's (`input::calib`).
 
-use modelflow::input::calib::{read_colmap, read_metashape_chunk, read_opencv, scene_file};
+use modelflow::input::calib::{
+    read_colmap, read_metashape_chunk, read_nerfstudio, read_opencv, scene_file, NerfWorld,
+};
 use modelflow::input::{FramePattern, Scene};
 use std::collections::BTreeSet;
 use std::path::PathBuf;
@@ -15,6 +18,8 @@ pub enum Format {
     Opencv,
     /// An Agisoft Metashape camera XML file (aligned frame cameras).
     Metashape,
+    /// A transforms.json file (nerfstudio, instant-ngp, NeRF synthetic): one frame per camera.
+    Nerfstudio,
 }
 
 #[derive(clap::Args)]
@@ -22,7 +27,8 @@ pub struct Args {
     /// What the calibration is.
     #[arg(value_enum)]
     format: Format,
-    /// The calibration: a COLMAP model folder, an OpenCV file or a Metashape XML file.
+    /// The calibration: a COLMAP model folder, an OpenCV file, a Metashape XML file or a
+    /// transforms.json file.
     input: PathBuf,
     /// The scene file to write.
     #[arg(long)]
@@ -40,13 +46,18 @@ pub struct Args {
     #[arg(long, value_name = "A..B", default_value = "0..0", value_parser = crate::select::parse_frames)]
     frames: (u32, u32),
     /// The image size of cameras whose calibration gives none (OpenCV files without
-    /// image_width/image_height), as WxH.
+    /// image_width/image_height, NeRF synthetic transforms.json files without w/h), as WxH.
     #[arg(long, value_name = "WxH", value_parser = parse_size)]
     size: Option<(u32, u32)>,
     /// Metashape: the chunk to import, by its label or id (needed when several enabled chunks
     /// have aligned cameras).
     #[arg(long, value_name = "LABEL_OR_ID")]
     chunk: Option<String>,
+    /// nerfstudio: place the cameras in the world before the file's applied_transform (the
+    /// original reconstruction's, e.g. COLMAP's, where a mesh made from it lies) instead of the
+    /// file's own.
+    #[arg(long)]
+    before_applied_transform: bool,
     /// The unit of the calibration's world coordinates (m, cm or mm), written into the scene so
     /// that errors are shown in mm; without it they are shown in scene units.
     #[arg(long)]
@@ -72,13 +83,27 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     if args.chunk.is_some() && !matches!(args.format, Format::Metashape) {
         anyhow::bail!("--chunk: only a Metashape file has chunks");
     }
+    if args.before_applied_transform && !matches!(args.format, Format::Nerfstudio) {
+        anyhow::bail!("--before-applied-transform: only a nerfstudio transforms.json has one");
+    }
     // The pattern the scene loader will read, checked before anything is read or written.
     FramePattern::new("", args.images.replace("{camera}", "cam"))
         .map_err(|e| anyhow::anyhow!("--images: {e}"))?;
+    let mut notes = Vec::new();
     let cameras = match args.format {
         Format::Colmap => read_colmap(&args.input)?,
         Format::Opencv => read_opencv(&args.input, args.size)?,
         Format::Metashape => read_metashape_chunk(&args.input, args.chunk.as_deref())?,
+        Format::Nerfstudio => {
+            let world = if args.before_applied_transform {
+                NerfWorld::BeforeApplied
+            } else {
+                NerfWorld::File
+            };
+            let read = read_nerfstudio(&args.input, args.size, world)?;
+            notes = read.notes;
+            read.cameras
+        }
     };
     if cameras.len() > 1 && !args.images.contains("{camera}") {
         anyhow::bail!(
@@ -130,6 +155,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             c.k[(0, 2)],
             c.k[(1, 2)]
         );
+    }
+    for n in &notes {
+        eprintln!("note: {n}");
     }
     eprintln!(
         "wrote {} ({} cameras, frames {first}..={last})",

@@ -49,7 +49,7 @@ enum Command {
     Eval(eval::Args),
     /// Write a run as one animated file for a 3D package: USD, glTF, PC2 or MDD.
     Export(export::Args),
-    /// Write a scene file from a calibration made by another tool (COLMAP, OpenCV, Metashape).
+    /// Write a scene file from a calibration made by another tool (COLMAP, OpenCV, Metashape, nerfstudio).
     Import(import::Args),
     /// Write an HTML report comparing runs: error plot, overlays, oblique and error views.
     Report(report::Args),

@@ -214,3 +214,71 @@ fn metashape_chunks_are_chosen_and_disabled_cameras_are_named() {
         .unwrap();
     assert!(line.contains("(disabled in Metashape)"), "{err}");
 }
+
+#[test]
+fn nerfstudio_transforms_become_scene_files_in_the_world_asked_for() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("scene.json");
+    let input = fixtures().join("nerfstudio/transforms.json");
+    let r = import(&["nerfstudio"], &input, &out);
+    let err = String::from_utf8_lossy(&r.stderr);
+    assert!(r.status.success(), "{err}");
+    // Where the cameras were put is said, with the option for the other world.
+    assert!(
+        err.contains("applied_transform") && err.contains("--before-applied-transform"),
+        "{err}"
+    );
+    let file = SceneFile::parse(&out, &std::fs::read_to_string(&out).unwrap()).unwrap();
+    assert_eq!(file.cameras.len(), 6);
+    assert_eq!(file.cameras[5].name, "cam6");
+    assert_eq!(
+        file.cameras[5].distortion.as_ref().unwrap().model,
+        "fisheye"
+    );
+    let in_file_world = file.cameras[0].r.unwrap();
+    // The world before the applied transform: COLMAP's, whose cameras the COLMAP importer reads.
+    let r = import(
+        &["nerfstudio", "--force", "--before-applied-transform"],
+        &input,
+        &out,
+    );
+    assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
+    let file = SceneFile::parse(&out, &std::fs::read_to_string(&out).unwrap()).unwrap();
+    let colmap = dir.path().join("colmap.json");
+    let r = import(&["colmap"], &fixtures().join("colmap/text"), &colmap);
+    assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
+    let from_colmap =
+        SceneFile::parse(&colmap, &std::fs::read_to_string(&colmap).unwrap()).unwrap();
+    let r0 = file.cameras[0].r.unwrap();
+    let c0 = from_colmap.cameras[0].r.unwrap();
+    for i in 0..3 {
+        for j in 0..3 {
+            assert!((r0[i][j] - c0[i][j]).abs() < 1e-12, "{r0:?} against {c0:?}");
+        }
+    }
+    assert!(
+        (in_file_world[0][1] - r0[0][1]).abs() > 0.1,
+        "the worlds differ"
+    );
+    // The option belongs to nerfstudio files only; a NeRF synthetic file needs the image size.
+    let r = import(
+        &["opencv", "--force", "--before-applied-transform"],
+        &fixtures().join("opencv/stereo.yml"),
+        &out,
+    );
+    assert!(!r.status.success());
+    let synthetic = fixtures().join("nerfstudio/transforms_train.json");
+    let r = import(&["nerfstudio", "--force"], &synthetic, &out);
+    let err = String::from_utf8_lossy(&r.stderr);
+    assert!(!r.status.success() && err.contains("--size"), "{err}");
+    let r = import(
+        &["nerfstudio", "--force", "--size", "800x800"],
+        &synthetic,
+        &out,
+    );
+    assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
+    let file = SceneFile::parse(&out, &std::fs::read_to_string(&out).unwrap()).unwrap();
+    let names: Vec<&str> = file.cameras.iter().map(|c| c.name.as_str()).collect();
+    assert_eq!(names, ["r_0", "r_1"]);
+    assert_eq!(file.cameras[0].images, "images/r_0/{frame:04}.png");
+}

@@ -1,7 +1,7 @@
 //! Everything that enters from disk: the scene format (`scene`), mesh files (`meshio`: OBJ, PLY)
 //! image files (`imageio`: PNG, JPEG, TIFF, OpenEXR), video files (`video`, through FFmpeg) and
 //! calibrations made by other tools
-//! (`calib`: COLMAP, OpenCV `FileStorage`, Metashape XML). Each reader validates what it reads and
+//! (`calib`: COLMAP, OpenCV `FileStorage`, Metashape XML, nerfstudio `transforms.json`). Each reader validates what it reads and
 //! names the file and the field or line at fault. Nothing here tracks, renders or scores.
 
 pub mod calib;

@@ -1,15 +1,18 @@
 //! Calibration importers: the camera files users already have (COLMAP sparse models, OpenCV
-//! `FileStorage` files, Agisoft Metashape camera XML) turned into the cameras of a `modelflow-scene/1` file, in our
+//! `FileStorage` files, Agisoft Metashape camera XML, nerfstudio / instant-ngp / NeRF
+//! `transforms.json`) turned into the cameras of a `modelflow-scene/1` file, in our
 //! conventions (OpenCV pinhole, pixel centres at integers, world-to-camera `R`, `t`; see
 //! `docs/scene-format.md`, "Importing a calibration"). Each reader converts its tool's own
 //! conventions and names the file, line and field of anything it cannot use.
 
 mod colmap;
 mod metashape;
+mod nerfstudio;
 mod opencv;
 
 pub use colmap::read_colmap;
 pub use metashape::{read_metashape, read_metashape_chunk};
+pub use nerfstudio::{read_nerfstudio, NerfCalibration, NerfWorld};
 pub use opencv::read_opencv;
 
 use crate::base::camera::is_rotation;
