@@ -112,6 +112,24 @@ def export(run: _Path, out: _Path, fps: float = 24.0) -> List[str]:
     """Writes a run folder as .usda, .glb, .pc2 or .mdd (from `out`'s extension); warns
     (UserWarning) when a USD export cannot carry the scene's cameras."""
 
+def import_calibration(
+    format: str,
+    input: _Path,
+    out: Optional[_Path] = None,
+    mesh: str = "mesh/initial.obj",
+    images: str = "images/{camera}/{frame:04}.png",
+    frames: Tuple[int, int] = (0, 0),
+    size: Optional[Tuple[int, int]] = None,
+    chunk: Optional[str] = None,
+    units: Optional[str] = None,
+    before_applied_transform: bool = False,
+    force: bool = False,
+) -> Dict[str, Any]:
+    """A scene file from another tool's calibration, as `modelflow import` does: `format` is
+    "colmap", "opencv", "metashape" or "nerfstudio" (transforms.json). With `out` it is written
+    there (replacing a file only with `force`). Returns {"scene": the scene file as a dict,
+    "notes": [what to know about the file], "written": the path or None}."""
+
 def read_run(run: _Path) -> Dict[int, npt.NDArray[np.float64]]:
     """A run folder's frame meshes: {frame: (V, 3) positions}."""
 

@@ -428,6 +428,65 @@ fn export(py: Python<'_>, run: PathBuf, out: PathBuf, fps: f64) -> PyResult<Vec<
     Ok(summary.files)
 }
 
+/// Reads another tool's calibration and makes a scene file of it, as `modelflow import` does:
+/// `format` is "colmap" (a sparse model folder), "opencv" (a FileStorage .yml/.json), "metashape"
+/// (a camera XML) or "nerfstudio" (a transforms.json). `mesh`, `images` (with `{camera}`) and
+/// `frames` are what the scene file names; `size` (w, h) for cameras whose file gives none;
+/// `chunk` a Metashape chunk; `units` "m", "cm" or "mm"; `before_applied_transform` the world
+/// before a nerfstudio file's applied_transform. With `out`, the scene file is written there (an
+/// existing one is replaced only with `force`). Returns a dict: "scene" (the scene file's
+/// content), "notes" (what to know about the file as a whole) and "written" (the path, or None).
+#[pyfunction]
+#[pyo3(signature = (format, input, out=None, mesh="mesh/initial.obj", images="images/{camera}/{frame:04}.png", frames=(0, 0), size=None, chunk=None, units=None, before_applied_transform=false, force=false))]
+#[allow(clippy::too_many_arguments)]
+fn import_calibration<'py>(
+    py: Python<'py>,
+    format: &str,
+    input: PathBuf,
+    out: Option<PathBuf>,
+    mesh: &str,
+    images: &str,
+    frames: (u32, u32),
+    size: Option<(u32, u32)>,
+    chunk: Option<String>,
+    units: Option<&str>,
+    before_applied_transform: bool,
+    force: bool,
+) -> PyResult<Bound<'py, PyDict>> {
+    use mf::input::calib::{import_calibration, CalibrationFormat, ImportOptions};
+    let format: CalibrationFormat = format.parse().map_err(err)?;
+    let units = units
+        .map(|u| {
+            u.parse::<mf::base::Units>()
+                .map_err(|_| err(mf::Error::option("units", u, "m, cm or mm")))
+        })
+        .transpose()?;
+    if let Some(o) = out.as_ref().filter(|o| o.exists() && !force) {
+        return Err(ModelflowError::new_err(format!(
+            "{} exists; give force=True to replace it",
+            o.display()
+        )));
+    }
+    let opts = ImportOptions {
+        mesh: mesh.into(),
+        images: images.into(),
+        frames,
+        size,
+        chunk,
+        units,
+        before_applied_transform,
+    };
+    let imported = import_calibration(format, &input, &opts).map_err(err)?;
+    if let Some(o) = &out {
+        imported.file.write(o).map_err(err)?;
+    }
+    let d = PyDict::new(py);
+    d.set_item("scene", to_py(py, &imported.file)?)?;
+    d.set_item("notes", imported.notes)?;
+    d.set_item("written", out)?;
+    Ok(d)
+}
+
 /// Lines up a mesh with the scene's first frame, as `modelflow align` does: the rigid pose (and
 /// with `scale` one uniform scale) that makes every camera agree about the surface. `positions`:
 /// the rough placement, (V, 3) (default: the scene's mesh). Returns a dict: "positions" (V, 3),
@@ -673,5 +732,6 @@ fn modelflow_py(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(off_centre_principal_points, m)?)?;
     m.add_function(wrap_pyfunction!(first_mesh_check, m)?)?;
     m.add_function(wrap_pyfunction!(align, m)?)?;
+    m.add_function(wrap_pyfunction!(import_calibration, m)?)?;
     Ok(())
 }

@@ -275,3 +275,31 @@ def test_first_mesh_check_names_a_misplaced_mesh(tmp_path):
     assert 4.0 < c["placement"]["degrees"] < 8.0, c
     with pytest.raises(modelflow.ModelflowError, match="positions"):
         modelflow.first_mesh_check(s, moved[:10])
+
+
+def test_import_calibration_writes_a_scene_in_our_conventions(tmp_path):
+    # nerfstudio's transforms.json of the COLMAP fixture, in the world before its applied
+    # transform: the same cameras as the COLMAP model itself, principal points moved by half a
+    # pixel to our convention.
+    ns = ROOT / "fixtures" / "nerfstudio" / "transforms.json"
+    out = tmp_path / "scene.json"
+    got = modelflow.import_calibration(
+        "nerfstudio", ns, out=out, frames=(0, 9), before_applied_transform=True
+    )
+    assert got["written"] == out and out.exists()
+    assert any("applied_transform" in n for n in got["notes"])
+    colmap = modelflow.import_calibration("colmap", ROOT / "fixtures" / "colmap" / "text")
+    assert colmap["written"] is None
+    cams = {c["name"]: c for c in colmap["scene"]["cameras"]}
+    for c in got["scene"]["cameras"]:
+        np.testing.assert_allclose(c["R"], cams[c["name"]]["R"], atol=1e-12)
+        np.testing.assert_allclose(c["t"], cams[c["name"]]["t"], atol=1e-12)
+        assert c["K"][0][2] == pytest.approx(cams[c["name"]]["K"][0][2])
+    assert got["scene"]["frames"] == {"first": 0, "last": 9}
+    # An existing file is kept unless force; a bad pattern or format is named.
+    with pytest.raises(modelflow.ModelflowError, match="force"):
+        modelflow.import_calibration("nerfstudio", ns, out=out)
+    with pytest.raises(modelflow.ModelflowError, match="--images"):
+        modelflow.import_calibration("nerfstudio", ns, images="x/{frame:4}.png")
+    with pytest.raises(modelflow.ModelflowError, match="colmap, opencv, metashape or nerfstudio"):
+        modelflow.import_calibration("bundler", ns)

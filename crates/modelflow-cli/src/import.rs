@@ -1,13 +1,11 @@
 //! `modelflow import`: writes a scene file from a calibration made by another tool (a COLMAP
 //! sparse model, an OpenCV `FileStorage` file, a Metashape camera XML, a nerfstudio / instant-ngp /
 //! NeRF `transforms.json`), with the user's mesh, image pattern and frames.
-//! The readers and the conversion of conventions are the library's (`input::calib`).
+//! The readers, the conversion of conventions and the checks are the library's
+//! (`input::calib::import_calibration`); this parses the options, writes and reports.
 
-use modelflow::input::calib::{
-    read_colmap, read_metashape_chunk, read_nerfstudio, read_opencv, scene_file, NerfWorld,
-};
-use modelflow::input::{FramePattern, Scene};
-use std::collections::BTreeSet;
+use modelflow::input::calib::{import_calibration, CalibrationFormat, ImportOptions, Imported};
+use modelflow::input::Scene;
 use std::path::PathBuf;
 
 #[derive(clap::ValueEnum, Clone, Copy, Debug)]
@@ -80,62 +78,28 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     if args.out.exists() && !args.force {
         anyhow::bail!("{} exists; give --force to replace it", args.out.display());
     }
-    if args.chunk.is_some() && !matches!(args.format, Format::Metashape) {
-        anyhow::bail!("--chunk: only a Metashape file has chunks");
-    }
-    if args.before_applied_transform && !matches!(args.format, Format::Nerfstudio) {
-        anyhow::bail!("--before-applied-transform: only a nerfstudio transforms.json has one");
-    }
-    // The pattern the scene loader will read, checked before anything is read or written.
-    FramePattern::new("", args.images.replace("{camera}", "cam"))
-        .map_err(|e| anyhow::anyhow!("--images: {e}"))?;
-    let mut notes = Vec::new();
-    let cameras = match args.format {
-        Format::Colmap => read_colmap(&args.input)?,
-        Format::Opencv => read_opencv(&args.input, args.size)?,
-        Format::Metashape => read_metashape_chunk(&args.input, args.chunk.as_deref())?,
-        Format::Nerfstudio => {
-            let world = if args.before_applied_transform {
-                NerfWorld::BeforeApplied
-            } else {
-                NerfWorld::File
-            };
-            let read = read_nerfstudio(&args.input, args.size, world)?;
-            notes = read.notes;
-            read.cameras
-        }
+    let format = match args.format {
+        Format::Colmap => CalibrationFormat::Colmap,
+        Format::Opencv => CalibrationFormat::Opencv,
+        Format::Metashape => CalibrationFormat::Metashape,
+        Format::Nerfstudio => CalibrationFormat::Nerfstudio,
     };
-    if cameras.len() > 1 && !args.images.contains("{camera}") {
-        anyhow::bail!(
-            "--images {:?}: needs a {{camera}} placeholder for {} cameras",
-            args.images,
-            cameras.len()
-        );
-    }
-    // A scene that could never load is not written: each camera needs a name of its own, and
-    // its images a pattern the loader reads.
-    let mut names = BTreeSet::new();
-    for c in &cameras {
-        if c.name.trim().is_empty() {
-            anyhow::bail!(
-                "{}: a camera has no name: name every camera in the calibration",
-                args.input.display()
-            );
-        }
-        if !names.insert(c.name.as_str()) {
-            anyhow::bail!(
-                "{}: two cameras are named {:?}: camera names must be unique; rename one in the calibration",
-                args.input.display(),
-                c.name
-            );
-        }
-        FramePattern::new("", args.images.replace("{camera}", &c.name))
-            .map_err(|e| anyhow::anyhow!("--images {:?}: camera {:?}: {e}", args.images, c.name))?;
-    }
-    let (first, last) = args.frames;
-    let mut file = scene_file(&cameras, &args.mesh, &args.images, first, last);
-    file.units = args.units;
+    let opts = ImportOptions {
+        mesh: args.mesh,
+        images: args.images,
+        frames: args.frames,
+        size: args.size,
+        chunk: args.chunk,
+        units: args.units,
+        before_applied_transform: args.before_applied_transform,
+    };
+    let Imported {
+        cameras,
+        notes,
+        file,
+    } = import_calibration(format, &args.input, &opts)?;
     file.write(&args.out)?;
+    let (first, last) = opts.frames;
     for c in &cameras {
         let lens = match &c.distortion {
             Some(d) => format!("{} {:?}", d.model(), d.coefficients()),

@@ -6,11 +6,13 @@
 //! conventions and names the file, line and field of anything it cannot use.
 
 mod colmap;
+mod import;
 mod metashape;
 mod nerfstudio;
 mod opencv;
 
 pub use colmap::read_colmap;
+pub use import::{import_calibration, CalibrationFormat, ImportOptions, Imported};
 pub use metashape::{read_metashape, read_metashape_chunk};
 pub use nerfstudio::{read_nerfstudio, NerfCalibration, NerfWorld};
 pub use opencv::read_opencv;

@@ -1,0 +1,178 @@
+//! From another tool's calibration to a scene file that can load: the reader for the format,
+//! then the checks that a scene needs and a calibration alone does not (every camera named once,
+//! an image pattern the scene reader takes for each camera), then the scene file itself. What
+//! `modelflow import` and Python's `import_calibration` do; writing the file is the caller's.
+
+use super::{
+    read_colmap, read_metashape_chunk, read_nerfstudio, read_opencv, scene_file, CalibratedCamera,
+    NerfWorld,
+};
+use crate::base::Units;
+use crate::error::{Error, Result};
+use crate::input::scene::{FramePattern, SceneFile};
+use std::collections::BTreeSet;
+use std::path::Path;
+
+/// The calibration formats read.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum CalibrationFormat {
+    /// A COLMAP sparse model folder (text or binary).
+    Colmap,
+    /// An OpenCV `FileStorage` file (YAML or JSON).
+    Opencv,
+    /// An Agisoft Metashape camera XML.
+    Metashape,
+    /// A `transforms.json` (nerfstudio, instant-ngp, NeRF synthetic).
+    Nerfstudio,
+}
+
+impl std::str::FromStr for CalibrationFormat {
+    type Err = Error;
+    fn from_str(s: &str) -> Result<Self> {
+        match s.to_ascii_lowercase().as_str() {
+            "colmap" => Ok(Self::Colmap),
+            "opencv" => Ok(Self::Opencv),
+            "metashape" => Ok(Self::Metashape),
+            "nerfstudio" => Ok(Self::Nerfstudio),
+            _ => Err(Error::option(
+                "format",
+                s,
+                "colmap, opencv, metashape or nerfstudio",
+            )),
+        }
+    }
+}
+
+/// What the scene file names besides the cameras, and the choices some formats need.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ImportOptions {
+    /// The mesh lined up with the first frame, as the scene file names it.
+    pub mesh: String,
+    /// Each camera's images: `{camera}` becomes its name (or each camera's video file).
+    pub images: String,
+    /// The frames, inclusive.
+    pub frames: (u32, u32),
+    /// The image size of cameras whose calibration gives none.
+    pub size: Option<(u32, u32)>,
+    /// Metashape: the chunk, by label or id.
+    pub chunk: Option<String>,
+    /// The unit of the calibration's world, written into the scene.
+    pub units: Option<Units>,
+    /// nerfstudio: the world before the file's `applied_transform`.
+    pub before_applied_transform: bool,
+}
+
+impl Default for ImportOptions {
+    fn default() -> Self {
+        ImportOptions {
+            mesh: "mesh/initial.obj".into(),
+            images: "images/{camera}/{frame:04}.png".into(),
+            frames: (0, 0),
+            size: None,
+            chunk: None,
+            units: None,
+            before_applied_transform: false,
+        }
+    }
+}
+
+/// A calibration read and made into a scene file.
+#[derive(Clone, Debug)]
+pub struct Imported {
+    pub cameras: Vec<CalibratedCamera>,
+    /// What the user should know about the file as a whole (which world the cameras are in,
+    /// fields ignored).
+    pub notes: Vec<String>,
+    /// The scene file, not yet written.
+    pub file: SceneFile,
+}
+
+/// Reads `input` in `format` and makes the scene file; refuses, before reading anything, an
+/// option the format has no use for or an image pattern the scene reader would refuse, and after
+/// reading, a calibration whose cameras a scene cannot hold (a name empty or given twice).
+pub fn import_calibration(
+    format: CalibrationFormat,
+    input: &Path,
+    opts: &ImportOptions,
+) -> Result<Imported> {
+    if let (Some(c), false) = (&opts.chunk, format == CalibrationFormat::Metashape) {
+        return Err(Error::option(
+            "--chunk",
+            c,
+            "none: only a Metashape file has chunks",
+        ));
+    }
+    if opts.before_applied_transform && format != CalibrationFormat::Nerfstudio {
+        return Err(Error::option(
+            "--before-applied-transform",
+            "(given)",
+            "no such option: only a nerfstudio transforms.json has an applied_transform",
+        ));
+    }
+    let pattern = |name: &str| {
+        FramePattern::new("", opts.images.replace("{camera}", name)).map_err(|e| {
+            Error::option(
+                "--images",
+                format!("{:?}", opts.images),
+                format!("a pattern the scene reads ({e})"),
+            )
+        })
+    };
+    pattern("cam")?;
+    let mut notes = Vec::new();
+    let cameras = match format {
+        CalibrationFormat::Colmap => read_colmap(input)?,
+        CalibrationFormat::Opencv => read_opencv(input, opts.size)?,
+        CalibrationFormat::Metashape => read_metashape_chunk(input, opts.chunk.as_deref())?,
+        CalibrationFormat::Nerfstudio => {
+            let world = if opts.before_applied_transform {
+                NerfWorld::BeforeApplied
+            } else {
+                NerfWorld::File
+            };
+            let read = read_nerfstudio(input, opts.size, world)?;
+            notes = read.notes;
+            read.cameras
+        }
+    };
+    if cameras.len() > 1 && !opts.images.contains("{camera}") {
+        return Err(Error::option(
+            "--images",
+            format!("{:?}", opts.images),
+            format!(
+                "a {{camera}} placeholder, one pattern for each of the {} cameras",
+                cameras.len()
+            ),
+        ));
+    }
+    let mut names = BTreeSet::new();
+    for c in &cameras {
+        if c.name.trim().is_empty() {
+            return Err(Error::invalid(
+                input,
+                "(cameras)",
+                "a camera has no name: name every camera in the calibration",
+            ));
+        }
+        if !names.insert(c.name.as_str()) {
+            return Err(Error::invalid(
+                input,
+                "(cameras)",
+                format!(
+                    "two cameras are named {:?}: camera names must be unique; rename one in the calibration",
+                    c.name
+                ),
+            ));
+        }
+        pattern(&c.name)
+            .map_err(|e| Error::invalid(input, format!("camera {:?}", c.name), e.to_string()))?;
+    }
+    let (first, last) = opts.frames;
+    let mut file = scene_file(&cameras, &opts.mesh, &opts.images, first, last);
+    file.units = opts.units;
+    Ok(Imported {
+        cameras,
+        notes,
+        file,
+    })
+}
