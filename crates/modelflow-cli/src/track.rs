@@ -471,6 +471,16 @@ pub fn run(args: Args, invocation: &Invocation) -> anyhow::Result<()> {
             r
         );
     }
+    let loose = scene.mesh.loose_vertices();
+    if let Some(&first) = loose.first() {
+        eprintln!(
+            "note: {} of the mesh's {} vertices {} to no triangle (the first is vertex {}, counted from 1 as in OBJ); they carry no surface: no pixel moves them, they follow the mesh's motion as a whole, and the mesh's size (for percentages and the first-frame checks) leaves them out (remove them, e.g. Blender's Mesh > Clean Up > Delete Loose, unless they must stay)",
+            loose.len(),
+            scene.mesh.positions.len(),
+            if loose.len() == 1 { "belongs" } else { "belong" },
+            first + 1
+        );
+    }
     let merged = scene.mesh.welded();
     if let Some((m, _)) = &merged {
         eprintln!(

@@ -367,6 +367,41 @@ fn a_mesh_in_another_unit_than_the_cameras_is_named() {
 }
 
 #[test]
+fn a_loose_vertex_is_named_and_carried_without_upsetting_the_checks() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = small_cloth(dir.path());
+    // A leftover point, as deleting faces in a modelling package leaves one: far off the cloth.
+    let obj = dir.path().join("footage/mesh/initial.obj");
+    let mesh = modelflow::input::read_mesh(&obj).unwrap();
+    let n = mesh.positions.len();
+    let far = modelflow::base::centroid(&mesh.positions)
+        + nalgebra::Vector3::new(0.0, 0.0, 50.0 * mesh.bbox_diagonal());
+    let text = std::fs::read_to_string(&obj).unwrap();
+    std::fs::write(&obj, format!("{text}v {} {} {}\n", far.x, far.y, far.z)).unwrap();
+    let run = dir.path().join("run");
+    let err = track_ok(&scene, &run);
+    assert!(
+        err.contains(&format!(
+            "note: 1 of the mesh's {} vertices belongs to no triangle (the first is vertex {}",
+            n + 1,
+            n + 1
+        )),
+        "{err}"
+    );
+    // The surface's size is the cloth's: no unit or scale check fires, nothing is suspect.
+    assert!(
+        !err.contains("same unit") && !err.contains("SUSPECT"),
+        "{err}"
+    );
+    let last = modelflow::input::read_mesh(&run.join("0001.obj")).unwrap();
+    assert_eq!(
+        last.positions.len(),
+        n + 1,
+        "the meshes written keep the vertex"
+    );
+}
+
+#[test]
 fn a_mesh_exported_y_up_for_a_z_up_rig_is_named() {
     use modelflow::base::AxisSwap;
     let dir = tempfile::tempdir().unwrap();

@@ -387,9 +387,45 @@ impl Mesh {
         (b - a).cross(&(c - a))
     }
 
-    /// Length of the diagonal of the axis-aligned bounding box.
+    /// Length of the diagonal of the axis-aligned bounding box of the surface: of the vertices
+    /// some triangle uses (a loose vertex, [`Mesh::loose_vertices`], is no part of the surface
+    /// and does not make it larger).
     pub fn bbox_diagonal(&self) -> f64 {
-        bbox_diagonal(&self.positions)
+        let used = self.used_vertices();
+        if used.iter().all(|&u| u) {
+            return bbox_diagonal(&self.positions);
+        }
+        let on_surface: Vec<Point3<f64>> = self
+            .positions
+            .iter()
+            .zip(&used)
+            .filter_map(|(p, &u)| u.then_some(*p))
+            .collect();
+        bbox_diagonal(&on_surface)
+    }
+
+    /// Whether some triangle uses each vertex.
+    fn used_vertices(&self) -> Vec<bool> {
+        let mut used = vec![false; self.positions.len()];
+        for t in &self.triangles {
+            for &v in t {
+                if let Some(u) = used.get_mut(v as usize) {
+                    *u = true;
+                }
+            }
+        }
+        used
+    }
+
+    /// The vertices no triangle uses (a file's leftover points: an artist's deleted faces, a
+    /// pivot): they carry no surface, so no pixel moves them; the tracker's rigid stage carries
+    /// them with the mesh as a whole.
+    pub fn loose_vertices(&self) -> Vec<usize> {
+        self.used_vertices()
+            .iter()
+            .enumerate()
+            .filter_map(|(i, &u)| (!u).then_some(i))
+            .collect()
     }
 }
 
@@ -597,6 +633,16 @@ mod tests {
         for i in 0..m.triangles.len() {
             assert!(m.triangle_normal(i).z > 0.0);
         }
+        assert!((m.bbox_diagonal() - 2f64.sqrt()).abs() < 1e-12);
+        assert!(m.loose_vertices().is_empty());
+    }
+
+    #[test]
+    fn a_loose_vertex_is_found_and_not_counted_in_the_surfaces_size() {
+        let mut m = grid(3, 3, |u, v| Point3::new(u, v, 0.0));
+        // A leftover point far away, as a deleted face leaves one in an artist's file.
+        m.positions.push(Point3::new(100.0, 0.0, 0.0));
+        assert_eq!(m.loose_vertices(), [9]);
         assert!((m.bbox_diagonal() - 2f64.sqrt()).abs() < 1e-12);
     }
 
