@@ -23,7 +23,8 @@
 //!   made from the same reconstruction lies.
 //!
 //! Cameras are named after the folder holding each frame's image when those differ
-//! (`images/cam0/0000.png` → `cam0`), else after its file stem (`./train/r_0` → `r_0`).
+//! (`images/cam0/0000.png` → `cam0`), else after its file stem (`./train/r_0` → `r_0`). Frames
+//! of different `time` (D-NeRF's dynamic scenes: one camera's moments) are refused.
 
 use super::{check_rotation, strip_bom, CalibratedCamera};
 use crate::base::lens::Distortion;
@@ -145,6 +146,22 @@ pub fn read_nerfstudio(
                 })
         })
         .collect::<Result<_>>()?;
+    // A dynamic scene's file (D-NeRF's) gives each frame its `time`: frames of different times
+    // are moments of one moving camera, not the cameras of a rig.
+    let times: Vec<Option<f64>> = frames
+        .iter()
+        .map(|f| f.get("time").and_then(Value::as_f64))
+        .collect();
+    if let Some(i) = times.iter().position(|t| *t != times[0]) {
+        return Err(Error::invalid(
+            path,
+            format!("frames[{i}].time"),
+            format!(
+                "{:?} where frames[0] has {:?}: the frames are moments of a capture, not the cameras of one moment; import a file of one moment's frames (one image per camera)",
+                times[i], times[0]
+            ),
+        ));
+    }
     let names = camera_names(path, &paths)?;
     let mut out = Vec::with_capacity(frames.len());
     for (i, (frame, name)) in frames.iter().zip(names).enumerate() {
@@ -533,5 +550,12 @@ mod tests {
             &["frames[2].file_path", "one moment of the rig"],
         );
         has(&err("{\"frames\": [1, 2,"), &["line 1", "invalid JSON"]);
+        // D-NeRF: one camera's frames at several times.
+        has(
+            &err(&format!(
+                r#"{{"w": 10, "h": 10, "fl_x": 5, "frames": [{{"file_path": "a/r_0.png", "time": 0.0, "transform_matrix": {EYE}}}, {{"file_path": "a/r_1.png", "time": 0.05, "transform_matrix": {EYE}}}]}}"#
+            )),
+            &["frames[1].time", "moments of a capture"],
+        );
     }
 }
