@@ -90,7 +90,7 @@ pub fn read_nerfstudio(
         None | Some(Value::Null) => None,
         Some(v) => Some(rigid_rows(path, "applied_transform", v)?),
     };
-    let to_file_world = match (world, applied) {
+    let before_applied = match (world, applied) {
         (NerfWorld::BeforeApplied, Some((a, _))) if !check_rotation(&a) => {
             return Err(Error::invalid(
                 path,
@@ -189,8 +189,9 @@ pub fn read_nerfstudio(
         let flip = Matrix3::from_diagonal(&Vector3::new(1.0, -1.0, -1.0));
         let mut r = flip * rot.transpose();
         let mut t = -(r * centre);
-        if let Some((a, b)) = to_file_world {
-            // x_cam = R·(A·X + b) + t.
+        if let Some((a, b)) = before_applied {
+            // A point X of the world before the file's `applied_transform` [A | b] is A·X + b in
+            // the file's: x_cam = R·(A·X + b) + t.
             t += r * b;
             r *= a;
         }
