@@ -112,6 +112,30 @@ def export(run: _Path, out: _Path, fps: float = 24.0) -> List[str]:
     """Writes a run folder as .usda, .glb, .pc2 or .mdd (from `out`'s extension); warns
     (UserWarning) when a USD export cannot carry the scene's cameras."""
 
+def synth(
+    out: _Path,
+    preset: str = "cloth",
+    cameras: Optional[int] = None,
+    width: int = 640,
+    height: int = 480,
+    frames: int = 120,
+    noise: float = 0.0,
+    seed: int = 1,
+    light: bool = True,
+    supersample: Optional[int] = None,
+    shake: float = 0.0,
+    distortion: Optional[str] = None,
+    cloth_grid: Optional[int] = None,
+    sync_error: float = 0.0,
+    motion_blur: float = 0.0,
+    turn: float = 0.0,
+    backdrop: bool = False,
+    bump: Optional[str] = None,
+) -> PathLike:
+    """Synthetic multi-view footage with ground truth written into `out`, as `modelflow synth`
+    writes it (presets "cloth", "blob", "irregular", "limb", "crossing"); returns the scene
+    file's path. `None` keeps the preset's default."""
+
 def import_calibration(
     format: str,
     input: _Path,

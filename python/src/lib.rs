@@ -428,6 +428,71 @@ fn export(py: Python<'_>, run: PathBuf, out: PathBuf, fps: f64) -> PyResult<Vec<
     Ok(summary.files)
 }
 
+/// Writes synthetic multi-view footage with ground truth into the folder `out`, as `modelflow
+/// synth` does (a scene file, images, the first mesh and the true mesh of every frame), and
+/// returns the scene file's path. `preset`: "cloth", "blob", "irregular", "limb" or "crossing";
+/// the other arguments are `synth`'s options (`distortion` as "opencv:k1,k2,p1,p2,k3" or
+/// "fisheye:k1,k2,k3,k4", `bump` as "CAMERA:FRAME:DEGREES"); `None` keeps the preset's default.
+#[pyfunction]
+#[pyo3(signature = (out, preset="cloth", cameras=None, width=640, height=480, frames=120, noise=0.0, seed=1, light=true, supersample=None, shake=0.0, distortion=None, cloth_grid=None, sync_error=0.0, motion_blur=0.0, turn=0.0, backdrop=false, bump=None))]
+#[allow(clippy::too_many_arguments)]
+fn synth(
+    out: PathBuf,
+    preset: &str,
+    cameras: Option<usize>,
+    width: u32,
+    height: u32,
+    frames: u32,
+    noise: f64,
+    seed: u64,
+    light: bool,
+    supersample: Option<u32>,
+    shake: f64,
+    distortion: Option<&str>,
+    cloth_grid: Option<usize>,
+    sync_error: f64,
+    motion_blur: f64,
+    turn: f64,
+    backdrop: bool,
+    bump: Option<&str>,
+) -> PyResult<PathBuf> {
+    let base = mf::synth::SynthOptions::preset(preset).map_err(err)?;
+    let distortion = distortion
+        .map(|d| {
+            d.parse::<mf::base::Distortion>()
+                .map_err(|m| ModelflowError::new_err(format!("distortion: {m}")))
+        })
+        .transpose()?;
+    let bump = bump
+        .map(|b| {
+            b.parse::<mf::synth::Bump>()
+                .map_err(|m| ModelflowError::new_err(format!("bump: {m}")))
+        })
+        .transpose()?;
+    let opts = mf::synth::SynthOptions {
+        cameras,
+        width,
+        height,
+        frames,
+        noise,
+        light,
+        seed,
+        supersample: supersample.unwrap_or(base.supersample),
+        shake,
+        distortion,
+        cloth_grid: cloth_grid.unwrap_or(base.cloth_grid),
+        sync_error,
+        motion_blur,
+        turn,
+        backdrop,
+        bump,
+        ..base
+    };
+    mf::synth::Synthetic::generate(&opts)
+        .and_then(|s| s.write(&out, &|_, _| {}))
+        .map_err(err)
+}
+
 /// Reads another tool's calibration and makes a scene file of it, as `modelflow import` does:
 /// `format` is "colmap" (a sparse model folder), "opencv" (a FileStorage .yml/.json), "metashape"
 /// (a camera XML) or "nerfstudio" (a transforms.json). `mesh`, `images` (with `{camera}`) and
@@ -733,5 +798,6 @@ fn modelflow_py(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(first_mesh_check, m)?)?;
     m.add_function(wrap_pyfunction!(align, m)?)?;
     m.add_function(wrap_pyfunction!(import_calibration, m)?)?;
+    m.add_function(wrap_pyfunction!(synth, m)?)?;
     Ok(())
 }
