@@ -136,6 +136,23 @@ def synth(
     writes it (presets "cloth", "blob", "irregular", "limb", "crossing"); returns the scene
     file's path. `None` keeps the preset's default."""
 
+def baseline(scene: Scene, out: _Path, force: bool = False) -> Dict[str, Any]:
+    """The optical-flow baseline (Lucas–Kanade per camera, then triangulation) over the whole
+    scene into the run folder `out`, as `modelflow baseline` with its defaults; returns
+    {"solved", "median_frame_seconds"}."""
+
+def report(
+    scene: Scene,
+    runs: Dict[str, _Path],
+    out: _Path,
+    frames: Optional[Sequence[int]] = None,
+    flipbook: bool = True,
+    shared_scale: bool = False,
+    residual_frame: Optional[int] = None,
+) -> Dict[str, Any]:
+    """The HTML report comparing runs ({name: folder}, in the page's order), as `modelflow
+    report` writes it into `out`; returns {"index": the page, "files", "frames": drawn}."""
+
 def import_calibration(
     format: str,
     input: _Path,

@@ -373,6 +373,82 @@ fn track_scene<'py>(
     to_py(py, &summary)
 }
 
+/// Runs the optical-flow baseline (pyramidal Lucas–Kanade per camera, then triangulation; as
+/// `modelflow baseline` does with its defaults) over the whole scene into the run folder `out`,
+/// a run folder like the tracker's, for `evaluate` and `report`. `force` replaces an earlier
+/// run's files there. Returns {"solved": frames solved, "median_frame_seconds": ...}.
+#[pyfunction]
+#[pyo3(signature = (scene, out, force=false))]
+fn baseline<'py>(
+    py: Python<'py>,
+    scene: &Scene,
+    out: PathBuf,
+    force: bool,
+) -> PyResult<Bound<'py, PyDict>> {
+    let run = mf::RunOptions {
+        mode: if force {
+            mf::OpenMode::Force
+        } else {
+            mf::OpenMode::New
+        },
+        ..mf::RunOptions::default()
+    };
+    let summary = mf::baseline::run(
+        &scene.inner,
+        &mf::BaselineOptions::default(),
+        &out,
+        &run,
+        &|_| {},
+    )
+    .map_err(err)?;
+    let d = PyDict::new(py);
+    d.set_item("solved", summary.frames.len())?;
+    d.set_item(
+        "median_frame_seconds",
+        mf::tracker::median(&summary.seconds),
+    )?;
+    Ok(d)
+}
+
+/// Writes the HTML report comparing runs, as `modelflow report` does: `runs` maps each run's
+/// name to its folder (e.g. {"Model Flow": "run", "LK": "lk"}); `frames` the frames to draw
+/// (default: first, middle, last and the first frame each run doubts); `flipbook` every frame's
+/// overlays; `shared_scale` one error colour scale for all runs; `residual_frame` the frame
+/// whose photometric residual is drawn (default: the last). Returns {"index": the page,
+/// "files": every other file written, "frames": the frames drawn}.
+#[pyfunction]
+#[pyo3(signature = (scene, runs, out, frames=None, flipbook=true, shared_scale=false, residual_frame=None))]
+#[allow(clippy::too_many_arguments)]
+fn report<'py>(
+    py: Python<'py>,
+    scene: &Scene,
+    runs: &Bound<'py, PyDict>,
+    out: PathBuf,
+    frames: Option<Vec<u32>>,
+    flipbook: bool,
+    shared_scale: bool,
+    residual_frame: Option<u32>,
+) -> PyResult<Bound<'py, PyDict>> {
+    let opts = mf::ReportOptions {
+        frames,
+        flipbook,
+        shared_error_scale: shared_scale,
+        residual_frame,
+        ..mf::ReportOptions::default()
+    };
+    // In the dict's order, which is the page's.
+    let runs: Vec<(String, PathBuf)> = runs
+        .iter()
+        .map(|(k, v)| Ok((k.extract()?, v.extract()?)))
+        .collect::<PyResult<_>>()?;
+    let summary = mf::write_report(&scene.inner, &runs, &opts, &out).map_err(err)?;
+    let d = PyDict::new(py);
+    d.set_item("index", summary.index)?;
+    d.set_item("files", summary.files)?;
+    d.set_item("frames", summary.frames)?;
+    Ok(d)
+}
+
 /// Scores a run folder (one OBJ per frame) against the scene's ground truth; returns the report
 /// as a dict (per-frame RMS and max error, means, the same over the seen vertices; lengths in
 /// the scene's unit, named by "units").
@@ -799,5 +875,7 @@ fn modelflow_py(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(align, m)?)?;
     m.add_function(wrap_pyfunction!(import_calibration, m)?)?;
     m.add_function(wrap_pyfunction!(synth, m)?)?;
+    m.add_function(wrap_pyfunction!(baseline, m)?)?;
+    m.add_function(wrap_pyfunction!(report, m)?)?;
     Ok(())
 }

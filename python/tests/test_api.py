@@ -322,3 +322,25 @@ def test_synth_makes_footage_that_tracks_to_its_truth(tmp_path):
         modelflow.synth(tmp_path / "bad", width=8)
     with pytest.raises(modelflow.ModelflowError, match="distortion"):
         modelflow.synth(tmp_path / "bad", distortion="opencv:x")
+
+
+def test_baseline_and_report_from_python(tmp_path):
+    path = modelflow.synth(
+        tmp_path / "cloth", preset="cloth", width=160, height=120, frames=3, supersample=1
+    )
+    s = modelflow.Scene.load(path)
+    modelflow.track_scene(s, tmp_path / "mf")
+    done = modelflow.baseline(s, tmp_path / "lk")
+    assert done["solved"] == 2
+    ours = modelflow.evaluate(s, tmp_path / "mf")["rms_mean_pct"]
+    theirs = modelflow.evaluate(s, tmp_path / "lk")["rms_mean_pct"]
+    assert ours < theirs, (ours, theirs)
+    rep = modelflow.report(
+        s, {"Model Flow": tmp_path / "mf", "LK": tmp_path / "lk"}, tmp_path / "report",
+        flipbook=False,
+    )
+    page = pathlib.Path(rep["index"]).read_text()
+    assert "Model Flow" in page and "LK" in page
+    assert rep["frames"][0] == 0 and any(str(f).endswith("error.png") for f in rep["files"])
+    with pytest.raises(modelflow.ModelflowError, match="at least one run"):
+        modelflow.report(s, {}, tmp_path / "empty")
