@@ -292,15 +292,21 @@ struct File<'a> {
     top: &'a Map<String, Value>,
 }
 
+/// Where `key`'s value comes from, as an error names it: the frame's own (`frames[i].key`) when
+/// it gives one, else the file's (`key`).
+fn field(frame: &Map<String, Value>, at: &str, key: &str) -> String {
+    if frame.contains_key(key) {
+        format!("{at}.{key}")
+    } else {
+        key.to_owned()
+    }
+}
+
 impl File<'_> {
     /// A frame's value for `key`, else the file's; `Ok(None)` when neither gives it.
     fn number(&self, frame: &Map<String, Value>, at: &str, key: &str) -> Result<Option<f64>> {
-        let (v, where_) = match frame.get(key) {
-            Some(v) => (v, format!("{at}.{key}")),
-            None => match self.top.get(key) {
-                Some(v) => (v, key.to_owned()),
-                None => return Ok(None),
-            },
+        let Some(v) = frame.get(key).or(self.top.get(key)) else {
+            return Ok(None);
         };
         if v.is_null() {
             return Ok(None);
@@ -308,7 +314,13 @@ impl File<'_> {
         v.as_f64()
             .filter(|x| x.is_finite())
             .map(Some)
-            .ok_or_else(|| Error::invalid(self.path, where_, format!("{v} is not a finite number")))
+            .ok_or_else(|| {
+                Error::invalid(
+                    self.path,
+                    field(frame, at, key),
+                    format!("{v} is not a finite number"),
+                )
+            })
     }
 
     fn size(
@@ -325,11 +337,7 @@ impl File<'_> {
                 }
                 Some(v) => Err(Error::invalid(
                     self.path,
-                    if frame.contains_key(key) {
-                        format!("{at}.{key}")
-                    } else {
-                        key.into()
-                    },
+                    field(frame, at, key),
                     format!("{v} is not an image size in pixels"),
                 )),
             }
@@ -359,13 +367,7 @@ impl File<'_> {
         height: u32,
     ) -> Result<(Matrix3<f64>, Option<Distortion>)> {
         let num = |key: &str| self.number(frame, at, key);
-        let field = |key: &str| {
-            if frame.contains_key(key) {
-                format!("{at}.{key}")
-            } else {
-                key.to_owned()
-            }
-        };
+        let field = |key: &str| field(frame, at, key);
         let model = match frame.get("camera_model").or(self.top.get("camera_model")) {
             None | Some(Value::Null) => "OPENCV".to_owned(),
             Some(Value::String(s)) => s.clone(),
