@@ -3,6 +3,7 @@ driven frame by frame from numpy images gives the CLI's result to 1e-9, and so d
 track_scene; evaluate, export and read_run agree with the files; bad input raises
 ModelflowError naming what is wrong."""
 
+import json
 import os
 import pathlib
 import subprocess
@@ -301,8 +302,17 @@ def test_import_calibration_writes_a_scene_in_our_conventions(tmp_path):
         modelflow.import_calibration("nerfstudio", ns, out=out)
     with pytest.raises(modelflow.ModelflowError, match="--images"):
         modelflow.import_calibration("nerfstudio", ns, images="x/{frame:4}.png")
-    with pytest.raises(modelflow.ModelflowError, match="colmap, opencv, metashape or nerfstudio"):
+    with pytest.raises(modelflow.ModelflowError, match="colmap, opencv, metashape, nerfstudio or toml"):
         modelflow.import_calibration("bundler", ns)
+    # caliscope's own calibration of the real board sample: the sample's cameras, named as
+    # caliscope names their recordings.
+    cal = modelflow.import_calibration(
+        "caliscope", ROOT / "fixtures" / "caliscope-board-sample" / "camera_array.toml"
+    )
+    sample = json.loads((ROOT / "fixtures" / "caliscope-board-sample" / "scene.json").read_text())
+    assert [c["name"] for c in cal["scene"]["cameras"]] == ["cam_0", "cam_1", "cam_2", "cam_3"]
+    for c, s in zip(cal["scene"]["cameras"], sample["cameras"]):
+        assert (c["K"], c["R"], c["t"]) == (s["K"], s["R"], s["t"])
 
 
 def test_synth_makes_footage_that_tracks_to_its_truth(tmp_path):

@@ -1,6 +1,7 @@
 //! `modelflow import`: writes a scene file from a calibration made by another tool (a COLMAP
 //! sparse model, an OpenCV `FileStorage` file, a Metashape camera XML, a nerfstudio / instant-ngp /
-//! NeRF `transforms.json`), with the user's mesh, image pattern and frames.
+//! NeRF `transforms.json`, an anipose / Pose2Sim / FreeMoCap / caliscope TOML file), with the
+//! user's mesh, image pattern and frames.
 //! The readers, the conversion of conventions and the checks are the library's
 //! (`input::calib::import_calibration`); this parses the options, writes and reports.
 
@@ -18,6 +19,15 @@ pub enum Format {
     Metashape,
     /// A transforms.json file (nerfstudio, instant-ngp, NeRF synthetic): one frame per camera.
     Nerfstudio,
+    /// A TOML rig calibration: anipose's, Pose2Sim's or FreeMoCap's calibration.toml, caliscope's
+    /// camera_array.toml (or its older config.toml).
+    #[value(
+        alias = "anipose",
+        alias = "pose2sim",
+        alias = "freemocap",
+        alias = "caliscope"
+    )]
+    Toml,
 }
 
 #[derive(clap::Args)]
@@ -25,8 +35,8 @@ pub struct Args {
     /// What the calibration is.
     #[arg(value_enum)]
     format: Format,
-    /// The calibration: a COLMAP model folder, an OpenCV file, a Metashape XML file or a
-    /// transforms.json file.
+    /// The calibration: a COLMAP model folder, an OpenCV file, a Metashape XML file, a
+    /// transforms.json file or a TOML file.
     input: PathBuf,
     /// The scene file to write.
     #[arg(long)]
@@ -44,7 +54,8 @@ pub struct Args {
     #[arg(long, value_name = "A..B", default_value = "0..0", value_parser = crate::select::parse_frames)]
     frames: (u32, u32),
     /// The image size of cameras whose calibration gives none (OpenCV files without
-    /// image_width/image_height, NeRF synthetic transforms.json files without w/h), as WxH.
+    /// image_width/image_height, NeRF synthetic transforms.json files without w/h, TOML cameras
+    /// without size), as WxH.
     #[arg(long, value_name = "WxH", value_parser = parse_size)]
     size: Option<(u32, u32)>,
     /// Metashape: the chunk to import, by its label or id (needed when several enabled chunks
@@ -83,6 +94,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         Format::Opencv => CalibrationFormat::Opencv,
         Format::Metashape => CalibrationFormat::Metashape,
         Format::Nerfstudio => CalibrationFormat::Nerfstudio,
+        Format::Toml => CalibrationFormat::Toml,
     };
     let opts = ImportOptions {
         mesh: args.mesh,

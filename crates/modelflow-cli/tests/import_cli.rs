@@ -282,3 +282,40 @@ fn nerfstudio_transforms_become_scene_files_in_the_world_asked_for() {
     assert_eq!(names, ["r_0", "r_1"]);
     assert_eq!(file.cameras[0].images, "images/r_0/{frame:04}.png");
 }
+
+/// caliscope's `camera_array.toml` (the real board sample's) becomes a scene of its four cameras
+/// with their lenses, each camera's recording named as caliscope names it; the format is found by
+/// any of the tools' names.
+#[test]
+fn a_caliscope_camera_array_becomes_a_scene_under_any_of_the_tools_names() {
+    let dir = tempfile::tempdir().unwrap();
+    let input = fixtures().join("caliscope-board-sample/camera_array.toml");
+    for (i, format) in ["caliscope", "toml", "anipose"].iter().enumerate() {
+        let out = dir.path().join(format!("scene{i}.json"));
+        let r = import(
+            &[
+                format,
+                "--images",
+                "recording/{camera}.mp4",
+                "--frames",
+                "0..19",
+                "--units",
+                "m",
+            ],
+            &input,
+            &out,
+        );
+        let err = String::from_utf8_lossy(&r.stderr);
+        assert!(r.status.success(), "{format}: {err}");
+        assert!(err.contains("caliscope") && err.contains("metres"), "{err}");
+        let file = SceneFile::parse(&out, &std::fs::read_to_string(&out).unwrap()).unwrap();
+        let names: Vec<&str> = file.cameras.iter().map(|c| c.name.as_str()).collect();
+        assert_eq!(names, ["cam_0", "cam_1", "cam_2", "cam_3"]);
+        assert_eq!(file.cameras[3].images, "recording/cam_3.mp4");
+        let d = file.cameras[0].distortion.as_ref().unwrap();
+        assert_eq!(
+            (d.model.as_str(), d.coefficients[0]),
+            ("opencv", -0.3320992998866297)
+        );
+    }
+}

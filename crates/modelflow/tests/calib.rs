@@ -4,11 +4,13 @@
 //! (to 1e-6 px; the issue asks for 0.1), and broken files are named with the line and field.
 //! `fixtures/nerfstudio`: the COLMAP fixture turned into nerfstudio's `transforms.json` by
 //! nerfstudio's own conversion (`tools/make_nerfstudio_fixture.py`), checked against pycolmap's
-//! projections.
+//! projections. `fixtures/anipose`: aniposelib 0.4.3's `CameraGroup.dump`, and caliscope's own
+//! `camera_array.toml` of the real board sample (`tools/make_toml_fixtures.py`).
 
 use modelflow::base::{Camera, Projection};
 use modelflow::input::calib::{
-    read_colmap, read_metashape, read_nerfstudio, read_opencv, CalibratedCamera, NerfWorld,
+    read_colmap, read_metashape, read_nerfstudio, read_opencv, read_rig_toml, CalibratedCamera,
+    NerfWorld,
 };
 use nalgebra::Point3;
 use std::path::{Path, PathBuf};
@@ -94,6 +96,70 @@ fn opencv_stereo_and_rig_files_project_as_opencv_does() {
         [416.184047849584, 233.00265235436038],
         "rig cam2 (fisheye)",
     );
+}
+
+/// `fixtures/anipose/calibration.toml`, written by aniposelib (what Pose2Sim and FreeMoCap also
+/// read): Rodrigues rotations, OpenCV's standard model and its fisheye; the point projects where
+/// the cameras' own `project` (OpenCV's) puts it.
+#[test]
+fn anipose_calibrations_project_as_anipose_does() {
+    let read = read_rig_toml(&fixture("anipose/calibration.toml"), None).unwrap();
+    let x = Point3::new(0.12, -0.07, 1.9);
+    let want = [
+        (
+            "left",
+            (1280, 720),
+            "opencv",
+            [698.0445788776987, 325.5356462234089],
+        ),
+        (
+            "right",
+            (1280, 720),
+            "opencv",
+            [134.07488921493206, 302.8412308352373],
+        ),
+        (
+            "wide",
+            (1920, 1080),
+            "fisheye",
+            [1350.450967101242, 538.7746067733248],
+        ),
+    ];
+    assert_eq!(read.cameras.len(), want.len());
+    for (c, (name, size, model, uv)) in read.cameras.iter().zip(want) {
+        assert_eq!((c.name.as_str(), (c.width, c.height)), (name, size));
+        assert_eq!(c.distortion.as_ref().unwrap().model(), model, "{name}");
+        close(project(c, &x), uv, name);
+    }
+}
+
+/// caliscope's own `camera_array.toml` of the real board sample: its cameras, named as caliscope
+/// names their recordings, project a point where `cv2.projectPoints` puts it (as caliscope
+/// projects), and are the sample's scene cameras to the last bit.
+#[test]
+fn caliscope_camera_arrays_project_as_caliscope_does_and_are_the_samples_cameras() {
+    let read = read_rig_toml(&fixture("caliscope-board-sample/camera_array.toml"), None).unwrap();
+    let y = Point3::new(0.05, 0.1, 0.02);
+    let want = [
+        [767.1811974534154, 328.4605786608861],
+        [459.46708284564534, 364.3118531140913],
+        [543.1499025267807, 486.63642344784836],
+        [678.4148252876437, 406.36397623894226],
+    ];
+    assert_eq!(read.cameras.len(), want.len());
+    let path = fixture("caliscope-board-sample/scene.json");
+    let scene = modelflow::input::SceneFile::parse(&path, &std::fs::read_to_string(&path).unwrap())
+        .unwrap();
+    for (i, (c, uv)) in read.cameras.iter().zip(want).enumerate() {
+        assert_eq!(c.name, format!("cam_{i}"));
+        close(project(c, &y), uv, &c.name);
+        let s = &scene.cameras[i];
+        let rows = |m: &nalgebra::Matrix3<f64>| [0, 1, 2].map(|r| [0, 1, 2].map(|k| m[(r, k)]));
+        assert_eq!(Some(rows(&c.k)), s.k, "{} K", c.name);
+        assert_eq!(Some(rows(&c.r)), s.r, "{} R", c.name);
+        assert_eq!(Some([c.t.x, c.t.y, c.t.z]), s.t, "{} t", c.name);
+        assert_eq!((c.width, c.height), (s.width, s.height));
+    }
 }
 
 /// `fixtures/nerfstudio/transforms.json`: the COLMAP fixture as nerfstudio's `ns-process-data`

@@ -4,8 +4,8 @@
 //! `modelflow import` and Python's `import_calibration` do; writing the file is the caller's.
 
 use super::{
-    read_colmap, read_metashape_chunk, read_nerfstudio, read_opencv, scene_file, CalibratedCamera,
-    NerfWorld,
+    read_colmap, read_metashape_chunk, read_nerfstudio, read_opencv, read_rig_toml, scene_file,
+    CalibratedCamera, NerfWorld,
 };
 use crate::base::Units;
 use crate::error::{Error, Result};
@@ -24,6 +24,9 @@ pub enum CalibrationFormat {
     Metashape,
     /// A `transforms.json` (nerfstudio, instant-ngp, NeRF synthetic).
     Nerfstudio,
+    /// A TOML rig calibration: anipose's, Pose2Sim's or FreeMoCap's `calibration.toml`,
+    /// caliscope's `camera_array.toml`.
+    Toml,
 }
 
 impl std::str::FromStr for CalibrationFormat {
@@ -34,10 +37,11 @@ impl std::str::FromStr for CalibrationFormat {
             "opencv" => Ok(Self::Opencv),
             "metashape" => Ok(Self::Metashape),
             "nerfstudio" => Ok(Self::Nerfstudio),
+            "toml" | "anipose" | "pose2sim" | "freemocap" | "caliscope" => Ok(Self::Toml),
             _ => Err(Error::option(
                 "format",
                 s,
-                "colmap, opencv, metashape or nerfstudio",
+                "colmap, opencv, metashape, nerfstudio or toml (also anipose, pose2sim, freemocap, caliscope)",
             )),
         }
     }
@@ -131,6 +135,11 @@ pub fn import_calibration(
                 NerfWorld::File
             };
             let read = read_nerfstudio(input, opts.size, world)?;
+            notes = read.notes;
+            read.cameras
+        }
+        CalibrationFormat::Toml => {
+            let read = read_rig_toml(input, opts.size)?;
             notes = read.notes;
             read.cameras
         }
