@@ -49,7 +49,8 @@ enum Command {
     Eval(eval::Args),
     /// Write a run as one animated file for a 3D package: USD, glTF, PC2 or MDD.
     Export(export::Args),
-    /// Write a scene file from a calibration made by another tool (COLMAP, OpenCV, Metashape, nerfstudio).
+    /// Write a scene file from a calibration made by another tool (COLMAP, OpenCV, Metashape,
+    /// nerfstudio, anipose / Pose2Sim / FreeMoCap, caliscope).
     Import(import::Args),
     /// Write an HTML report comparing runs: error plot, overlays, oblique and error views.
     Report(report::Args),

@@ -9,8 +9,8 @@
 
 use modelflow::base::{Camera, Projection};
 use modelflow::input::calib::{
-    read_colmap, read_metashape, read_nerfstudio, read_opencv, read_rig_toml, CalibratedCamera,
-    NerfWorld,
+    import_calibration, read_colmap, read_metashape, read_nerfstudio, read_opencv, read_rig_toml,
+    CalibratedCamera, CalibrationFormat, ImportOptions, NerfWorld,
 };
 use nalgebra::Point3;
 use std::path::{Path, PathBuf};
@@ -374,4 +374,45 @@ fn broken_calibrations_are_named_with_line_and_field() {
         &err(read_opencv(&p, None)),
         &["calib.yml", "line 10 column 1", "invalid YAML"],
     );
+}
+
+/// Every fixture is recognised as what it is, and a calibration imported as the wrong format is
+/// refused with the format it looks like (the commonest mistake).
+#[test]
+fn a_calibration_given_as_the_wrong_format_is_refused_with_the_format_it_looks_like() {
+    use CalibrationFormat::*;
+    let cases = [
+        ("colmap/text", Colmap),
+        ("colmap/bin", Colmap),
+        ("colmap/text/cameras.txt", Colmap),
+        ("opencv/stereo.yml", Opencv),
+        ("opencv/stereo.json", Opencv),
+        ("opencv/rig.yml", Opencv),
+        ("metashape/cameras.xml", Metashape),
+        ("nerfstudio/transforms.json", Nerfstudio),
+        ("nerfstudio/transforms_train.json", Nerfstudio),
+        ("anipose/calibration.toml", Toml),
+        ("caliscope-board-sample/camera_array.toml", Toml),
+    ];
+    for (f, format) in cases {
+        assert_eq!(CalibrationFormat::sniff(&fixture(f)), Some(format), "{f}");
+    }
+    assert_eq!(CalibrationFormat::sniff(&fixture("README.md")), None);
+    let opts = ImportOptions::default();
+    let wrong = [
+        ("anipose/calibration.toml", Opencv, "`toml`"),
+        ("opencv/stereo.yml", Toml, "`opencv`"),
+        ("colmap/text", Toml, "`colmap`"),
+        ("metashape/cameras.xml", Nerfstudio, "`metashape`"),
+    ];
+    for (f, format, want) in wrong {
+        let e = import_calibration(format, &fixture(f), &opts)
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains(&format!("give the format {want}")),
+            "{f} as {}: {e}",
+            format.name()
+        );
+    }
 }

@@ -124,26 +124,29 @@ pub fn import_calibration(
     };
     pattern("cam")?;
     let mut notes = Vec::new();
-    let cameras = match format {
-        CalibrationFormat::Colmap => read_colmap(input)?,
-        CalibrationFormat::Opencv => read_opencv(input, opts.size)?,
-        CalibrationFormat::Metashape => read_metashape_chunk(input, opts.chunk.as_deref())?,
-        CalibrationFormat::Nerfstudio => {
-            let world = if opts.before_applied_transform {
-                NerfWorld::BeforeApplied
-            } else {
-                NerfWorld::File
-            };
-            let read = read_nerfstudio(input, opts.size, world)?;
-            notes = read.notes;
-            read.cameras
-        }
-        CalibrationFormat::Toml => {
-            let read = read_rig_toml(input, opts.size)?;
-            notes = read.notes;
-            read.cameras
-        }
+    let mut read = || -> Result<Vec<CalibratedCamera>> {
+        Ok(match format {
+            CalibrationFormat::Colmap => read_colmap(input)?,
+            CalibrationFormat::Opencv => read_opencv(input, opts.size)?,
+            CalibrationFormat::Metashape => read_metashape_chunk(input, opts.chunk.as_deref())?,
+            CalibrationFormat::Nerfstudio => {
+                let world = if opts.before_applied_transform {
+                    NerfWorld::BeforeApplied
+                } else {
+                    NerfWorld::File
+                };
+                let read = read_nerfstudio(input, opts.size, world)?;
+                notes = read.notes;
+                read.cameras
+            }
+            CalibrationFormat::Toml => {
+                let read = read_rig_toml(input, opts.size)?;
+                notes = read.notes;
+                read.cameras
+            }
+        })
     };
+    let cameras = read().map_err(|e| with_format_hint(e, input, format))?;
     if cameras.len() > 1 && !opts.images.contains("{camera}") {
         return Err(Error::option(
             "--images",
@@ -184,4 +187,99 @@ pub fn import_calibration(
         notes,
         file,
     })
+}
+
+impl CalibrationFormat {
+    /// The name `import` takes for the format.
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::Colmap => "colmap",
+            Self::Opencv => "opencv",
+            Self::Metashape => "metashape",
+            Self::Nerfstudio => "nerfstudio",
+            Self::Toml => "toml",
+        }
+    }
+
+    /// What `path` looks like, from its name and its first bytes (not a full read): a folder
+    /// with COLMAP's files, an XML file (Metashape's), a JSON object with `frames` and
+    /// `transform_matrix` (a `transforms.json`), a TOML file with camera tables, else YAML or
+    /// JSON (OpenCV's `FileStorage`). `None` when it is none of these or cannot be read.
+    pub fn sniff(path: &Path) -> Option<CalibrationFormat> {
+        let colmap = ["cameras.txt", "cameras.bin", "images.txt", "images.bin"];
+        if path.is_dir() {
+            return colmap
+                .iter()
+                .any(|f| path.join(f).is_file())
+                .then_some(Self::Colmap);
+        }
+        let name = path.file_name()?.to_str()?;
+        if colmap.contains(&name) {
+            return Some(Self::Colmap);
+        }
+        let mut head = vec![0u8; 64 * 1024];
+        let n = std::io::Read::read(&mut std::fs::File::open(path).ok()?, &mut head).ok()?;
+        let text = String::from_utf8_lossy(&head[..n]);
+        let text = text.trim_start_matches('\u{feff}').trim_start();
+        if text.starts_with('<') {
+            // An OpenCV XML FileStorage is OpenCV's (which says how to convert it).
+            return Some(if text.contains("<opencv_storage") {
+                Self::Opencv
+            } else {
+                Self::Metashape
+            });
+        }
+        if text.starts_with('{') {
+            return Some(
+                if text.contains("\"transform_matrix\"") || text.contains("\"camera_angle_x\"") {
+                    Self::Nerfstudio
+                } else {
+                    Self::Opencv
+                },
+            );
+        }
+        let table = text.lines().any(|l| {
+            let l = l.trim();
+            l.starts_with('[') && l.ends_with(']') && !l.contains(',')
+        });
+        let assignment = text.lines().any(|l| {
+            let l = l.trim_start();
+            l.starts_with("matrix") && l["matrix".len()..].trim_start().starts_with('=')
+        });
+        if table && assignment {
+            return Some(Self::Toml);
+        }
+        text.starts_with("%YAML").then_some(Self::Opencv)
+    }
+}
+
+/// `e`, a failure to read `input` as `format`, with a hint when the input looks like another
+/// format (the commonest mistake: the wrong format named).
+fn with_format_hint(e: Error, input: &Path, format: CalibrationFormat) -> Error {
+    let Some(other) = CalibrationFormat::sniff(input).filter(|&f| f != format) else {
+        return e;
+    };
+    let hint = format!(
+        "(this looks like a `{}` calibration, not `{}`: give the format `{}`)",
+        other.name(),
+        format.name(),
+        other.name()
+    );
+    match e {
+        Error::Invalid {
+            path,
+            field,
+            message,
+        } => Error::Invalid {
+            path,
+            field,
+            message: format!("{message} {hint}"),
+        },
+        Error::Io { path, error } => Error::Invalid {
+            path,
+            field: "(path)".into(),
+            message: format!("{error} {hint}"),
+        },
+        other => other,
+    }
 }
