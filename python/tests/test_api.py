@@ -302,7 +302,7 @@ def test_import_calibration_writes_a_scene_in_our_conventions(tmp_path):
         modelflow.import_calibration("nerfstudio", ns, out=out)
     with pytest.raises(modelflow.ModelflowError, match="--images"):
         modelflow.import_calibration("nerfstudio", ns, images="x/{frame:4}.png")
-    with pytest.raises(modelflow.ModelflowError, match="colmap, opencv, metashape, nerfstudio or toml"):
+    with pytest.raises(modelflow.ModelflowError, match="colmap, opencv, metashape, nerfstudio, toml"):
         modelflow.import_calibration("bundler", ns)
     # caliscope's own calibration of the real board sample: the sample's cameras, named as
     # caliscope names their recordings.

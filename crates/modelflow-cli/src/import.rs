@@ -1,6 +1,7 @@
 //! `modelflow import`: writes a scene file from a calibration made by another tool (a COLMAP
 //! sparse model, an OpenCV `FileStorage` file, a Metashape camera XML, a nerfstudio / instant-ngp /
-//! NeRF `transforms.json`, an anipose / Pose2Sim / FreeMoCap / caliscope TOML file), with the
+//! NeRF `transforms.json`, an anipose / Pose2Sim / FreeMoCap / caliscope TOML file, a Kalibr
+//! `camchain.yaml`), with the
 //! user's mesh, image pattern and frames.
 //! The readers, the conversion of conventions and the checks are the library's
 //! (`input::calib::import_calibration`); this parses the options, writes and reports.
@@ -28,6 +29,8 @@ pub enum Format {
         alias = "caliscope"
     )]
     Toml,
+    /// A Kalibr camera chain: camchain.yaml (or camchain-imucam.yaml), cam0's frame the world.
+    Kalibr,
 }
 
 #[derive(clap::Args)]
@@ -36,7 +39,7 @@ pub struct Args {
     #[arg(value_enum)]
     format: Format,
     /// The calibration: a COLMAP model folder, an OpenCV file, a Metashape XML file, a
-    /// transforms.json file or a TOML file.
+    /// transforms.json file, a TOML file or a Kalibr camchain.yaml.
     input: PathBuf,
     /// The scene file to write.
     #[arg(long)]
@@ -95,6 +98,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         Format::Metashape => CalibrationFormat::Metashape,
         Format::Nerfstudio => CalibrationFormat::Nerfstudio,
         Format::Toml => CalibrationFormat::Toml,
+        Format::Kalibr => CalibrationFormat::Kalibr,
     };
     let opts = ImportOptions {
         mesh: args.mesh,

@@ -6,11 +6,12 @@
 //! nerfstudio's own conversion (`tools/make_nerfstudio_fixture.py`), checked against pycolmap's
 //! projections. `fixtures/anipose`: aniposelib 0.4.3's `CameraGroup.dump`, and caliscope's own
 //! `camera_array.toml` of the real board sample (`tools/make_toml_fixtures.py`).
+//! `fixtures/kalibr`: a camera chain in Kalibr's layout (`tools/make_kalibr_fixture.py`).
 
 use modelflow::base::{Camera, Projection};
 use modelflow::input::calib::{
-    import_calibration, read_colmap, read_metashape, read_nerfstudio, read_opencv, read_rig_toml,
-    CalibratedCamera, CalibrationFormat, ImportOptions, NerfWorld,
+    import_calibration, read_colmap, read_kalibr, read_metashape, read_nerfstudio, read_opencv,
+    read_rig_toml, CalibratedCamera, CalibrationFormat, ImportOptions, NerfWorld,
 };
 use nalgebra::Point3;
 use std::path::{Path, PathBuf};
@@ -159,6 +160,41 @@ fn caliscope_camera_arrays_project_as_caliscope_does_and_are_the_samples_cameras
         assert_eq!(Some(rows(&c.r)), s.r, "{} R", c.name);
         assert_eq!(Some([c.t.x, c.t.y, c.t.z]), s.t, "{} t", c.name);
         assert_eq!((c.width, c.height), (s.width, s.height));
+    }
+}
+
+/// `fixtures/kalibr/camchain.yaml`, in the layout Kalibr writes (PyYAML's dump; Kalibr itself was
+/// not run): the chain of `T_cn_cnm1` composed in the world of `cam0`, radtan and equidistant
+/// lenses; the point projects where OpenCV puts it with the chain composed independently.
+#[test]
+fn kalibr_camera_chains_project_as_opencv_does_with_the_chain_composed() {
+    let cams = read_kalibr(&fixture("kalibr/camchain.yaml")).unwrap();
+    let x = Point3::new(0.15, -0.08, 2.3);
+    let want = [
+        (
+            "cam0",
+            (752, 480),
+            "opencv",
+            [397.08068046026085, 232.4943054990616],
+        ),
+        (
+            "cam1",
+            (640, 480),
+            "fisheye",
+            [305.82273736328085, 226.13355397047792],
+        ),
+        (
+            "cam2",
+            (1920, 1080),
+            "opencv",
+            [758.7421504170004, 501.9846783660242],
+        ),
+    ];
+    assert_eq!(cams.len(), want.len());
+    for (c, (name, size, model, uv)) in cams.iter().zip(want) {
+        assert_eq!((c.name.as_str(), (c.width, c.height)), (name, size));
+        assert_eq!(c.distortion.as_ref().unwrap().model(), model, "{name}");
+        close(project(c, &x), uv, name);
     }
 }
 
@@ -393,6 +429,7 @@ fn a_calibration_given_as_the_wrong_format_is_refused_with_the_format_it_looks_l
         ("nerfstudio/transforms_train.json", Nerfstudio),
         ("anipose/calibration.toml", Toml),
         ("caliscope-board-sample/camera_array.toml", Toml),
+        ("kalibr/camchain.yaml", Kalibr),
     ];
     for (f, format) in cases {
         assert_eq!(CalibrationFormat::sniff(&fixture(f)), Some(format), "{f}");
@@ -404,6 +441,7 @@ fn a_calibration_given_as_the_wrong_format_is_refused_with_the_format_it_looks_l
         ("opencv/stereo.yml", Toml, "`opencv`"),
         ("colmap/text", Toml, "`colmap`"),
         ("metashape/cameras.xml", Nerfstudio, "`metashape`"),
+        ("kalibr/camchain.yaml", Opencv, "`kalibr`"),
     ];
     for (f, format, want) in wrong {
         let e = import_calibration(format, &fixture(f), &opts)

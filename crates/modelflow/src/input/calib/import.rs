@@ -4,8 +4,8 @@
 //! `modelflow import` and Python's `import_calibration` do; writing the file is the caller's.
 
 use super::{
-    read_colmap, read_metashape_chunk, read_nerfstudio, read_opencv, read_rig_toml, scene_file,
-    CalibratedCamera, NerfWorld,
+    read_colmap, read_kalibr, read_metashape_chunk, read_nerfstudio, read_opencv, read_rig_toml,
+    scene_file, CalibratedCamera, NerfWorld,
 };
 use crate::base::Units;
 use crate::error::{Error, Result};
@@ -27,6 +27,8 @@ pub enum CalibrationFormat {
     /// A TOML rig calibration: anipose's, Pose2Sim's or FreeMoCap's `calibration.toml`,
     /// caliscope's `camera_array.toml`.
     Toml,
+    /// Kalibr's `camchain.yaml` (or `camchain-imucam.yaml`).
+    Kalibr,
 }
 
 impl std::str::FromStr for CalibrationFormat {
@@ -38,10 +40,11 @@ impl std::str::FromStr for CalibrationFormat {
             "metashape" => Ok(Self::Metashape),
             "nerfstudio" => Ok(Self::Nerfstudio),
             "toml" | "anipose" | "pose2sim" | "freemocap" | "caliscope" => Ok(Self::Toml),
+            "kalibr" => Ok(Self::Kalibr),
             _ => Err(Error::option(
                 "format",
                 s,
-                "colmap, opencv, metashape, nerfstudio or toml (also anipose, pose2sim, freemocap, caliscope)",
+                "colmap, opencv, metashape, nerfstudio, toml (also anipose, pose2sim, freemocap, caliscope) or kalibr",
             )),
         }
     }
@@ -144,6 +147,7 @@ pub fn import_calibration(
                 notes = read.notes;
                 read.cameras
             }
+            CalibrationFormat::Kalibr => read_kalibr(input)?,
         })
     };
     let cameras = read().map_err(|e| with_format_hint(e, input, format))?;
@@ -198,13 +202,14 @@ impl CalibrationFormat {
             Self::Metashape => "metashape",
             Self::Nerfstudio => "nerfstudio",
             Self::Toml => "toml",
+            Self::Kalibr => "kalibr",
         }
     }
 
     /// What `path` looks like, from its name and its first bytes (not a full read): a folder
     /// with COLMAP's files, an XML file (Metashape's), a JSON object with `frames` and
-    /// `transform_matrix` (a `transforms.json`), a TOML file with camera tables, else YAML or
-    /// JSON (OpenCV's `FileStorage`). `None` when it is none of these or cannot be read.
+    /// `transform_matrix` (a `transforms.json`), a TOML file with camera tables, YAML with a
+    /// `cam0` map and `intrinsics` (Kalibr's), else YAML or JSON (OpenCV's `FileStorage`). `None` when it is none of these or cannot be read.
     pub fn sniff(path: &Path) -> Option<CalibrationFormat> {
         let colmap = ["cameras.txt", "cameras.bin", "images.txt", "images.bin"];
         if path.is_dir() {
@@ -248,6 +253,13 @@ impl CalibrationFormat {
         });
         if table && assignment {
             return Some(Self::Toml);
+        }
+        let kalibr = text.lines().any(|l| l.trim_end() == "cam0:")
+            && text
+                .lines()
+                .any(|l| l.trim_start().starts_with("intrinsics:"));
+        if kalibr {
+            return Some(Self::Kalibr);
         }
         text.starts_with("%YAML").then_some(Self::Opencv)
     }

@@ -1,12 +1,14 @@
 //! Calibration importers: the camera files users already have (COLMAP sparse models, OpenCV
 //! `FileStorage` files, Agisoft Metashape camera XML, nerfstudio / instant-ngp / NeRF
-//! `transforms.json`, the TOML files of anipose, Pose2Sim, FreeMoCap and caliscope) turned into the cameras of a `modelflow-scene/1` file, in our
+//! `transforms.json`, the TOML files of anipose, Pose2Sim, FreeMoCap and caliscope, Kalibr's
+//! `camchain.yaml`) turned into the cameras of a `modelflow-scene/1` file, in our
 //! conventions (OpenCV pinhole, pixel centres at integers, world-to-camera `R`, `t`; see
 //! `docs/scene-format.md`, "Importing a calibration"). Each reader converts its tool's own
 //! conventions and names the file, line and field of anything it cannot use.
 
 mod colmap;
 mod import;
+mod kalibr;
 mod metashape;
 mod nerfstudio;
 mod opencv;
@@ -14,6 +16,7 @@ mod rig_toml;
 
 pub use colmap::read_colmap;
 pub use import::{import_calibration, CalibrationFormat, ImportOptions, Imported};
+pub use kalibr::read_kalibr;
 pub use metashape::{read_metashape, read_metashape_chunk};
 pub use nerfstudio::{read_nerfstudio, NerfCalibration, NerfWorld};
 pub use opencv::read_opencv;

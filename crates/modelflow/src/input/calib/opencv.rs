@@ -422,7 +422,7 @@ impl File<'_> {
 
 /// OpenCV's YAML (its `%YAML:1.0` or `%YAML 1.2` directive dropped, `!!opencv-matrix` tags
 /// ignored) as a JSON value.
-fn parse_yaml(path: &Path, text: &str) -> Result<Value> {
+pub(crate) fn parse_yaml(path: &Path, text: &str) -> Result<Value> {
     let body: String = text
         .lines()
         .map(|l| if l.starts_with("%YAML") { "" } else { l })
