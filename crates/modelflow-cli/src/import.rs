@@ -1,7 +1,7 @@
 //! `modelflow import`: writes a scene file from a calibration made by another tool (a COLMAP
 //! sparse model, an OpenCV `FileStorage` file, a Metashape camera XML, a nerfstudio / instant-ngp /
 //! NeRF `transforms.json`, an anipose / Pose2Sim / FreeMoCap / caliscope TOML file, a Kalibr
-//! `camchain.yaml`), with the
+//! `camchain.yaml`, mrcal `.cameramodel` files), with the
 //! user's mesh, image pattern and frames.
 //! The readers, the conversion of conventions and the checks are the library's
 //! (`input::calib::import_calibration`); this parses the options, writes and reports.
@@ -31,6 +31,8 @@ pub enum Format {
     Toml,
     /// A Kalibr camera chain: camchain.yaml (or camchain-imucam.yaml), cam0's frame the world.
     Kalibr,
+    /// An mrcal .cameramodel file, or a folder of them (mrcal-calibrate-cameras' camera-N files).
+    Mrcal,
 }
 
 #[derive(clap::Args)]
@@ -39,7 +41,8 @@ pub struct Args {
     #[arg(value_enum)]
     format: Format,
     /// The calibration: a COLMAP model folder, an OpenCV file, a Metashape XML file, a
-    /// transforms.json file, a TOML file or a Kalibr camchain.yaml.
+    /// transforms.json file, a TOML file, a Kalibr camchain.yaml, or an mrcal .cameramodel (or a
+    /// folder of them).
     input: PathBuf,
     /// The scene file to write.
     #[arg(long)]
@@ -99,6 +102,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         Format::Nerfstudio => CalibrationFormat::Nerfstudio,
         Format::Toml => CalibrationFormat::Toml,
         Format::Kalibr => CalibrationFormat::Kalibr,
+        Format::Mrcal => CalibrationFormat::Mrcal,
     };
     let opts = ImportOptions {
         mesh: args.mesh,

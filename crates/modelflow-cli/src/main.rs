@@ -50,7 +50,7 @@ enum Command {
     /// Write a run as one animated file for a 3D package: USD, glTF, PC2 or MDD.
     Export(export::Args),
     /// Write a scene file from a calibration made by another tool (COLMAP, OpenCV, Metashape,
-    /// nerfstudio, anipose / Pose2Sim / FreeMoCap, caliscope, Kalibr).
+    /// nerfstudio, anipose / Pose2Sim / FreeMoCap, caliscope, Kalibr, mrcal).
     Import(import::Args),
     /// Write an HTML report comparing runs: error plot, overlays, oblique and error views.
     Report(report::Args),

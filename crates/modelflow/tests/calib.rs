@@ -7,11 +7,12 @@
 //! projections. `fixtures/anipose`: aniposelib 0.4.3's `CameraGroup.dump`, and caliscope's own
 //! `camera_array.toml` of the real board sample (`tools/make_toml_fixtures.py`).
 //! `fixtures/kalibr`: a camera chain in Kalibr's layout (`tools/make_kalibr_fixture.py`).
+//! `fixtures/mrcal`: a rig's `.cameramodel` files written by mrcal 2.2 (`tools/make_mrcal_fixture.py`).
 
 use modelflow::base::{Camera, Projection};
 use modelflow::input::calib::{
-    import_calibration, read_colmap, read_kalibr, read_metashape, read_nerfstudio, read_opencv,
-    read_rig_toml, CalibratedCamera, CalibrationFormat, ImportOptions, NerfWorld,
+    import_calibration, read_colmap, read_kalibr, read_metashape, read_mrcal, read_nerfstudio,
+    read_opencv, read_rig_toml, CalibratedCamera, CalibrationFormat, ImportOptions, NerfWorld,
 };
 use nalgebra::Point3;
 use std::path::{Path, PathBuf};
@@ -195,6 +196,47 @@ fn kalibr_camera_chains_project_as_opencv_does_with_the_chain_composed() {
         assert_eq!((c.name.as_str(), (c.width, c.height)), (name, size));
         assert_eq!(c.distortion.as_ref().unwrap().model(), model, "{name}");
         close(project(c, &x), uv, name);
+    }
+}
+
+/// `fixtures/mrcal`: three `.cameramodel` files written by mrcal 2.2 itself (OpenCV8, OpenCV5,
+/// pinhole lenses; placed relative to camera 0, as `mrcal-calibrate-cameras` writes a rig): read
+/// as a folder or one by one, the point projects where mrcal projects it.
+#[test]
+fn mrcal_camera_models_project_as_mrcal_does() {
+    let x = Point3::new(0.12, -0.07, 1.9);
+    let want = [
+        (
+            "camera-0",
+            (1920, 1080),
+            Some(8),
+            [1046.798163555025, 489.6257929277338],
+        ),
+        (
+            "camera-1",
+            (1280, 720),
+            Some(5),
+            [355.364602136651, 321.02266500371326],
+        ),
+        (
+            "camera-2",
+            (640, 480),
+            None,
+            [595.2753134347402, 219.63592437744782],
+        ),
+    ];
+    let cams = read_mrcal(&fixture("mrcal")).unwrap();
+    assert_eq!(cams.len(), want.len());
+    for (c, (name, size, n, uv)) in cams.iter().zip(want) {
+        assert_eq!((c.name.as_str(), (c.width, c.height)), (name, size));
+        assert_eq!(
+            c.distortion.as_ref().map(|d| d.coefficients().len()),
+            n,
+            "{name}"
+        );
+        close(project(c, &x), uv, name);
+        let one = read_mrcal(&fixture(&format!("mrcal/{name}.cameramodel"))).unwrap();
+        assert_eq!(&one[0], c);
     }
 }
 
@@ -430,6 +472,8 @@ fn a_calibration_given_as_the_wrong_format_is_refused_with_the_format_it_looks_l
         ("anipose/calibration.toml", Toml),
         ("caliscope-board-sample/camera_array.toml", Toml),
         ("kalibr/camchain.yaml", Kalibr),
+        ("mrcal", Mrcal),
+        ("mrcal/camera-1.cameramodel", Mrcal),
     ];
     for (f, format) in cases {
         assert_eq!(CalibrationFormat::sniff(&fixture(f)), Some(format), "{f}");
@@ -442,6 +486,7 @@ fn a_calibration_given_as_the_wrong_format_is_refused_with_the_format_it_looks_l
         ("colmap/text", Toml, "`colmap`"),
         ("metashape/cameras.xml", Nerfstudio, "`metashape`"),
         ("kalibr/camchain.yaml", Opencv, "`kalibr`"),
+        ("mrcal", Colmap, "`mrcal`"),
     ];
     for (f, format, want) in wrong {
         let e = import_calibration(format, &fixture(f), &opts)

@@ -4,8 +4,8 @@
 //! `modelflow import` and Python's `import_calibration` do; writing the file is the caller's.
 
 use super::{
-    read_colmap, read_kalibr, read_metashape_chunk, read_nerfstudio, read_opencv, read_rig_toml,
-    scene_file, CalibratedCamera, NerfWorld,
+    read_colmap, read_kalibr, read_metashape_chunk, read_mrcal, read_nerfstudio, read_opencv,
+    read_rig_toml, scene_file, CalibratedCamera, NerfWorld,
 };
 use crate::base::Units;
 use crate::error::{Error, Result};
@@ -29,6 +29,8 @@ pub enum CalibrationFormat {
     Toml,
     /// Kalibr's `camchain.yaml` (or `camchain-imucam.yaml`).
     Kalibr,
+    /// mrcal's `.cameramodel` files: one, or a folder of them.
+    Mrcal,
 }
 
 impl std::str::FromStr for CalibrationFormat {
@@ -41,10 +43,11 @@ impl std::str::FromStr for CalibrationFormat {
             "nerfstudio" => Ok(Self::Nerfstudio),
             "toml" | "anipose" | "pose2sim" | "freemocap" | "caliscope" => Ok(Self::Toml),
             "kalibr" => Ok(Self::Kalibr),
+            "mrcal" => Ok(Self::Mrcal),
             _ => Err(Error::option(
                 "format",
                 s,
-                "colmap, opencv, metashape, nerfstudio, toml (also anipose, pose2sim, freemocap, caliscope) or kalibr",
+                "colmap, opencv, metashape, nerfstudio, toml (also anipose, pose2sim, freemocap, caliscope), kalibr or mrcal",
             )),
         }
     }
@@ -148,6 +151,7 @@ pub fn import_calibration(
                 read.cameras
             }
             CalibrationFormat::Kalibr => read_kalibr(input)?,
+            CalibrationFormat::Mrcal => read_mrcal(input)?,
         })
     };
     let cameras = read().map_err(|e| with_format_hint(e, input, format))?;
@@ -203,20 +207,30 @@ impl CalibrationFormat {
             Self::Nerfstudio => "nerfstudio",
             Self::Toml => "toml",
             Self::Kalibr => "kalibr",
+            Self::Mrcal => "mrcal",
         }
     }
 
     /// What `path` looks like, from its name and its first bytes (not a full read): a folder
     /// with COLMAP's files, an XML file (Metashape's), a JSON object with `frames` and
     /// `transform_matrix` (a `transforms.json`), a TOML file with camera tables, YAML with a
-    /// `cam0` map and `intrinsics` (Kalibr's), else YAML or JSON (OpenCV's `FileStorage`). `None` when it is none of these or cannot be read.
+    /// `cam0` map and `intrinsics` (Kalibr's), `.cameramodel` files (mrcal's), else YAML or JSON
+    /// (OpenCV's `FileStorage`). `None` when it is none of these or cannot be read.
     pub fn sniff(path: &Path) -> Option<CalibrationFormat> {
         let colmap = ["cameras.txt", "cameras.bin", "images.txt", "images.bin"];
+        let cameramodel = |p: &Path| p.extension().is_some_and(|x| x == "cameramodel");
         if path.is_dir() {
-            return colmap
-                .iter()
-                .any(|f| path.join(f).is_file())
-                .then_some(Self::Colmap);
+            if colmap.iter().any(|f| path.join(f).is_file()) {
+                return Some(Self::Colmap);
+            }
+            let models = std::fs::read_dir(path).ok()?;
+            return models
+                .filter_map(|e| e.ok())
+                .any(|e| cameramodel(&e.path()))
+                .then_some(Self::Mrcal);
+        }
+        if cameramodel(path) {
+            return Some(Self::Mrcal);
         }
         let name = path.file_name()?.to_str()?;
         if colmap.contains(&name) {
