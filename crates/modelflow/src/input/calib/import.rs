@@ -268,14 +268,15 @@ impl CalibrationFormat {
         if table && assignment {
             return Some(Self::Toml);
         }
-        let kalibr = text.lines().any(|l| l.trim_end() == "cam0:")
-            && text
-                .lines()
-                .any(|l| l.trim_start().starts_with("intrinsics:"));
-        if kalibr {
-            return Some(Self::Kalibr);
+        // OpenCV writes its directive, Kalibr never does.
+        if text.starts_with("%YAML") {
+            return Some(Self::Opencv);
         }
-        text.starts_with("%YAML").then_some(Self::Opencv)
+        let has = |key: &str| text.lines().any(|l| l.trim_start().starts_with(key));
+        let kalibr = text.lines().any(|l| l.trim_end() == "cam0:")
+            && has("intrinsics:")
+            && (has("camera_model:") || has("T_cn_cnm1:"));
+        kalibr.then_some(Self::Kalibr)
     }
 }
 

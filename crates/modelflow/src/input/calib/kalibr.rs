@@ -15,10 +15,10 @@
 //! - `distortion_model: radtan` (`k1 k2 p1 p2`, OpenCV's first four), `equidistant` (OpenCV's
 //!   fisheye `k1..k4`), `none`; `fov` is refused by name.
 
-use super::{check_rotation, strip_bom, CalibratedCamera};
+use super::{check_rotation, expected_count, pinhole_k, strip_bom, whole_size, CalibratedCamera};
 use crate::base::lens::Distortion;
 use crate::error::{Error, Result};
-use nalgebra::{Matrix3, Matrix4, Vector3};
+use nalgebra::{Matrix4, Vector3};
 use serde_json::{Map, Value};
 use std::path::Path;
 
@@ -67,13 +67,11 @@ pub fn read_kalibr(path: &Path) -> Result<Vec<CalibratedCamera>> {
             ),
         ));
     }
-    let mut to_world = Matrix4::<f64>::identity();
+    // World (cam0) to the camera read last: T_cn_w = T_cn_cnm1 · T_cnm1_w.
+    let mut from_world = Matrix4::<f64>::identity();
     let mut cameras = Vec::new();
     for (n, key, m) in numbered {
-        let model = m
-            .get("camera_model")
-            .and_then(Value::as_str)
-            .unwrap_or("pinhole");
+        let model = file.name_of(m, key, "camera_model", "pinhole")?;
         if model != "pinhole" {
             return Err(file.bad(
                 key,
@@ -84,14 +82,9 @@ pub fn read_kalibr(path: &Path) -> Result<Vec<CalibratedCamera>> {
             ));
         }
         let i = file.numbers(m, key, "intrinsics", &[4])?;
-        if i[0] <= 0.0 || i[1] <= 0.0 {
-            return Err(file.bad(key, "intrinsics", "focal lengths must be positive"));
-        }
-        let k = Matrix3::new(i[0], 0.0, i[2], 0.0, i[1], i[3], 0.0, 0.0, 1.0);
-        let dmodel = m
-            .get("distortion_model")
-            .and_then(Value::as_str)
-            .unwrap_or("none");
+        let k = pinhole_k(i[0], i[1], i[2], i[3])
+            .ok_or_else(|| file.bad(key, "intrinsics", "focal lengths must be positive"))?;
+        let dmodel = file.name_of(m, key, "distortion_model", "none")?;
         let distortion = match dmodel {
             "none" => None,
             "radtan" | "equidistant" => {
@@ -112,14 +105,13 @@ pub fn read_kalibr(path: &Path) -> Result<Vec<CalibratedCamera>> {
             }
         };
         let size = file.numbers(m, key, "resolution", &[2])?;
-        let whole = |x: f64| x >= 1.0 && x <= u32::MAX as f64 && x.fract() == 0.0;
-        if !(whole(size[0]) && whole(size[1])) {
-            return Err(file.bad(
+        let (width, height) = whole_size(size[0], size[1]).ok_or_else(|| {
+            file.bad(
                 key,
                 "resolution",
                 "expected [width, height] in whole pixels",
-            ));
-        }
+            )
+        })?;
         if n > 0 {
             let t = file.numbers(m, key, "T_cn_cnm1", &[16])?;
             let t = Matrix4::from_row_slice(&t);
@@ -131,15 +123,15 @@ pub fn read_kalibr(path: &Path) -> Result<Vec<CalibratedCamera>> {
                     "not a rigid transform (a rotation, and a last row 0 0 0 1)",
                 ));
             }
-            to_world = t * to_world;
+            from_world = t * from_world;
         }
         cameras.push(CalibratedCamera {
             name: key.to_string(),
-            width: size[0] as u32,
-            height: size[1] as u32,
+            width,
+            height,
             k,
-            r: to_world.fixed_view::<3, 3>(0, 0).into_owned(),
-            t: Vector3::new(to_world[(0, 3)], to_world[(1, 3)], to_world[(2, 3)]),
+            r: from_world.fixed_view::<3, 3>(0, 0).into_owned(),
+            t: Vector3::new(from_world[(0, 3)], from_world[(1, 3)], from_world[(2, 3)]),
             distortion,
             note: m
                 .get("rostopic")
@@ -190,6 +182,21 @@ impl File<'_> {
         Error::invalid(self.path, self.at(cam, key), msg)
     }
 
+    /// The name `key` gives (a model's), `default` when the key is absent.
+    fn name_of<'m>(
+        &self,
+        m: &'m Map<String, Value>,
+        cam: &str,
+        key: &str,
+        default: &'static str,
+    ) -> Result<&'m str> {
+        match m.get(key) {
+            None => Ok(default),
+            Some(Value::String(s)) => Ok(s.as_str()),
+            Some(v) => Err(self.bad(cam, key, format!("expected a name, found {v}"))),
+        }
+    }
+
     /// The numbers of `key` (a list, or a list of lists, flattened), finite and as many as one
     /// of `want`.
     fn numbers(
@@ -224,18 +231,7 @@ impl File<'_> {
             ));
         }
         if !want.contains(&out.len()) {
-            return Err(self.bad(
-                cam,
-                key,
-                format!(
-                    "expected {} numbers, found {}",
-                    want.iter()
-                        .map(|n| n.to_string())
-                        .collect::<Vec<_>>()
-                        .join(" or "),
-                    out.len()
-                ),
-            ));
+            return Err(self.bad(cam, key, expected_count(want, out.len())));
         }
         Ok(out)
     }
@@ -245,6 +241,7 @@ impl File<'_> {
 mod tests {
     use super::*;
     use crate::input::calib::testing::has;
+    use nalgebra::Matrix3;
 
     fn read(text: &str) -> Result<Vec<CalibratedCamera>> {
         let dir = tempfile::tempdir().unwrap();

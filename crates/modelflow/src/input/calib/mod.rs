@@ -104,6 +104,33 @@ pub(crate) fn strip_bom(text: &str) -> &str {
     text.strip_prefix('\u{feff}').unwrap_or(text)
 }
 
+/// "expected 4 or 5 numbers, found 3": a list of the wrong length, as every reader says it.
+pub(crate) fn expected_count(want: &[usize], found: usize) -> String {
+    let want: Vec<String> = want.iter().map(|n| n.to_string()).collect();
+    format!("expected {} numbers, found {found}", want.join(" or "))
+}
+
+/// An image size given as two numbers, if both are whole pixels (at least 1).
+pub(crate) fn whole_size(w: f64, h: f64) -> Option<(u32, u32)> {
+    let whole = |x: f64| x >= 1.0 && x <= u32::MAX as f64 && x.fract() == 0.0;
+    (whole(w) && whole(h)).then_some((w as u32, h as u32))
+}
+
+/// The 1-based line of byte `offset` in `text`.
+pub(crate) fn line_at(text: &[u8], offset: usize) -> usize {
+    text[..offset.min(text.len())]
+        .iter()
+        .filter(|&&b| b == b'\n')
+        .count()
+        + 1
+}
+
+/// The camera matrix of focal lengths `fx`, `fy` and principal point `cx`, `cy`, or `None`
+/// when a focal length is not positive.
+pub(crate) fn pinhole_k(fx: f64, fy: f64, cx: f64, cy: f64) -> Option<Matrix3<f64>> {
+    (fx > 0.0 && fy > 0.0).then(|| Matrix3::new(fx, 0.0, cx, 0.0, fy, cy, 0.0, 0.0, 1.0))
+}
+
 /// Whether `r` is a rotation within the scene format's tolerance.
 pub(crate) fn check_rotation(r: &Matrix3<f64>) -> bool {
     is_rotation(r, crate::input::scene::ROTATION_TOLERANCE)

@@ -17,7 +17,7 @@
 use super::{strip_bom, CalibratedCamera};
 use crate::base::lens::Distortion;
 use crate::error::{Error, Result};
-use nalgebra::{Matrix3, Vector3};
+use nalgebra::Vector3;
 use std::path::{Path, PathBuf};
 
 /// The cameras of one `.cameramodel` file, or of every `.cameramodel` file in a folder (in the
@@ -70,13 +70,15 @@ fn read_one(path: &Path) -> Result<CalibratedCamera> {
     let mut p = Parser {
         s: strip_bom(&text).as_bytes(),
         i: 0,
+        depth: 0,
         path,
     };
     p.skip();
-    let (Lit::Dict(entries), _) = p.value()? else {
+    let (lit, line) = p.value()?;
+    let Lit::Dict(entries) = lit else {
         return Err(Error::invalid(
             path,
-            "line 1",
+            format!("line {line}"),
             "expected a Python dict literal { 'lensmodel': ..., 'intrinsics': [...], ... }, as mrcal writes a .cameramodel",
         ));
     };
@@ -84,7 +86,13 @@ fn read_one(path: &Path) -> Result<CalibratedCamera> {
     if p.i < p.s.len() {
         return Err(p.bad("text after the model's closing }"));
     }
-    let get = |key: &str| entries.iter().find(|(k, _, _)| k == key);
+    // As Python reads a dict literal, a key given twice takes its last value; mrcal's reader
+    // renames the keys of its older files (`distortion_model`, `lens_model`: `lensmodel`).
+    let get = |key: &str| {
+        entries.iter().rev().find(|(k, _, _)| {
+            k == key || (key == "lensmodel" && (k == "distortion_model" || k == "lens_model"))
+        })
+    };
     let field = |key: &str| -> Result<(&Lit, usize)> {
         get(key)
             .map(|(_, v, line)| (v, *line))
@@ -106,7 +114,14 @@ fn read_one(path: &Path) -> Result<CalibratedCamera> {
         }
     };
     let (model, mline) = match field("lensmodel")? {
-        (Lit::Str(s), line) => (s.clone(), line),
+        // mrcal's older files name the models DISTORTION_...
+        (Lit::Str(s), line) => (
+            match s.strip_prefix("DISTORTION_") {
+                Some(rest) => format!("LENSMODEL_{rest}"),
+                None => s.clone(),
+            },
+            line,
+        ),
         (_, line) => {
             return Err(Error::invalid(
                 path,
@@ -126,7 +141,7 @@ fn read_one(path: &Path) -> Result<CalibratedCamera> {
                 path,
                 format!("line {mline}: lensmodel"),
                 format!(
-                    "{other} is not read: only LENSMODEL_PINHOLE and LENSMODEL_OPENCV4, 5, 8 or 12 have a counterpart in OpenCV's models; fit one to it with mrcal-convert-lensmodel LENSMODEL_OPENCV8 {}",
+                    "{other} is not read: only LENSMODEL_PINHOLE and LENSMODEL_OPENCV4, 5, 8 or 12 have a counterpart in OpenCV's models; fit one to it with mrcal-convert-lensmodel LENSMODEL_OPENCV8 {} (with --sampled if the file has no optimization_inputs)",
                     path.display()
                 ),
             ))
@@ -144,14 +159,13 @@ fn read_one(path: &Path) -> Result<CalibratedCamera> {
             ),
         ));
     }
-    if intr[0] <= 0.0 || intr[1] <= 0.0 {
-        return Err(Error::invalid(
+    let k = super::pinhole_k(intr[0], intr[1], intr[2], intr[3]).ok_or_else(|| {
+        Error::invalid(
             path,
             format!("line {iline}: intrinsics"),
             "focal lengths must be positive",
-        ));
-    }
-    let k = Matrix3::new(intr[0], 0.0, intr[2], 0.0, intr[1], intr[3], 0.0, 0.0, 1.0);
+        )
+    })?;
     let distortion = if distortion_count == 0 {
         None
     } else {
@@ -173,21 +187,23 @@ fn read_one(path: &Path) -> Result<CalibratedCamera> {
     let r = nalgebra::Rotation3::new(Vector3::new(ext[0], ext[1], ext[2])).into_inner();
     let t = Vector3::new(ext[3], ext[4], ext[5]);
     let (size, sline) = numbers("imagersize")?;
-    let whole = |x: f64| x >= 1.0 && x <= u32::MAX as f64 && x.fract() == 0.0;
-    if size.len() != 2 || !(whole(size[0]) && whole(size[1])) {
-        return Err(Error::invalid(
-            path,
-            format!("line {sline}: imagersize"),
-            "expected [width, height] in whole pixels",
-        ));
-    }
+    let (width, height) = (size.len() == 2)
+        .then(|| super::whole_size(size[0], size[1]))
+        .flatten()
+        .ok_or_else(|| {
+            Error::invalid(
+                path,
+                format!("line {sline}: imagersize"),
+                "expected [width, height] in whole pixels",
+            )
+        })?;
     Ok(CalibratedCamera {
         name: path
             .file_stem()
             .map(|s| s.to_string_lossy().into_owned())
             .unwrap_or_default(),
-        width: size[0] as u32,
-        height: size[1] as u32,
+        width,
+        height,
         k,
         r,
         t,
@@ -210,16 +226,18 @@ enum Lit {
 struct Parser<'a> {
     s: &'a [u8],
     i: usize,
+    /// Lists and dicts open around `i`: bounded, so that a file of brackets is refused, not a
+    /// stack overflow.
+    depth: usize,
     path: &'a Path,
 }
 
+/// Nesting deeper than mrcal ever writes (its deepest is a list of pairs in a dict).
+const MAX_DEPTH: usize = 32;
+
 impl Parser<'_> {
     fn line(&self) -> usize {
-        self.s[..self.i.min(self.s.len())]
-            .iter()
-            .filter(|&&b| b == b'\n')
-            .count()
-            + 1
+        super::line_at(self.s, self.i)
     }
 
     fn bad(&self, msg: impl Into<String>) -> Error {
@@ -241,7 +259,8 @@ impl Parser<'_> {
         }
     }
 
-    /// The string literal at `i` (quote `q`), its escapes kept as written but `\'`, `\"`, `\\`.
+    /// The string literal at `i` (quote `q`); a backslash keeps the character after it (mrcal's
+    /// names and models have no escapes that mean more).
     fn string(&mut self, q: u8) -> Result<String> {
         self.i += 1;
         let mut out = Vec::new();
@@ -266,6 +285,10 @@ impl Parser<'_> {
 
     /// The items of a `[...]` or `{...}` up to `close`, each read by `item`.
     fn items(&mut self, close: u8, mut item: impl FnMut(&mut Self) -> Result<()>) -> Result<()> {
+        self.depth += 1;
+        if self.depth > MAX_DEPTH {
+            return Err(self.bad(format!("lists or dicts nested deeper than {MAX_DEPTH}")));
+        }
         self.i += 1;
         loop {
             self.skip();
@@ -273,6 +296,7 @@ impl Parser<'_> {
                 None => return Err(self.bad(format!("missing a closing {}", close as char))),
                 Some(&c) if c == close => {
                     self.i += 1;
+                    self.depth -= 1;
                     return Ok(());
                 }
                 _ => {}
@@ -357,6 +381,7 @@ impl Parser<'_> {
 mod tests {
     use super::*;
     use crate::input::calib::testing::has;
+    use nalgebra::Matrix3;
 
     fn read(text: &str) -> Result<CalibratedCamera> {
         let dir = tempfile::tempdir().unwrap();
@@ -385,7 +410,7 @@ mod tests {
             (c.k[(0, 0)], c.k[(1, 1)], c.k[(0, 2)], c.k[(1, 2)]),
             (1000.0, 1001.0, 640.5, 360.25)
         );
-        let d = c.distortion.unwrap();
+        let d = c.distortion.clone().unwrap();
         assert_eq!(
             (d.model(), d.coefficients()),
             ("opencv", vec![-0.2, 0.05, 0.001, -0.0005])
@@ -393,6 +418,17 @@ mod tests {
         let quarter = Matrix3::new(0.0, -1.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0);
         assert!((c.r - quarter).norm() < 1e-15, "{}", c.r);
         assert_eq!(c.t, Vector3::new(1.0, 2.0, 3.0));
+        // mrcal's older key and model names, and a key given twice (the last counts, as in Python).
+        let old = MODEL
+            .replace(
+                "'lensmodel':  'LENSMODEL_OPENCV4'",
+                "'distortion_model': 'DISTORTION_OPENCV4'",
+            )
+            .replace(
+                "'imagersize': [ 1280, 720,],",
+                "'imagersize': [ 1, 1,], 'imagersize': [ 1280, 720,],",
+            );
+        assert_eq!(read(&old).unwrap(), c);
         assert!(
             natural_key("camera-10") > natural_key("camera-9"),
             "camera-10 comes after camera-9"
@@ -427,6 +463,10 @@ mod tests {
             &err("{ 'lensmodel': 'LENSMODEL_PINHOLE' }"),
             &["intrinsics", "missing"],
         );
-        has(&err("[1, 2]"), &["line 1", "dict literal"]);
+        has(&err("# a comment\n[1, 2]"), &["line 2", "dict literal"]);
+        has(
+            &err(&"[".repeat(100_000)),
+            &["line 1", "nested deeper than 32"],
+        );
     }
 }

@@ -219,17 +219,7 @@ impl File<'_> {
             .collect::<Option<Vec<f64>>>()
             .ok_or_else(|| self.bad(field, "expected finite numbers only"))?;
         if !want.contains(&nums.len()) {
-            return Err(self.bad(
-                field,
-                format!(
-                    "expected {} numbers, found {}",
-                    want.iter()
-                        .map(|n| n.to_string())
-                        .collect::<Vec<_>>()
-                        .join(" or "),
-                    nums.len()
-                ),
-            ));
+            return Err(self.bad(field, super::expected_count(want, nums.len())));
         }
         Ok(nums)
     }
@@ -252,13 +242,9 @@ impl File<'_> {
         for key in ["image_size", "imageSize"] {
             if let Some(v) = m.get(key) {
                 let s = self.numbers(v, &format!("{prefix}{key}"), &[2])?;
-                let ok = |x: f64| x >= 1.0 && x <= u32::MAX as f64 && x.fract() == 0.0;
-                if !(ok(s[0]) && ok(s[1])) {
-                    return Err(
-                        self.bad(&format!("{prefix}{key}"), "expected two positive integers")
-                    );
-                }
-                return Ok(Some((s[0] as u32, s[1] as u32)));
+                return super::whole_size(s[0], s[1]).map(Some).ok_or_else(|| {
+                    self.bad(&format!("{prefix}{key}"), "expected two positive integers")
+                });
             }
         }
         Ok(None)

@@ -9,17 +9,18 @@
 //!   tables without `matrix` (`[metadata]`, `[charuco]`, ...) are not cameras. A camera is named
 //!   by its `name`, else by its table;
 //! - caliscope's `camera_array.toml`: the cameras under `[cameras.N]`, named `cam_N` as caliscope
-//!   names their recordings (`cam_N.mp4`); one with `ignore = true` is left out, and said so.
+//!   names their recordings (`cam_N.mp4`; `port_N` in its versions that keyed cameras by `port`).
+//!   A camera marked `ignore = true` is left out, and said so, in either layout.
 //!
 //! Conventions, all OpenCV's, which are ours: `matrix` with pixel centres at integers;
-//! `rotation` world-to-camera, as `cv::Rodrigues`'s vector (anipose, Pose2Sim) or as the 3×3
-//! matrix (caliscope); `translation` world-to-camera (`x = R·X + t`); `distortions` OpenCV's
+//! `rotation` world-to-camera, as `cv::Rodrigues`'s vector (anipose, Pose2Sim, caliscope's recent
+//! versions) or as the 3×3 matrix (caliscope's earlier ones); `translation` world-to-camera (`x = R·X + t`); `distortions` OpenCV's
 //! radial–tangential coefficients (4, 5, 8, 12 or 14), or with `fisheye = true` OpenCV's fisheye
 //! model's four. Refused with the file, line and field: a camera without a pose (a rig not
 //! calibrated yet), a caliscope camera whose frames it turns (`rotation_count`, which modelflow
 //! does not do), numbers of the wrong count or kind.
 
-use super::{check_rotation, strip_bom, CalibratedCamera};
+use super::{check_rotation, expected_count, strip_bom, whole_size, CalibratedCamera};
 use crate::base::lens::Distortion;
 use crate::error::{Error, Result};
 use nalgebra::{Matrix3, Vector3};
@@ -42,7 +43,7 @@ pub fn read_rig_toml(path: &Path, size: Option<(u32, u32)>) -> Result<TomlCalibr
     let root: Table = text.parse().map_err(|e: toml::de::Error| {
         let at = e
             .span()
-            .map(|s| format!("line {}", line_of_offset(text, s.start)))
+            .map(|s| format!("line {}", super::line_at(text.as_bytes(), s.start)))
             .unwrap_or_else(|| "(file)".into());
         Error::invalid(
             path,
@@ -65,23 +66,15 @@ pub fn read_rig_toml(path: &Path, size: Option<(u32, u32)>) -> Result<TomlCalibr
                 let Value::Table(m) = v else {
                     return Err(file.bad(&section, "", "expected a table of the camera's values"));
                 };
-                let name = format!("cam_{key}");
-                if m.get("ignore").and_then(Value::as_bool) == Some(true) {
-                    notes.push(format!("{name} left out: caliscope marks it ignore = true"));
+                // As caliscope names the recordings: cam_N, or port_N in its versions that
+                // keyed cameras by port.
+                let name = if m.contains_key("port") && !m.contains_key("cam_id") {
+                    format!("port_{key}")
+                } else {
+                    format!("cam_{key}")
+                };
+                if !file.caliscope_usable(m, &name, &section, &mut notes)? {
                     continue;
-                }
-                match m.get("rotation_count") {
-                    None => {}
-                    Some(Value::Integer(0)) => {}
-                    Some(v) => {
-                        return Err(file.bad(
-                            &section,
-                            "rotation_count",
-                            format!(
-                                "{name}: {v}: caliscope turns this camera's frames by quarter turns before using them, and its calibration is of the turned frames; modelflow reads frames as filmed: set the camera's rotation to 0 in caliscope and calibrate it again"
-                            ),
-                        ))
-                    }
                 }
                 if !m.contains_key("matrix") {
                     return Err(file.bad(
@@ -112,6 +105,10 @@ pub fn read_rig_toml(path: &Path, size: Option<(u32, u32)>) -> Result<TomlCalibr
                     Some(other) => other.to_string(),
                     None => key.clone(),
                 };
+                // An older caliscope's config.toml: the same marks as its camera_array.toml.
+                if !file.caliscope_usable(m, &name, key, &mut notes)? {
+                    continue;
+                }
                 cameras.push(file.camera(m, &name, key, size)?);
             }
         }
@@ -124,15 +121,6 @@ pub fn read_rig_toml(path: &Path, size: Option<(u32, u32)>) -> Result<TomlCalibr
         ));
     }
     Ok(TomlCalibration { cameras, notes })
-}
-
-/// The 1-based line of byte `offset` in `text`.
-fn line_of_offset(text: &str, offset: usize) -> usize {
-    text.as_bytes()[..offset.min(text.len())]
-        .iter()
-        .filter(|&&b| b == b'\n')
-        .count()
-        + 1
 }
 
 struct File<'a> {
@@ -191,6 +179,31 @@ impl File<'_> {
         Error::invalid(self.path, self.at(section, key), msg)
     }
 
+    /// Whether a camera caliscope marks is to be read: one with `ignore = true` is left out
+    /// (and said so in `notes`); one whose frames caliscope turns (`rotation_count`) is refused.
+    fn caliscope_usable(
+        &self,
+        m: &Table,
+        name: &str,
+        section: &str,
+        notes: &mut Vec<String>,
+    ) -> Result<bool> {
+        if m.get("ignore").and_then(Value::as_bool) == Some(true) {
+            notes.push(format!("{name} left out: caliscope marks it ignore = true"));
+            return Ok(false);
+        }
+        match m.get("rotation_count") {
+            None | Some(Value::Integer(0)) => Ok(true),
+            Some(v) => Err(self.bad(
+                section,
+                "rotation_count",
+                format!(
+                    "{name}: {v}: caliscope turns this camera's frames by quarter turns before using them, and its calibration is of the turned frames; modelflow reads frames as filmed: set the camera's rotation to 0 in caliscope and calibrate it again"
+                ),
+            )),
+        }
+    }
+
     /// The numbers of `key` (a list, or a list of lists, flattened), checked to be finite and
     /// as many as one of `want`.
     fn numbers(&self, m: &Table, section: &str, key: &str, want: &[usize]) -> Result<Vec<f64>> {
@@ -221,18 +234,7 @@ impl File<'_> {
             ));
         }
         if !want.contains(&out.len()) {
-            return Err(self.bad(
-                section,
-                key,
-                format!(
-                    "expected {} numbers, found {}",
-                    want.iter()
-                        .map(|n| n.to_string())
-                        .collect::<Vec<_>>()
-                        .join(" or "),
-                    out.len()
-                ),
-            ));
+            return Err(self.bad(section, key, expected_count(want, out.len())));
         }
         Ok(out)
     }
@@ -305,18 +307,16 @@ impl File<'_> {
         let t = Vector3::new(tv[0], tv[1], tv[2]);
         let (width, height) = if m.contains_key("size") {
             let s = self.numbers(m, section, "size", &[2])?;
-            let ok = |x: f64| x >= 1.0 && x <= u32::MAX as f64 && x.fract() == 0.0;
-            if !(ok(s[0]) && ok(s[1])) {
-                return Err(self.bad(
+            whole_size(s[0], s[1]).ok_or_else(|| {
+                self.bad(
                     section,
                     "size",
                     format!(
                         "expected [width, height] in whole pixels, found [{}, {}]",
                         s[0], s[1]
                     ),
-                ));
-            }
-            (s[0] as u32, s[1] as u32)
+                )
+            })?
         } else {
             size.ok_or_else(|| {
                 self.bad(
@@ -438,13 +438,13 @@ mod tests {
             cam(1, "ignore = true\n"),
             cam(2, "")
         );
-        let read = read(&text).unwrap();
-        let names: Vec<&str> = read.cameras.iter().map(|c| c.name.as_str()).collect();
+        let got = read(&text).unwrap();
+        let names: Vec<&str> = got.cameras.iter().map(|c| c.name.as_str()).collect();
         assert_eq!(names, ["cam_0", "cam_2"]);
         assert!(
-            read.notes.iter().any(|n| n.contains("cam_1 left out")),
+            got.notes.iter().any(|n| n.contains("cam_1 left out")),
             "{:?}",
-            read.notes
+            got.notes
         );
         let text = format!("{}{}", cam(0, ""), cam(1, "rotation_count = 1\n"));
         has(
@@ -457,5 +457,24 @@ mod tests {
         );
         let text = "[cameras.0]\ncam_id = 0\nsize = [1280, 720]\n";
         has(&err(text), &["cameras.0", "cam_0 has no camera matrix"]);
+        // Versions that keyed cameras by port name their recordings port_N.
+        let ported = cam(0, "").replace("cam_id = 0", "port = 0");
+        assert_eq!(read(&ported).unwrap().cameras[0].name, "port_0");
+        // An older caliscope's config.toml ([cam_N] tables): the same marks are honoured.
+        let old = |n: usize, extra: &str| {
+            cam(n, extra).replace(&format!("[cameras.{n}]"), &format!("[cam_{n}]"))
+        };
+        let text = format!("{}{}", old(0, ""), old(1, "ignore = true\n"));
+        let got = read(&text).unwrap();
+        assert_eq!(got.cameras.len(), 1);
+        assert!(
+            got.notes.iter().any(|n| n.contains("cam_1 left out")),
+            "{:?}",
+            got.notes
+        );
+        has(
+            &err(&format!("{}{}", old(0, ""), old(1, "rotation_count = 2\n"))),
+            &["cam_1.rotation_count", "quarter turns"],
+        );
     }
 }
