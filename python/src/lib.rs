@@ -573,7 +573,7 @@ fn synth(
 /// `format` is "colmap" (a sparse model folder), "opencv" (a FileStorage .yml/.json), "metashape"
 /// (a camera XML), "nerfstudio" (a transforms.json), "toml" (anipose, Pose2Sim, FreeMoCap or
 /// caliscope TOML; also by those names), "kalibr" (a camchain.yaml) or "mrcal" (a .cameramodel
-/// or a folder of them). `mesh`, `images` (with `{camera}`) and
+/// or a folder of them), or "auto" (whichever of these the input is). `mesh`, `images` (with `{camera}`) and
 /// `frames` are what the scene file names; `size` (w, h) for cameras whose file gives none;
 /// `chunk` a Metashape chunk; `units` "m", "cm" or "mm"; `before_applied_transform` the world
 /// before a nerfstudio file's applied_transform. With `out`, the scene file is written there (an
@@ -597,7 +597,11 @@ fn import_calibration<'py>(
     force: bool,
 ) -> PyResult<Bound<'py, PyDict>> {
     use mf::input::calib::{import_calibration, CalibrationFormat, ImportOptions};
-    let format: CalibrationFormat = format.parse().map_err(err)?;
+    let format: CalibrationFormat = if format.eq_ignore_ascii_case("auto") {
+        CalibrationFormat::detect(&input).map_err(err)?
+    } else {
+        format.parse().map_err(err)?
+    };
     let units = units
         .map(|u| {
             u.parse::<mf::base::Units>()

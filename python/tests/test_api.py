@@ -313,6 +313,9 @@ def test_import_calibration_writes_a_scene_in_our_conventions(tmp_path):
     assert [c["name"] for c in cal["scene"]["cameras"]] == ["cam_0", "cam_1", "cam_2", "cam_3"]
     for c, s in zip(cal["scene"]["cameras"], sample["cameras"]):
         assert (c["K"], c["R"], c["t"]) == (s["K"], s["R"], s["t"])
+    # "auto": the format told from the file.
+    kal = modelflow.import_calibration("auto", ROOT / "fixtures" / "kalibr" / "camchain.yaml")
+    assert [c["name"] for c in kal["scene"]["cameras"]] == ["cam0", "cam1", "cam2"]
 
 
 def test_synth_makes_footage_that_tracks_to_its_truth(tmp_path):

@@ -12,6 +12,8 @@ use std::path::PathBuf;
 
 #[derive(clap::ValueEnum, Clone, Copy, Debug)]
 pub enum Format {
+    /// Whichever of the formats below the input is, told from its files or its first bytes.
+    Auto,
     /// A COLMAP sparse model folder (cameras.txt + images.txt, or the .bin files).
     Colmap,
     /// An OpenCV FileStorage file (.yml, .yaml or .json) from camera or stereo calibration.
@@ -96,6 +98,11 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         anyhow::bail!("{} exists; give --force to replace it", args.out.display());
     }
     let format = match args.format {
+        Format::Auto => {
+            let f = CalibrationFormat::detect(&args.input)?;
+            eprintln!("read as a {} calibration", f.name());
+            f
+        }
         Format::Colmap => CalibrationFormat::Colmap,
         Format::Opencv => CalibrationFormat::Opencv,
         Format::Metashape => CalibrationFormat::Metashape,

@@ -290,7 +290,7 @@ fn nerfstudio_transforms_become_scene_files_in_the_world_asked_for() {
 fn a_caliscope_camera_array_becomes_a_scene_under_any_of_the_tools_names() {
     let dir = tempfile::tempdir().unwrap();
     let input = fixtures().join("caliscope-board-sample/camera_array.toml");
-    for (i, format) in ["caliscope", "toml", "anipose"].iter().enumerate() {
+    for (i, format) in ["caliscope", "toml", "anipose", "auto"].iter().enumerate() {
         let out = dir.path().join(format!("scene{i}.json"));
         let r = import(
             &[
@@ -318,4 +318,40 @@ fn a_caliscope_camera_array_becomes_a_scene_under_any_of_the_tools_names() {
             ("opencv", -0.3320992998866297)
         );
     }
+}
+
+/// `import auto` reads each fixture as the format it is, and names the formats when it cannot tell.
+#[test]
+fn auto_tells_the_formats_apart_and_says_when_it_cannot() {
+    let dir = tempfile::tempdir().unwrap();
+    for (i, (input, format, cameras)) in [
+        ("colmap/bin", "colmap", 7),
+        ("opencv/rig.yml", "opencv", 3),
+        ("metashape/cameras.xml", "metashape", 2),
+        ("kalibr/camchain.yaml", "kalibr", 3),
+        ("mrcal", "mrcal", 3),
+        ("anipose/calibration.toml", "toml", 3),
+    ]
+    .into_iter()
+    .enumerate()
+    {
+        let out = dir.path().join(format!("scene{i}.json"));
+        let r = import(&["auto"], &fixtures().join(input), &out);
+        let err = String::from_utf8_lossy(&r.stderr);
+        assert!(r.status.success(), "{input}: {err}");
+        assert!(
+            err.contains(&format!("read as a {format} calibration")),
+            "{input}: {err}"
+        );
+        let file = SceneFile::parse(&out, &std::fs::read_to_string(&out).unwrap()).unwrap();
+        assert_eq!(file.cameras.len(), cameras, "{input}");
+    }
+    let out = dir.path().join("none.json");
+    let r = import(&["auto"], &fixtures().join("README.md"), &out);
+    let err = String::from_utf8_lossy(&r.stderr);
+    assert!(!r.status.success() && !out.exists());
+    assert!(
+        err.contains("README.md") && err.contains("name it (colmap"),
+        "{err}"
+    );
 }

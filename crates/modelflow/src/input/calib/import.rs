@@ -211,6 +211,18 @@ impl CalibrationFormat {
         }
     }
 
+    /// The format `path` is in, as [`CalibrationFormat::sniff`] tells it (`import auto`), or an
+    /// error that says to name it.
+    pub fn detect(path: &Path) -> Result<CalibrationFormat> {
+        Self::sniff(path).ok_or_else(|| {
+            Error::invalid(
+                path,
+                "(format)",
+                "not recognised as any calibration format read: name it (colmap, opencv, metashape, nerfstudio, toml, kalibr or mrcal)",
+            )
+        })
+    }
+
     /// What `path` looks like, from its name and its first bytes (not a full read): a folder
     /// with COLMAP's files, an XML file (Metashape's), a JSON object with `frames` and
     /// `transform_matrix` (a `transforms.json`), a TOML file with camera tables, YAML with a
