@@ -479,6 +479,19 @@ fn a_calibration_given_as_the_wrong_format_is_refused_with_the_format_it_looks_l
         assert_eq!(CalibrationFormat::sniff(&fixture(f)), Some(format), "{f}");
     }
     assert_eq!(CalibrationFormat::sniff(&fixture("README.md")), None);
+    // Every format by its name, the TOML tools' by theirs, an unknown one refused with the names.
+    for f in CalibrationFormat::ALL {
+        assert_eq!(f.name().parse::<CalibrationFormat>().unwrap(), f);
+    }
+    assert_eq!("Caliscope".parse::<CalibrationFormat>().unwrap(), Toml);
+    let e = "bundler"
+        .parse::<CalibrationFormat>()
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("kalibr or mrcal") && e.contains("anipose"),
+        "{e}"
+    );
     let opts = ImportOptions::default();
     let wrong = [
         ("anipose/calibration.toml", Opencv, "`toml`"),

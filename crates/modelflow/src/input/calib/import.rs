@@ -36,20 +36,24 @@ pub enum CalibrationFormat {
 impl std::str::FromStr for CalibrationFormat {
     type Err = Error;
     fn from_str(s: &str) -> Result<Self> {
-        match s.to_ascii_lowercase().as_str() {
-            "colmap" => Ok(Self::Colmap),
-            "opencv" => Ok(Self::Opencv),
-            "metashape" => Ok(Self::Metashape),
-            "nerfstudio" => Ok(Self::Nerfstudio),
-            "toml" | "anipose" | "pose2sim" | "freemocap" | "caliscope" => Ok(Self::Toml),
-            "kalibr" => Ok(Self::Kalibr),
-            "mrcal" => Ok(Self::Mrcal),
-            _ => Err(Error::option(
-                "format",
-                s,
-                "colmap, opencv, metashape, nerfstudio, toml (also anipose, pose2sim, freemocap, caliscope), kalibr or mrcal",
-            )),
+        let s_lower = s.to_ascii_lowercase();
+        if TOML_TOOLS.contains(&s_lower.as_str()) {
+            return Ok(Self::Toml);
         }
+        Self::ALL
+            .into_iter()
+            .find(|f| f.name() == s_lower)
+            .ok_or_else(|| {
+                Error::option(
+                    "format",
+                    s,
+                    format!(
+                        "{} (toml also named {})",
+                        Self::names(),
+                        TOML_TOOLS.join(", ")
+                    ),
+                )
+            })
     }
 }
 
@@ -197,7 +201,28 @@ pub fn import_calibration(
     })
 }
 
+/// The tools whose TOML files `CalibrationFormat::Toml` reads, accepted as its name too.
+const TOML_TOOLS: [&str; 4] = ["anipose", "pose2sim", "freemocap", "caliscope"];
+
 impl CalibrationFormat {
+    /// Every format read, in the order the docs list them.
+    pub const ALL: [CalibrationFormat; 7] = [
+        Self::Colmap,
+        Self::Opencv,
+        Self::Metashape,
+        Self::Nerfstudio,
+        Self::Toml,
+        Self::Kalibr,
+        Self::Mrcal,
+    ];
+
+    /// "colmap, opencv, ... or mrcal": the names a user may give.
+    fn names() -> String {
+        let names: Vec<&str> = Self::ALL.iter().map(|f| f.name()).collect();
+        let (last, rest) = names.split_last().expect("formats");
+        format!("{} or {last}", rest.join(", "))
+    }
+
     /// The name `import` takes for the format.
     pub fn name(self) -> &'static str {
         match self {
@@ -218,7 +243,10 @@ impl CalibrationFormat {
             Error::invalid(
                 path,
                 "(format)",
-                "not recognised as any calibration format read: name it (colmap, opencv, metashape, nerfstudio, toml, kalibr or mrcal)",
+                format!(
+                    "not recognised as any calibration format read: name it ({})",
+                    Self::names()
+                ),
             )
         })
     }
@@ -248,9 +276,10 @@ impl CalibrationFormat {
         if colmap.contains(&name) {
             return Some(Self::Colmap);
         }
-        let mut head = vec![0u8; 64 * 1024];
-        let n = std::io::Read::read(&mut std::fs::File::open(path).ok()?, &mut head).ok()?;
-        let text = String::from_utf8_lossy(&head[..n]);
+        let mut head = Vec::new();
+        let file = std::fs::File::open(path).ok()?;
+        std::io::Read::read_to_end(&mut std::io::Read::take(file, 64 * 1024), &mut head).ok()?;
+        let text = String::from_utf8_lossy(&head);
         let text = text.trim_start_matches('\u{feff}').trim_start();
         if text.starts_with('<') {
             // An OpenCV XML FileStorage is OpenCV's (which says how to convert it).

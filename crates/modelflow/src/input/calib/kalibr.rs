@@ -157,9 +157,8 @@ impl File<'_> {
             format!("{cam}.{key}")
         };
         let lines: Vec<&str> = self.text.lines().collect();
-        let Some(start) = lines.iter().position(|l| {
-            l.trim_end().strip_suffix(':') == Some(cam) || l.starts_with(&format!("{cam}:"))
-        }) else {
+        let header = format!("{cam}:");
+        let Some(start) = lines.iter().position(|l| l.starts_with(&header)) else {
             return field;
         };
         let mut line = start;
