@@ -693,3 +693,62 @@ fn the_real_webcam_board_is_tracked_without_folding() {
         report.rms_final_pct
     );
 }
+
+/// The same real board seen by two of its four webcams (cam1 and cam2), as a stereo rig sees
+/// it. At frame 12 the board moves about 8 px in cam1; the coarsest pyramid level (the board
+/// 22–38 px across there) moved it 4 cm, into a valley the finer levels did not leave: every
+/// frame from 12 on was 5–8 % of the board's size off, unflagged. The level after the coarsest
+/// is now also solved from where the coarsest started when the coarsest level's move did not
+/// clearly explain that level's images, and the start whose solution costs less is kept
+/// (docs/tracker.md, "A second start after the coarsest level").
+#[test]
+fn two_webcams_of_the_real_board_follow_it_where_the_coarsest_level_leads_off() {
+    let p = concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../../fixtures/caliscope-board-sample/scene.json"
+    );
+    let scene = Scene::load(std::path::Path::new(p))
+        .and_then(|s| s.with_cameras(&["cam1".to_string(), "cam2".to_string()]))
+        .expect("the webcam sample loads");
+    let dir = tempfile::tempdir().unwrap();
+    track_scene(
+        &scene,
+        &TrackOptions::default(),
+        dir.path(),
+        &RunOptions::default(),
+        &mut |_| {},
+    )
+    .unwrap();
+    let run = modelflow::read_run(dir.path()).unwrap();
+    let report = modelflow::evaluate(&scene, &run).unwrap();
+    let per_frame: Vec<f64> = report.per_frame.iter().map(|f| f.rms_pct).collect();
+    eprintln!("two webcams: {per_frame:.2?} %");
+    // Frame 4's truth is the README's doubtful one (cam1 saw the board about 10 px off the
+    // joint pose); the defaults measure 0.58 % mean, 1.05 % worst frame but 4, 0.47 % final.
+    for (f, &e) in per_frame.iter().enumerate() {
+        assert!(
+            f == 4 || e <= 1.3,
+            "frame {f}: {e:.2} % of the board's size"
+        );
+    }
+    assert!(
+        report.rms_mean_pct <= 0.8,
+        "mean {:.2} %",
+        report.rms_mean_pct
+    );
+    assert!(
+        report.rms_final_pct <= 0.8,
+        "final {:.2} %",
+        report.rms_final_pct
+    );
+    // The log says where the second start was kept.
+    let log = std::fs::read_to_string(dir.path().join("log.jsonl")).unwrap();
+    let kept = log
+        .lines()
+        .filter(|l| {
+            let v: serde_json::Value = serde_json::from_str(l).unwrap();
+            v["second_start"] == "kept"
+        })
+        .count();
+    assert!(kept >= 1, "no frame kept its second start");
+}

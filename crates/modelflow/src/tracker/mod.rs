@@ -54,7 +54,10 @@ pub use offset::{
 };
 pub use options::{OptionsUsed, TrackOptions};
 pub use regularise::Regularisation;
-pub use sequence::{prepare, FrameReport, Prepared, StepTiming, Tracker};
+pub use sequence::{
+    prepare, FrameReport, Prepared, SecondStart, StepTiming, Tracker, SECOND_START_GAIN,
+    SECOND_START_PX,
+};
 pub use shot::{median, track_scene, TrackSummary};
 pub use solve::{
     GainModel, Interpolation, IterationSummary, Loss, SolveSummary, SolverOptions, StopReason,

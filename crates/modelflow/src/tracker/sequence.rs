@@ -214,6 +214,16 @@ pub struct FrameReport {
     pub stop: StopReason,
     /// Whether the constant-velocity prediction was used as the start.
     pub predicted: bool,
+    /// Where the coarsest level moved the mesh by [`SECOND_START_PX`] or more at the next
+    /// level without lowering that level's cost below [`SECOND_START_GAIN`] of its cost at the
+    /// coarsest level's start, that level was also solved from the coarsest level's start (as
+    /// the coarsest is: its rigid stage first), and the start whose solution costs less there
+    /// was kept:
+    /// `"kept"` (the second start's: the coarsest level had led off), `"not_kept"`; absent when
+    /// not tried (docs/tracker.md, "A second start after the coarsest level"). `levels` then
+    /// holds both solves of that level, the second start's after the first's.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub second_start: Option<SecondStart>,
     /// The solver could not lower the cost at any level (every step, shortened down to 1/64,
     /// raised it, or the cost was not finite), or no pixel was compared at full resolution
     /// (`pixels` 0: the mesh is out of every camera's view): the mesh kept its starting
@@ -1782,26 +1792,10 @@ impl Tracker {
         for (p, b) in next.iter_mut().zip(&self.balance) {
             balance::divide(p, *b);
         }
-        let mut out = Outcome {
-            summaries: Vec::with_capacity(levels),
-            predicted: false,
-            cost_before: 0.0,
-            cost_after: 0.0,
-            pixels: 0,
-            contradicted: 0,
-            contradicted_share: 0.0,
-            contradicted_by_camera: Vec::new(),
-            hidden: 0,
-            near_still: 0,
-            rejected_share: 0.0,
-            texture_kept: 1.0,
-            stop: StopReason::NoData,
-            confidence: Vec::new(),
-            timing: StepTiming {
-                pyramids: pyramid_seconds,
-                ..Default::default()
-            },
-        };
+        let mut out = Outcome::new(StepTiming {
+            pyramids: pyramid_seconds,
+            ..Default::default()
+        });
         let mut x = self.prev.positions.clone();
         let offsets: Vec<f64> = self.cameras.iter().map(|c| c.time_offset).collect();
         let lagged = offsets.iter().any(|&d| d != 0.0);
@@ -1977,12 +1971,39 @@ impl Tracker {
                     gap: frame.saturating_sub(self.prev.frame).max(1) as f64,
                 }),
             };
+            // Where the coarsest level moved the mesh far, the next level is solved from where
+            // the coarsest started too, and the start whose solution costs less there is kept
+            // (docs/tracker.md, "A second start after the coarsest level").
+            let second = (level + 2 == levels && level > finest)
+                .then(|| out.coarse_start.take())
+                .flatten()
+                .filter(|s| self.moved_px(frame, level, s, &x) >= SECOND_START_PX);
+            let start = match &second {
+                Some(s) => LevelStart::Judged(s),
+                None => LevelStart::Plain,
+            };
             let (solved, built) = rayon::join(
-                || self.solve_level(&input, &mut x, &mut out),
+                || self.solve_level(&input, &mut x, &mut out, start),
                 || (level > finest).then(|| build(level - 1)),
             );
-            solved?;
+            let cost = solved?;
             ahead = built;
+            if let (Some(mut alt), Some(cost)) = (second, cost) {
+                let mut alt_out = Outcome::new(StepTiming::default());
+                let alt_cost =
+                    self.solve_level(&input, &mut alt, &mut alt_out, LevelStart::AsCoarsest)?;
+                let kept = alt_cost.is_some_and(|c| c < cost);
+                if kept {
+                    x = alt;
+                }
+                out.summaries.extend(alt_out.summaries);
+                out.timing.solve += alt_out.timing.solve;
+                out.second_start = Some(if kept {
+                    SecondStart::Kept
+                } else {
+                    SecondStart::NotKept
+                });
+            }
         }
         let iterations = out.summaries.iter().map(|s| s.iterations.len()).sum();
         let information: f64 = out.confidence.iter().map(|c| c.information).sum();
@@ -2212,6 +2233,7 @@ impl Tracker {
             jump,
             stop: out.stop,
             predicted: out.predicted,
+            second_start: out.second_start,
             stalled,
             timing: out.timing,
             levels: summaries,
@@ -2435,15 +2457,35 @@ impl Tracker {
         )
     }
 
+    /// How far the mesh moved from `from` to `to`, in pixels at `level`: the RMS over the
+    /// vertices of their projected displacement, in the camera where it is largest.
+    fn moved_px(&self, frame: u32, level: usize, from: &[Point3<f64>], to: &[Point3<f64>]) -> f64 {
+        self.cameras
+            .iter()
+            .map(|c| {
+                let p = level_projection(c.at(frame), level);
+                let sum: f64 = from
+                    .iter()
+                    .zip(to)
+                    .filter_map(|(a, b)| Some((p.project(a)? - p.project(b)?).norm_squared()))
+                    .sum();
+                (sum / from.len().max(1) as f64).sqrt()
+            })
+            .fold(0.0, f64::max)
+    }
+
     /// Solves one level of a frame from `x` (moved to the level's solution): the prediction
-    /// tried at the coarsest level, the rigid stage there, the Huber solve, and at the finest
-    /// level the robust refine and what the frame reports (into `out`).
+    /// tried at the coarsest level, the rigid stage there (or where `start` says to solve the
+    /// level as the coarsest), the Huber solve, and at the finest level the robust refine and
+    /// what the frame reports (into `out`). Returns the level's convex cost at its solution
+    /// where `start` asks for it to be compared with a second start's.
     fn solve_level(
         &self,
         input: &LevelInput<'_>,
         x: &mut Vec<Point3<f64>>,
         out: &mut Outcome,
-    ) -> Result<()> {
+        start: LevelStart<'_>,
+    ) -> Result<Option<f64>> {
         let LevelInput {
             frame,
             level,
@@ -2522,6 +2564,18 @@ impl Tracker {
                 }
             }
         }
+        if level == levels - 1 {
+            out.coarse_start = Some(x.clone());
+        }
+        // Judged against a second start only where the coarsest level's move did not clearly
+        // explain this level's images better than its start did.
+        let judged = match start {
+            LevelStart::Plain => false,
+            LevelStart::Judged(other) => {
+                problem.cost(x, &sopts) >= SECOND_START_GAIN * problem.cost(other, &sopts)
+            }
+            LevelStart::AsCoarsest => true,
+        };
         if level == finest {
             // For the log: on the CPU from every fourth triangle's pixels (a full pass was 4 %
             // of the default cloth's frame time); on the GPU the whole pass there.
@@ -2548,7 +2602,7 @@ impl Tracker {
         // The rigid stage at the coarsest level only: that is where a large motion is caught;
         // at the finer levels the coarser solution already holds it, and a rigid stage there
         // found next to nothing (0.7 accepted steps per frame, 2 evaluations each).
-        if self.opts.rigid_first && level == levels - 1 {
+        if self.opts.rigid_first && (level == levels - 1 || start == LevelStart::AsCoarsest) {
             let (sol, summary, lin) = solve(x, None, &sopts, Motion::Rigid, StageRole::default())?;
             // The convex loss catches a large motion, but a template with a plain occluder in
             // it (a black card over half of one camera's view of a limb, gone in this frame)
@@ -2624,8 +2678,47 @@ impl Tracker {
         if let Some(e) = uploaded.as_ref().and_then(|u| u.failure()) {
             return Err(e);
         }
-        Ok(())
+        // The level's convex cost where it ended, for comparing two starts of it (the same
+        // problem and options whichever start was solved).
+        Ok(judged.then(|| problem.cost(x, &sopts)))
     }
+}
+
+/// Whether a frame's second start was kept ([`FrameReport::second_start`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum SecondStart {
+    /// The level after the coarsest, solved from where the coarsest level started, ended at a
+    /// lower cost there than from where the coarsest ended: the frame went on from it.
+    Kept,
+    /// Tried, and the coarsest level's result stood.
+    NotKept,
+}
+
+/// How far (pixels at the level after the coarsest, RMS over the vertices in the camera where
+/// it is most) the coarsest level must have moved the mesh for that level to be solved from
+/// the coarsest level's start too ([`FrameReport::second_start`]). A smaller move leaves both
+/// starts in the level's own reach, where they end alike; past it the coarsest level may have
+/// led into a valley the finer levels cannot climb out of.
+pub const SECOND_START_PX: f64 = 1.0;
+
+/// A coarsest level's move that lowers the next level's cost below this share of its cost at
+/// the coarsest level's start has followed the images; one that does not leaves a doubt, which
+/// a second start settles ([`FrameReport::second_start`]).
+pub const SECOND_START_GAIN: f64 = 0.5;
+
+/// How [`Tracker::solve_level`] starts a level.
+#[derive(Clone, Copy, Debug, PartialEq)]
+enum LevelStart<'a> {
+    /// From where the coarser level ended (the prediction's choice at the coarsest level).
+    Plain,
+    /// As [`LevelStart::Plain`]; where the level's cost is no lower there than at the given
+    /// second start, the convex cost where the level ends is returned, and its result is
+    /// compared with the second start's.
+    Judged(&'a [Point3<f64>]),
+    /// From where the coarsest level started, as if this level were the coarsest (its rigid
+    /// stage first), the convex cost where it ends returned.
+    AsCoarsest,
 }
 
 /// At the coarsest level, when the rigid stage with the convex loss made the robust cost worse
@@ -2691,6 +2784,35 @@ struct Outcome {
     stop: StopReason,
     confidence: Vec<VertexConfidence>,
     timing: StepTiming,
+    /// Where the coarsest level started (after the prediction's choice).
+    coarse_start: Option<Vec<Point3<f64>>>,
+    /// Whether the level after the coarsest was also solved from where the coarsest level
+    /// started, and whether that start was kept (`FrameReport::second_start`).
+    second_start: Option<SecondStart>,
+}
+
+impl Outcome {
+    fn new(timing: StepTiming) -> Outcome {
+        Outcome {
+            summaries: Vec::new(),
+            predicted: false,
+            cost_before: 0.0,
+            cost_after: 0.0,
+            pixels: 0,
+            contradicted: 0,
+            contradicted_share: 0.0,
+            contradicted_by_camera: Vec::new(),
+            hidden: 0,
+            near_still: 0,
+            rejected_share: 0.0,
+            texture_kept: 1.0,
+            stop: StopReason::NoData,
+            confidence: Vec::new(),
+            timing,
+            coarse_start: None,
+            second_start: None,
+        }
+    }
 }
 
 /// One frame's images made ready for [`Tracker::step_prepared`]: each camera's smoothed pyramid.
