@@ -2568,22 +2568,21 @@ impl Tracker {
             out.coarse_start = Some(x.clone());
         }
         // Judged against a second start only where the coarsest level's move did not clearly
-        // explain this level's images better than its start did.
+        // explain this level's images better than its start did (both costs estimated from
+        // the same quarter of the triangles).
         let judged = match start {
             LevelStart::Plain => false,
             LevelStart::Judged(other) => {
-                problem.cost(x, &sopts) >= SECOND_START_GAIN * problem.cost(other, &sopts)
+                let at = |p: &[Point3<f64>]| problem.cost_estimate(p, &sopts, COST_BEFORE_EVERY);
+                at(x) >= SECOND_START_GAIN * at(other)
             }
             LevelStart::AsCoarsest => true,
         };
         if level == finest {
             // For the log: on the CPU from every fourth triangle's pixels (a full pass was 4 %
             // of the default cloth's frame time); on the GPU the whole pass there.
-            out.cost_before = if problem.gpu.is_some() {
-                problem.cost(&self.prev.positions, &sopts)
-            } else {
-                problem.cost_sampled(&self.prev.positions, &sopts, COST_BEFORE_EVERY)
-            };
+            out.cost_before =
+                problem.cost_estimate(&self.prev.positions, &sopts, COST_BEFORE_EVERY);
         }
         // A cancelled solve ends the step: the tracker stays at the previous frame and
         // nothing of this step is kept.
