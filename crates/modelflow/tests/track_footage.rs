@@ -648,15 +648,19 @@ fn a_used_folder_is_refused_and_force_replaces_only_run_files() {
     modelflow::evaluate(&short, &run).unwrap();
 }
 
-/// Real webcam footage (`fixtures/caliscope-board-sample`, a copy of the shared clip's
-/// undistorted frames): a glossy board held in both hands, four webcams, 4–18 px per frame.
-#[test]
-fn the_real_webcam_board_is_tracked_without_folding() {
+/// The real webcam board (`fixtures/caliscope-board-sample`, a copy of the shared clip's
+/// undistorted frames) with the named cameras (all of them when none are named), tracked with
+/// the defaults into a fresh folder: the evaluation, its per-frame errors and the run folder.
+fn track_webcam_board(cameras: &[&str]) -> (modelflow::EvalReport, Vec<f64>, tempfile::TempDir) {
     let p = concat!(
         env!("CARGO_MANIFEST_DIR"),
         "/../../fixtures/caliscope-board-sample/scene.json"
     );
-    let scene = Scene::load(std::path::Path::new(p)).expect("the webcam sample loads");
+    let mut scene = Scene::load(std::path::Path::new(p)).expect("the webcam sample loads");
+    if !cameras.is_empty() {
+        let names: Vec<String> = cameras.iter().map(|c| c.to_string()).collect();
+        scene = scene.with_cameras(&names).expect("the sample's cameras");
+    }
     let dir = tempfile::tempdir().unwrap();
     track_scene(
         &scene,
@@ -669,7 +673,15 @@ fn the_real_webcam_board_is_tracked_without_folding() {
     let run = modelflow::read_run(dir.path()).unwrap();
     let report = modelflow::evaluate(&scene, &run).unwrap();
     let per_frame: Vec<f64> = report.per_frame.iter().map(|f| f.rms_pct).collect();
-    eprintln!("webcam board: {per_frame:.2?} %");
+    eprintln!("webcam board {cameras:?}: {per_frame:.2?} %");
+    (report, per_frame, dir)
+}
+
+/// Real webcam footage (`fixtures/caliscope-board-sample`, a copy of the shared clip's
+/// undistorted frames): a glossy board held in both hands, four webcams, 4–18 px per frame.
+#[test]
+fn the_real_webcam_board_is_tracked_without_folding() {
+    let (report, per_frame, _dir) = track_webcam_board(&[]);
     // The truth is a rigid pose fitted to corner detections, good to about 0.5 % of the board;
     // at frame 4 one camera saw the board about 10 px off the others' pose (its README), so that
     // frame is left out of the per-frame bound. With the first frame compared at the coarsest
@@ -703,26 +715,7 @@ fn the_real_webcam_board_is_tracked_without_folding() {
 /// (docs/tracker.md, "A second start after the coarsest level").
 #[test]
 fn two_webcams_of_the_real_board_follow_it_where_the_coarsest_level_leads_off() {
-    let p = concat!(
-        env!("CARGO_MANIFEST_DIR"),
-        "/../../fixtures/caliscope-board-sample/scene.json"
-    );
-    let scene = Scene::load(std::path::Path::new(p))
-        .and_then(|s| s.with_cameras(&["cam1".to_string(), "cam2".to_string()]))
-        .expect("the webcam sample loads");
-    let dir = tempfile::tempdir().unwrap();
-    track_scene(
-        &scene,
-        &TrackOptions::default(),
-        dir.path(),
-        &RunOptions::default(),
-        &mut |_| {},
-    )
-    .unwrap();
-    let run = modelflow::read_run(dir.path()).unwrap();
-    let report = modelflow::evaluate(&scene, &run).unwrap();
-    let per_frame: Vec<f64> = report.per_frame.iter().map(|f| f.rms_pct).collect();
-    eprintln!("two webcams: {per_frame:.2?} %");
+    let (report, per_frame, dir) = track_webcam_board(&["cam1", "cam2"]);
     // Frame 4's truth is the README's doubtful one (cam1 saw the board about 10 px off the
     // joint pose); the defaults measure 0.58 % mean, 1.05 % worst frame but 4, 0.47 % final.
     for (f, &e) in per_frame.iter().enumerate() {
