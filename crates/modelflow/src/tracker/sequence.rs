@@ -2569,11 +2569,12 @@ impl Tracker {
         }
         // Judged against a second start only where the coarsest level's move did not clearly
         // explain this level's images better than its start did (both costs estimated from
-        // the same quarter of the triangles).
+        // the same quarter of the triangles, on the CPU whatever the device: the decision is
+        // then the same with and without a GPU).
         let judged = match start {
             LevelStart::Plain => false,
             LevelStart::Judged(other) => {
-                let at = |p: &[Point3<f64>]| problem.cost_estimate(p, &sopts, COST_BEFORE_EVERY);
+                let at = |p: &[Point3<f64>]| problem.cost_sampled(p, &sopts, COST_BEFORE_EVERY);
                 at(x) >= SECOND_START_GAIN * at(other)
             }
             LevelStart::AsCoarsest => true,
@@ -2581,8 +2582,11 @@ impl Tracker {
         if level == finest {
             // For the log: on the CPU from every fourth triangle's pixels (a full pass was 4 %
             // of the default cloth's frame time); on the GPU the whole pass there.
-            out.cost_before =
-                problem.cost_estimate(&self.prev.positions, &sopts, COST_BEFORE_EVERY);
+            out.cost_before = if problem.gpu.is_some() {
+                problem.cost(&self.prev.positions, &sopts)
+            } else {
+                problem.cost_sampled(&self.prev.positions, &sopts, COST_BEFORE_EVERY)
+            };
         }
         // A cancelled solve ends the step: the tracker stays at the previous frame and
         // nothing of this step is kept.

@@ -1276,21 +1276,6 @@ impl Problem<'_> {
         self.evaluate(x, opts, None).0
     }
 
-    /// [`Problem::cost`] on the device when the problem is there (a whole pass costs little
-    /// there), else [`Problem::cost_sampled`] from every `every`-th triangle's pixels.
-    pub(crate) fn cost_estimate(
-        &self,
-        x: &[Point3<f64>],
-        opts: &SolverOptions,
-        every: usize,
-    ) -> f64 {
-        if self.gpu.is_some() {
-            self.cost(x, opts)
-        } else {
-            self.cost_sampled(x, opts, every)
-        }
-    }
-
     /// [`Problem::cost`] estimated from every `every`-th triangle's pixels (in the problem's
     /// triangle order; the regularisers in full): what the frame's log reports as the cost
     /// before the frame was solved, at a quarter of a pass's price. On the CPU only.
