@@ -418,6 +418,7 @@ fn frames_the_tracker_doubts_are_listed_shaded_plotted_and_drawn() {
             closed: true,
             compared: 41_200.0,
             texture_kept: 1.1,
+            disparity: Some(4.4),
         },
         median: 0.0181,
         max: 0.0266,

@@ -335,6 +335,12 @@ pub struct Placement {
     /// off by 7 % in 20 % noise and by 20 % to 4× in clean footage.
     #[serde(default = "no_ratio")]
     pub agreement_gain: f64,
+    /// How far the move shifts where one camera's view of the surface lands in another's, pixels
+    /// of the frames, RMS over the vertices two cameras see (`offset::disparity_of_move`): only
+    /// the part of each vertex's move along its normal counts. `None` where no two cameras see
+    /// a vertex well (and in a file written before it was recorded).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub disparity: Option<f64>,
 }
 
 /// [`Placement::agreement_gain`] in a file written before it was recorded: not a reason to
@@ -357,6 +363,17 @@ impl Placement {
             && self.compared >= crate::tracker::offset::MIN_COMPARED
             && self.texture_kept >= crate::tracker::offset::MIN_TEXTURE_KEPT
             && self.agreement_gain >= PLACEMENT_MIN_GAIN
+    }
+
+    /// The move shifts the cameras' views of the surface relative to each other by less than
+    /// `offset::MIN_DISPARITY_PX` ([`Placement::disparity`]): a calibration that far off draws
+    /// the same verdict, which a warning should say (a flat sheet tilted 6° in front of two
+    /// cameras 12° apart shifts them by about a pixel, as camera 0's principal point moved by one
+    /// pixel does). Unlike the surface check's offset, which `track` acts on, a placement is
+    /// only named, so it is still named.
+    pub fn calibration_may_explain(&self) -> bool {
+        self.disparity
+            .is_some_and(|d| d < crate::tracker::offset::MIN_DISPARITY_PX)
     }
 }
 
@@ -431,11 +448,15 @@ pub fn placement(
         } else {
             f64::MAX
         };
+        let p = placement_of(mesh, a);
         Some(Placement {
             compared: g.pixels_before,
             texture_kept: kept,
             agreement_gain: gain,
-            ..placement_of(mesh, a)
+            disparity: crate::tracker::offset::disparity_of_move(
+                mesh, &p.held, cameras, frame, images,
+            ),
+            ..p.placement
         })
     };
     // Whether the mesh is off, not where exactly it belongs: the plain pass alone.
@@ -466,7 +487,14 @@ pub fn placement(
 }
 
 /// How far alignment `a` moved `mesh` ([`Placement`]), the motions it holds loosely undone.
-fn placement_of(mesh: &Mesh, a: &Alignment) -> Placement {
+/// [`placement_of`]'s figures and the positions they measure (`align`'s result with the loose
+/// motions undone).
+struct Measured {
+    placement: Placement,
+    held: Vec<Point3<f64>>,
+}
+
+fn placement_of(mesh: &Mesh, a: &Alignment) -> Measured {
     // Along the motions the images hold loosely (a capsule's or a squashed sphere's spin about
     // its axis), noisy footage moves `align` by many degrees from a correct placement, and a
     // warning would send the user to apply that noise: the move is measured with them undone.
@@ -488,7 +516,7 @@ fn placement_of(mesh: &Mesh, a: &Alignment) -> Placement {
     let moved_centroid = centroid(&held) - centroid(&mesh.positions);
     let (rotation, _, _) = similarity(&mesh.positions, &held);
     let cos = ((rotation.trace() - 1.0) / 2.0).clamp(-1.0, 1.0);
-    Placement {
+    let placement = Placement {
         rms,
         fraction: if size > 0.0 { rms / size } else { 0.0 },
         degrees: cos.acos().to_degrees(),
@@ -497,7 +525,9 @@ fn placement_of(mesh: &Mesh, a: &Alignment) -> Placement {
         compared: 0.0,
         texture_kept: 1.0,
         agreement_gain: f64::MAX,
-    }
+        disparity: None,
+    };
+    Measured { placement, held }
 }
 
 /// What `track` checks about the first mesh before tracking ([`first_mesh_check`]).
