@@ -183,16 +183,21 @@ def first_mesh_check(
     only for a mesh on the surface, off it by more than a quarter of its size, or off it by
     less where `align`'s rigid move makes the cameras agree better than the move along the
     normals does: misplaced, not off the surface), "surface_off": bool, "misplaced": bool,
+    "calibration_explains": bool,
     "axes_swapped": None or {"swap": "y_up_to_z_up" | "z_up_to_y_up", "gain": float, "message":
     str} when the cameras agree at least 1.25 times better about the mesh with its axes swapped}.
     `track` moves the mesh onto the surface when "surface_off" holds within a quarter of its
     size and "placement" is None. Both findings
     carry "compared" (pixels the cameras compare where the mesh is) and "texture_kept" (their
     texture where the finding would put the mesh, over that where it is), the placement also
-    "agreement_gain" (the cameras' cost where the mesh is over that where `align` ends); a
-    finding from fewer than 200 pixels, or one that keeps less than a quarter of the texture
-    (the pixels moved onto a plain background), or a placement where the cameras agree less than
-    1.05 times better, is not off."""
+    "agreement_gain" (the cameras' cost where the mesh is over that where `align` ends), and
+    both "disparity" when two cameras see a vertex well (how many pixels of the frames the move
+    shifts where one camera's view of the surface lands in another's); a finding from fewer than
+    200 pixels, or one that keeps less than a quarter of the texture (the pixels moved onto a
+    plain background), or a placement where the cameras agree less than 1.05 times better, or
+    an offset along the normals whose disparity is under 1.5 px (a calibration that far off
+    explains it as well), is not off; "calibration_explains" is True for such an offset and for
+    a misplacement named whose disparity is that small (a camera's calibration may be off)."""
 
 def coverage(scene: Scene, options: Optional[Dict[str, Any]] = None) -> Dict[str, float]:
     """How much of the mesh's surface (by area, at the first frame) is seen by two or more

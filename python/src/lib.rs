@@ -804,12 +804,16 @@ fn scene_mesh(
 /// round object's spin, left out; only for a mesh on the surface, off it by more than a
 /// quarter of its size, which `track` does not move onto it, or off it by less where the rigid
 /// move explains the cameras better than the move along the normals, else None); both with
-/// "compared" (pixels compared where the mesh is) and "texture_kept" (their texture where the
-/// finding puts the mesh, over that where it is), and the placement "agreement_gain" (the
-/// cameras' cost where the mesh is over that where `align` ends); "surface_off" and
-/// "misplaced" say whether either is worth a warning (not from fewer than 200 pixels, nor
-/// keeping under a quarter of the texture, nor a placement where the cameras agree less than
-/// 1.05 times better); "axes_swapped": None, or {"swap": "y_up_to_z_up" | "z_up_to_y_up",
+/// "compared" (pixels compared where the mesh is), "texture_kept" (their texture where the
+/// finding puts the mesh, over that where it is) and "disparity" (how many pixels of the frames
+/// the move shifts where one camera's view of the surface lands in another's; absent when no
+/// two cameras see a vertex well), and the placement "agreement_gain" (the cameras' cost where
+/// the mesh is over that where `align` ends); "surface_off" and "misplaced" say whether either
+/// is worth a warning (not from fewer than 200 pixels, nor keeping under a quarter of the
+/// texture, nor a placement where the cameras agree less than 1.05 times better, nor an offset
+/// along the normals whose disparity is under 1.5 px, which a calibration that far off explains
+/// as well); "calibration_explains" is True for such an offset, and for a misplacement named
+/// whose disparity is that small (a camera's calibration may be what is off); "axes_swapped": None, or {"swap": "y_up_to_z_up" | "z_up_to_y_up",
 /// "gain", "message"} when the cameras agree at least 1.25 times better about the mesh with
 /// its axes so swapped (a mesh exported with another up axis). `positions` ((V, 3)): another
 /// placement of the scene's mesh.
@@ -831,6 +835,12 @@ fn first_mesh_check<'py>(
     d.set_item("placement", to_py(py, &c.placement)?)?;
     d.set_item("surface_off", c.surface.is_some_and(|o| o.is_off()))?;
     d.set_item("misplaced", c.placement.is_some_and(|p| p.is_off()))?;
+    d.set_item(
+        "calibration_explains",
+        c.surface.is_some_and(|o| o.explained_by_calibration())
+            || c.placement
+                .is_some_and(|p| p.is_off() && p.calibration_may_explain()),
+    )?;
     let axes = match mf::tracker::axes_swapped(&mesh, &s.cameras, s.first, &images) {
         None => None,
         Some(a) => {

@@ -256,7 +256,7 @@ def test_a_mesh_in_another_unit_is_named_by_mesh_out_of_scale(tmp_path):
 def test_first_mesh_check_names_a_misplaced_mesh(tmp_path):
     s = modelflow.Scene.load(SCENE)
     c = modelflow.first_mesh_check(s)
-    assert not c["surface_off"] and not c["misplaced"]
+    assert not c["surface_off"] and not c["misplaced"] and not c["calibration_explains"]
     assert c["axes_swapped"] is None
     assert c["placement"]["fraction"] < 0.01
     # The cloth tilted 6° about an axis in its plane (what the images fix of a flat sheet; a
@@ -272,6 +272,9 @@ def test_first_mesh_check_names_a_misplaced_mesh(tmp_path):
     moved = (p - c0) @ r.T + c0
     c = modelflow.first_mesh_check(s, moved)
     assert c["misplaced"], c
+    # Two cameras 12° apart see a flat sheet's tilt as little shift between their views (about
+    # a pixel here): a camera's calibration off by as much reads the same, and the check says so.
+    assert 0.5 < c["placement"]["disparity"] < 1.5 and c["calibration_explains"], c
     assert 0.01 < c["placement"]["fraction"] < 0.06, c
     assert 4.0 < c["placement"]["degrees"] < 8.0, c
     with pytest.raises(modelflow.ModelflowError, match="positions"):

@@ -132,7 +132,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     } else {
         None
     };
-    let reshape = off.is_some_and(|o| o.is_off());
+    // Asked for, the move is made also where a calibration's error would explain it.
+    let reshape = off.is_some_and(|o| o.is_off_by_images());
     if args.surface && !reshape {
         eprintln!(
             "the mesh lies on the surface the cameras agree on (within {} px along its normals): its shape is left as it is",

@@ -414,6 +414,9 @@ fn first_mesh_checks(
         );
         return Ok(check);
     }
+    // What a calibration off by less than `MIN_DISPARITY_PX` does too: the cameras' views of
+    // the surface shifted by that little relative to each other.
+    let hint = "which a calibration off by as much does too (a principal point or a lens model slightly wrong, most of all in a rig whose cameras look from nearly the same side)";
     if let Some(p) = check.placement.filter(|p| p.is_off()) {
         // Along what the images hold loosely (a nearly round object's spin) `align` follows
         // their noise: those motions are not counted (`Placement::loose_left_out`).
@@ -428,8 +431,12 @@ fn first_mesh_checks(
         } else {
             String::new()
         };
+        let calibration = match p.disparity.filter(|_| p.calibration_may_explain()) {
+            Some(d) => format!(" Or a camera's calibration is off: the move shifts where the cameras see the surface relative to each other by only {d:.1} px, {hint}; check it before aligning."),
+            None => String::new(),
+        };
         eprintln!(
-            "warning: at frame {}, the cameras agree best with the mesh moved as a whole by {} {} RMS ({:.1} % of its size; turned {:.1}°, its centre moved {} {}{loose}{gain}): it is not placed where the images put it, and the tracker will keep it that far off in every frame. Line it up first: modelflow align --scene {} --out aligned.obj (with the same --mesh and --frames), then track with --mesh aligned.obj (docs/tracker.md, \"Lining up the first mesh\").",
+            "warning: at frame {}, the cameras agree best with the mesh moved as a whole by {} {} RMS ({:.1} % of its size; turned {:.1}°, its centre moved {} {}{loose}{gain}): it is not placed where the images put it, and the tracker will keep it that far off in every frame. Line it up first: modelflow align --scene {} --out aligned.obj (with the same --mesh and --frames), then track with --mesh aligned.obj (docs/tracker.md, \"Lining up the first mesh\").{calibration}",
             scene.first,
             len.show(p.rms),
             len.unit(),
@@ -438,6 +445,14 @@ fn first_mesh_checks(
             len.show(p.translation),
             len.unit(),
             scene_path.display()
+        );
+    } else if let Some(s) = check.surface.filter(|s| s.explained_by_calibration()) {
+        eprintln!(
+            "note: at frame {}, the cameras agree {:.1}× better with the mesh {:.1} px along its normals, but that moves where they see its surface relative to each other by only {:.1} px, {hint}: it is tracked as given (docs/tracker.md, \"The first mesh must lie on the surface\"). A mesh made from silhouettes can be moved onto the surface with modelflow align --surface.",
+            scene.first,
+            s.ratio,
+            s.pixels,
+            s.disparity.unwrap_or(0.0),
         );
     }
     Ok(check)
