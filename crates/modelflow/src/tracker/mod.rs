@@ -49,8 +49,9 @@ pub use health::{
     SUSPECT_RISE,
 };
 pub use offset::{
-    moved_onto_surface, onto_surface, surface_offset, SurfaceMove, SurfaceOffset,
-    MIN_PX as SURFACE_MIN_PX,
+    moved_onto_surface, onto_surface, surface_offset, view_agreement, PairAgreement, SurfaceMove,
+    SurfaceOffset, ViewAgreement, AGREE_CONTRAST, MIN_PX as SURFACE_MIN_PX,
+    RANGE_PX as SURFACE_RANGE_PX,
 };
 pub use options::{OptionsUsed, TrackOptions};
 pub use regularise::Regularisation;

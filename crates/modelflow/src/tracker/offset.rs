@@ -118,6 +118,8 @@ pub const MIN_COMPARED: f64 = 200.0;
 pub const MIN_TEXTURE_KEPT: f64 = 0.25;
 /// The range searched, whole pixels either way (of the level compared).
 const RANGE: i32 = 10;
+/// [`RANGE`] as a number to print.
+pub const RANGE_PX: i32 = RANGE;
 /// The widest image [`surface_offset`] compares at full size; wider ones at a coarser level.
 const CHECK_WIDTH: u32 = 1280;
 
@@ -660,6 +662,135 @@ pub(crate) fn disparity_per_unit(
             (!d.is_empty()).then(|| median(d))
         })
         .collect()
+}
+
+/// How clearly two cameras' views agree about the first mesh ([`view_agreement`]).
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct PairAgreement {
+    /// The two cameras (indices into the scene's cameras), `a < b`.
+    pub a: usize,
+    pub b: usize,
+    /// Their comparison's highest mean cost over its lowest as the mesh is moved −10 to +10 px
+    /// along its normals: a valley where the mesh (or the surface near it) is, deep where the
+    /// surface has texture; about 1 when their pixels match no better anywhere.
+    pub contrast: f64,
+    /// Pixels they compare where the mesh is (at the level compared).
+    pub compared: f64,
+}
+
+/// Whether each pair of cameras that see the same part of the first mesh agree about it: what
+/// a camera whose images are another camera's (folders swapped), or whose calibration is far
+/// off (a lens model that is not its own, a pose inverted), shows before anything is tracked.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct ViewAgreement {
+    /// Every pair of cameras (blank images left out) that compares at least `MIN_COMPARED`
+    /// pixels where the mesh is.
+    pub pairs: Vec<PairAgreement>,
+}
+
+/// The least [`PairAgreement::contrast`] of two cameras that agree. Measured pairs that agree:
+/// the real board's six 2.3–3.6, the Blender hard sample's three (a glossy object, a rod in
+/// front of it) 1.8–3.0, rendered cloths in the hundreds; cameras whose images were swapped, or
+/// whose lens model was wildly wrong, 1.00–1.20 (docs/tracker.md, "Cameras that do not agree
+/// about the first mesh").
+pub const AGREE_CONTRAST: f64 = 1.4;
+
+impl ViewAgreement {
+    fn agree(p: &PairAgreement) -> bool {
+        p.contrast >= AGREE_CONTRAST
+    }
+
+    /// The cameras (indices, ascending) that were compared with another camera and agree with
+    /// none, in a rig where some pair does agree (so the mesh and its texture can show
+    /// agreement).
+    pub fn disagreeing(&self) -> Vec<usize> {
+        if !self.pairs.iter().any(Self::agree) {
+            return Vec::new();
+        }
+        let mut cams: Vec<usize> = self.pairs.iter().flat_map(|p| [p.a, p.b]).collect();
+        cams.sort_unstable();
+        cams.dedup();
+        cams.retain(|&c| {
+            !self
+                .pairs
+                .iter()
+                .any(|p| (p.a == c || p.b == c) && Self::agree(p))
+        });
+        cams
+    }
+
+    /// Cameras were compared, and no two of them agree: the surface shows too little texture
+    /// for them to, or the calibration or the images are wrong for all of them (a two-camera rig
+    /// cannot tell which camera).
+    pub fn none_agree(&self) -> bool {
+        !self.pairs.is_empty() && !self.pairs.iter().any(Self::agree)
+    }
+}
+
+/// Whether the cameras' views agree about `mesh` at `frame` ([`ViewAgreement`]): each pair of
+/// cameras (blank images left out) compared as [`surface_offset`] compares all of them (each
+/// one's pixels warped into the other through the mesh, up to the gains, the convex loss, at
+/// most 1280 px wide) with the mesh moved −10 to +10 px along its normals; pairs that compare
+/// fewer than `MIN_COMPARED` pixels where the mesh is are left out.
+pub fn view_agreement(
+    mesh: &Mesh,
+    cameras: &[Camera],
+    frame: u32,
+    images: &[RgbImage],
+) -> ViewAgreement {
+    let mut out = ViewAgreement::default();
+    if cameras.len() < 2 || images.len() != cameras.len() {
+        return out;
+    }
+    let blank = crate::base::image::blank_images(images);
+    let (m, _) = tracked_mesh(mesh);
+    let closed = m.is_closed();
+    let normals = m.vertex_normals();
+    let edges = m.edges();
+    let widest = cameras.iter().map(|c| c.width).max().unwrap_or(0);
+    let level = (0..4).find(|&l| widest >> l <= CHECK_WIDTH).unwrap_or(4);
+    let pyramids_here = pyramids(images, level + 1);
+    let Some(all) = frame_of(cameras, frame, &pyramids_here, level, &m.positions, &blank) else {
+        return out;
+    };
+    let seen: Vec<usize> = (0..cameras.len()).filter(|&c| !blank[c]).collect();
+    for (i, &a) in seen.iter().enumerate() {
+        for (j, &b) in seen.iter().enumerate().skip(i + 1) {
+            let f = Frame {
+                targets: vec![all.targets[i], all.targets[j]],
+                projections: vec![all.projections[i].clone(), all.projections[j].clone()],
+                per_unit: all.per_unit,
+                opts: all.opts,
+                involving: None,
+            };
+            let scans = f.scan(
+                &m.positions,
+                &normals,
+                &m.triangles,
+                &edges,
+                closed,
+                -RANGE..=RANGE,
+            );
+            let compared = scans[RANGE as usize].as_ref().map_or(0.0, |s| s.pixels);
+            let costs: Vec<f64> = scans
+                .iter()
+                .flatten()
+                .map(|s| s.cost)
+                .filter(|c| c.is_finite())
+                .collect();
+            let lo = costs.iter().copied().fold(f64::INFINITY, f64::min);
+            let hi = costs.iter().copied().fold(0.0, f64::max);
+            if compared >= MIN_COMPARED && costs.len() > RANGE as usize && lo > 0.0 {
+                out.pairs.push(PairAgreement {
+                    a,
+                    b,
+                    contrast: hi / lo,
+                    compared,
+                });
+            }
+        }
+    }
+    out
 }
 
 /// How far (pixels of the level scanned) a vertex's own offset may lie on the other side of the
