@@ -391,6 +391,7 @@ fn first_mesh_checks(
     }
     let check =
         modelflow::tracker::first_mesh_check(&scene.mesh, &scene.cameras, scene.first, &images);
+    warn_views(scene, &images);
     // Farther off than the tracker moves a mesh onto the surface, or better explained by a
     // rigid move, it is misplaced: the placement check below names it.
     if let Some(off) = check.off_surface(scene.mesh.bbox_diagonal()) {
@@ -456,6 +457,60 @@ fn first_mesh_checks(
         );
     }
     Ok(check)
+}
+
+/// Warns about cameras whose views do not agree with the others' about the first mesh
+/// (`tracker::view_agreement`): images that are another camera's, from another frame, or a
+/// calibration far off.
+fn warn_views(scene: &Scene, images: &[modelflow::base::RgbImage]) {
+    let v = modelflow::tracker::view_agreement(&scene.mesh, &scene.cameras, scene.first, images);
+    let name = |c: usize| scene.cameras[c].name.as_str();
+    let bad = v.disagreeing();
+    if !bad.is_empty() {
+        let names: Vec<&str> = bad.iter().map(|&c| name(c)).collect();
+        let best = v
+            .pairs
+            .iter()
+            .max_by(|a, b| a.contrast.total_cmp(&b.contrast))
+            .expect("some pair agrees");
+        let rest: Vec<&str> = (0..scene.cameras.len())
+            .filter(|c| !bad.contains(c))
+            .map(name)
+            .collect();
+        let one = bad.len() == 1;
+        eprintln!(
+            "warning: at frame {}, the view{} of camera{} {} agree{} with no other camera's about the mesh: {} pixels, warped into the others' through the mesh moved up to {} px along its normals, match theirs at best {:.2}× better than at worst (below {}; {} and {}: {:.1}×). {} images may be another camera's (folders swapped), from another frame (a frame_offset), or {} calibration wrong (pose, K, lens): tracking with {} pulls the mesh off. --cameras {} leaves {} out (docs/tracker.md, \"Cameras that do not agree about the first mesh\").",
+            scene.first,
+            if one { "" } else { "s" },
+            if one { "" } else { "s" },
+            names.join(", "),
+            if one { "s" } else { "" },
+            if one { "its" } else { "their" },
+            modelflow::tracker::SURFACE_RANGE_PX,
+            v.pairs
+                .iter()
+                .filter(|p| bad.contains(&p.a) || bad.contains(&p.b))
+                .map(|p| p.contrast)
+                .fold(0.0, f64::max),
+            modelflow::tracker::AGREE_CONTRAST,
+            name(best.a),
+            name(best.b),
+            best.contrast,
+            if one { "Its" } else { "Their" },
+            if one { "its" } else { "their" },
+            if one { "it" } else { "them" },
+            rest.join(","),
+            if one { "it" } else { "them" },
+        );
+    } else if v.none_agree() {
+        let best = v.pairs.iter().map(|p| p.contrast).fold(0.0, f64::max);
+        eprintln!(
+            "warning: at frame {}, no two cameras' views agree clearly about the mesh: each pair's pixels, warped into each other through the mesh moved up to {} px along its normals, match at best {best:.2}× better than at worst (below {}). The calibration or the images may be wrong (a lens model that is not the camera's, images from another camera or frame), or the surface shows too little texture to tell (docs/tracker.md, \"Cameras that do not agree about the first mesh\").",
+            scene.first,
+            modelflow::tracker::SURFACE_RANGE_PX,
+            modelflow::tracker::AGREE_CONTRAST,
+        );
+    }
 }
 
 pub fn run(args: Args, invocation: &Invocation) -> anyhow::Result<()> {
