@@ -183,7 +183,11 @@ def first_mesh_check(
     only for a mesh on the surface, off it by more than a quarter of its size, or off it by
     less where `align`'s rigid move makes the cameras agree better than the move along the
     normals does: misplaced, not off the surface), "surface_off": bool, "misplaced": bool,
-    "calibration_explains": bool,
+    "calibration_explains": bool, "views": {"pairs": [{"a": int, "b": int, "contrast": float,
+    "compared": float}], "disagreeing": [camera names], "none_agree": bool} (each pair of cameras'
+    agreement about the mesh: a camera that agrees with no other, contrast under 1.4, where another
+    pair does, has images that are another camera's or from another frame, or a calibration far
+    off),
     "axes_swapped": None or {"swap": "y_up_to_z_up" | "z_up_to_y_up", "gain": float, "message":
     str} when the cameras agree at least 1.25 times better about the mesh with its axes swapped}.
     `track` moves the mesh onto the surface when "surface_off" holds within a quarter of its

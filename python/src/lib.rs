@@ -815,7 +815,12 @@ fn scene_mesh(
 /// as well); "calibration_explains" is True for such an offset, and for a misplacement named
 /// whose disparity is that small (a camera's calibration may be what is off); "axes_swapped": None, or {"swap": "y_up_to_z_up" | "z_up_to_y_up",
 /// "gain", "message"} when the cameras agree at least 1.25 times better about the mesh with
-/// its axes so swapped (a mesh exported with another up axis). `positions` ((V, 3)): another
+/// its axes so swapped (a mesh exported with another up axis); "views": {"pairs": [{"a", "b"
+/// (camera indices), "contrast" (their comparison's highest cost over its lowest as the mesh is
+/// moved up to 10 px along its normals), "compared"}], "disagreeing": the names of the cameras
+/// that agree with no other (contrast under 1.4) where another pair does, "none_agree": no pair
+/// does}: a camera whose images are another's or from another frame, or whose calibration is
+/// far off. `positions` ((V, 3)): another
 /// placement of the scene's mesh.
 #[pyfunction]
 #[pyo3(signature = (scene, positions=None))]
@@ -835,6 +840,15 @@ fn first_mesh_check<'py>(
     d.set_item("placement", to_py(py, &c.placement)?)?;
     d.set_item("surface_off", c.surface.is_some_and(|o| o.is_off()))?;
     d.set_item("misplaced", c.placement.is_some_and(|p| p.is_off()))?;
+    let views = mf::tracker::view_agreement(&mesh, &s.cameras, s.first, &images);
+    let v = PyDict::new(py);
+    v.set_item("pairs", to_py(py, &views.pairs)?)?;
+    let names = |c: Vec<usize>| -> Vec<String> {
+        c.into_iter().map(|c| s.cameras[c].name.clone()).collect()
+    };
+    v.set_item("disagreeing", names(views.disagreeing()))?;
+    v.set_item("none_agree", views.none_agree())?;
+    d.set_item("views", v)?;
     d.set_item(
         "calibration_explains",
         c.surface.is_some_and(|o| o.explained_by_calibration())

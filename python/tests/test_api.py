@@ -257,6 +257,9 @@ def test_first_mesh_check_names_a_misplaced_mesh(tmp_path):
     s = modelflow.Scene.load(SCENE)
     c = modelflow.first_mesh_check(s)
     assert not c["surface_off"] and not c["misplaced"] and not c["calibration_explains"]
+    assert c["views"]["disagreeing"] == [] and not c["views"]["none_agree"], c["views"]
+    assert [(p["a"], p["b"]) for p in c["views"]["pairs"]] == [(0, 1)]
+    assert c["views"]["pairs"][0]["contrast"] > 100.0, c["views"]
     assert c["axes_swapped"] is None
     assert c["placement"]["fraction"] < 0.01
     # The cloth tilted 6° about an axis in its plane (what the images fix of a flat sheet; a
