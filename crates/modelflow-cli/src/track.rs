@@ -391,7 +391,11 @@ fn first_mesh_checks(
     }
     let check =
         modelflow::tracker::first_mesh_check(&scene.mesh, &scene.cameras, scene.first, &images);
-    warn_views(scene, &images);
+    // A mesh misplaced as a whole disagrees with the cameras' views unevenly (most with the
+    // cameras farthest apart): the placement warning says what is wrong then.
+    if !check.placement.is_some_and(|p| p.is_off()) {
+        warn_views(scene, &images);
+    }
     // Farther off than the tracker moves a mesh onto the surface, or better explained by a
     // rigid move, it is misplaced: the placement check below names it.
     if let Some(off) = check.off_surface(scene.mesh.bbox_diagonal()) {
@@ -461,7 +465,7 @@ fn first_mesh_checks(
 
 /// Warns about cameras whose views do not agree with the others' about the first mesh
 /// (`tracker::view_agreement`): images that are another camera's, from another frame, or a
-/// calibration far off.
+/// calibration far off. Asked only of a mesh the placement check does not call misplaced.
 fn warn_views(scene: &Scene, images: &[modelflow::base::RgbImage]) {
     let v = modelflow::tracker::view_agreement(&scene.mesh, &scene.cameras, scene.first, images);
     let name = |c: usize| scene.cameras[c].name.as_str();
@@ -505,7 +509,7 @@ fn warn_views(scene: &Scene, images: &[modelflow::base::RgbImage]) {
     } else if v.none_agree() {
         let best = v.pairs.iter().map(|p| p.contrast).fold(0.0, f64::max);
         eprintln!(
-            "warning: at frame {}, no two cameras' views agree clearly about the mesh: each pair's pixels, warped into each other through the mesh moved up to {} px along its normals, match at best {best:.2}× better than at worst (below {}). The calibration or the images may be wrong (a lens model that is not the camera's, images from another camera or frame), or the surface shows too little texture to tell (docs/tracker.md, \"Cameras that do not agree about the first mesh\").",
+            "warning: at frame {}, no two cameras' views agree clearly about the mesh: each pair's pixels, warped into each other through the mesh moved up to {} px along its normals, match at best {best:.2}× better than at worst (below {}). The calibration or the images may be wrong (a lens model that is not the camera's, images from another camera or frame), the mesh may not be lined up with the first frame (modelflow align), or the surface shows too little texture to tell (docs/tracker.md, \"Cameras that do not agree about the first mesh\").",
             scene.first,
             modelflow::tracker::SURFACE_RANGE_PX,
             modelflow::tracker::AGREE_CONTRAST,
