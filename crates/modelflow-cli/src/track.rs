@@ -391,11 +391,7 @@ fn first_mesh_checks(
     }
     let check =
         modelflow::tracker::first_mesh_check(&scene.mesh, &scene.cameras, scene.first, &images);
-    // A mesh misplaced as a whole disagrees with the cameras' views unevenly (most with the
-    // cameras farthest apart): the placement warning says what is wrong then.
-    if !check.placement.is_some_and(|p| p.is_off()) {
-        warn_views(scene, &images);
-    }
+    warn_views(scene, &images, check.placement.is_some_and(|p| p.is_off()));
     // Farther off than the tracker moves a mesh onto the surface, or better explained by a
     // rigid move, it is misplaced: the placement check below names it.
     if let Some(off) = check.off_surface(scene.mesh.bbox_diagonal()) {
@@ -465,12 +461,15 @@ fn first_mesh_checks(
 
 /// Warns about cameras whose views do not agree with the others' about the first mesh
 /// (`tracker::view_agreement`): images that are another camera's, from another frame, or a
-/// calibration far off. Asked only of a mesh the placement check does not call misplaced.
-fn warn_views(scene: &Scene, images: &[modelflow::base::RgbImage]) {
+/// calibration far off. No camera is named for a mesh the placement check calls `misplaced`:
+/// moved as a whole, it disagrees most with the cameras farthest apart, and the placement
+/// warning says what is wrong then (that no two agree is still said, among its causes a mesh
+/// not lined up).
+fn warn_views(scene: &Scene, images: &[modelflow::base::RgbImage], misplaced: bool) {
     let v = modelflow::tracker::view_agreement(&scene.mesh, &scene.cameras, scene.first, images);
     let name = |c: usize| scene.cameras[c].name.as_str();
     let bad = v.disagreeing();
-    if !bad.is_empty() {
+    if !bad.is_empty() && !misplaced {
         let names: Vec<&str> = bad.iter().map(|&c| name(c)).collect();
         let best = v
             .pairs
