@@ -132,6 +132,8 @@ struct Frame<'a> {
     opts: SolverOptions,
     /// Only the comparisons that involve this camera (index into `targets`); all without it.
     involving: Option<u16>,
+    /// Of each patch's pixels, every `stride`-th (1 = all).
+    stride: usize,
 }
 
 /// One offset's comparison (`None` where no two cameras see a common triangle).
@@ -200,7 +202,7 @@ impl Frame<'_> {
             min_cos: 0.1,
             two_sided: !closed,
             checkerboard: false,
-            stride: 1,
+            stride: self.stride,
         };
         offsets
             .map(|k| {
@@ -333,6 +335,7 @@ fn frame_of<'a>(
             ..SolverOptions::default()
         },
         involving: None,
+        stride: 1,
     })
 }
 
@@ -366,6 +369,7 @@ pub(crate) fn cross_scan(
             ..SolverOptions::default()
         },
         involving: Some(involving as u16),
+        stride: 1,
     };
     let still = vec![Vector3::zeros(); x.len()];
     f.scan(x, &still, triangles, edges, closed, 0..=0)
@@ -399,6 +403,7 @@ pub(crate) fn compared_texture(
             ..SolverOptions::default()
         },
         involving: None,
+        stride: 1,
     };
     if f.targets.len() < 2 {
         return None;
@@ -683,16 +688,78 @@ pub struct PairAgreement {
 /// off (a lens model that is not its own, a pose inverted), shows before anything is tracked.
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
 pub struct ViewAgreement {
-    /// Every pair of cameras (blank images left out) that compares at least `MIN_COMPARED`
-    /// pixels where the mesh is.
+    /// The pairs of cameras compared ([`view_agreement`]) that compare at least
+    /// `MIN_COMPARED` pixels where the mesh is.
     pub pairs: Vec<PairAgreement>,
 }
 
+/// The offsets along the normals (pixels of the level compared) at which [`view_agreement`]
+/// compares a pair of cameras: dense near the mesh, where the valley is, sparse farther out,
+/// where the cost only has to be high.
+const VIEW_OFFSETS: [i32; 13] = [-10, -8, -6, -4, -2, -1, 0, 1, 2, 4, 6, 8, 10];
+/// The most partners [`view_agreement`] compares each camera with: those that see the most of
+/// the mesh with it (all pairs of a rig of four; a camera that agrees with none of its three
+/// closest partners agrees with no other).
+const VIEW_PARTNERS: usize = 3;
+/// Of each patch's pixels [`view_agreement`] compares every this many: a ratio of mean costs
+/// needs no more (the contrasts of the table in docs/tracker.md within a few per cent).
+const VIEW_STRIDE: usize = 4;
+
+/// The pairs of `cameras` (indices, `i < j`) [`view_agreement`] compares: for each camera, the
+/// [`VIEW_PARTNERS`] others that see the most vertices of `x` with it (in view, in front,
+/// facing within `acos 0.3`; every `k`-th vertex as [`disparity_per_unit`] takes them), and none
+/// that see no vertex together.
+fn view_pairs(
+    cameras: &[&Camera],
+    frame: u32,
+    x: &[Point3<f64>],
+    normals: &[Vector3<f64>],
+    closed: bool,
+) -> Vec<(usize, usize)> {
+    let n = cameras.len();
+    let step = x.len().div_ceil(DISPARITY_VERTICES).max(1);
+    let mut shared = vec![0usize; n * n];
+    for (p, nv) in x.iter().zip(normals).step_by(step) {
+        let sides: Vec<Option<f64>> = cameras
+            .iter()
+            .map(|cam| {
+                let proj = cam.at(frame);
+                proj.project(p).filter(|q| cam.contains(q))?;
+                let cos = nv.dot(&(proj.center() - p).normalize());
+                let facing = if closed { cos } else { cos.abs() };
+                (facing >= DISPARITY_MIN_COS).then_some(cos.signum())
+            })
+            .collect();
+        for a in 0..n {
+            for b in a + 1..n {
+                if sides[a].is_some() && sides[a] == sides[b] {
+                    shared[a * n + b] += 1;
+                    shared[b * n + a] += 1;
+                }
+            }
+        }
+    }
+    let mut pairs = Vec::new();
+    for a in 0..n {
+        let mut partners: Vec<usize> = (0..n)
+            .filter(|&b| b != a && shared[a * n + b] > 0)
+            .collect();
+        // Most shared first; ties by index, so the choice does not depend on anything else.
+        partners.sort_by_key(|&b| (std::cmp::Reverse(shared[a * n + b]), b));
+        for &b in partners.iter().take(VIEW_PARTNERS) {
+            pairs.push((a.min(b), a.max(b)));
+        }
+    }
+    pairs.sort_unstable();
+    pairs.dedup();
+    pairs
+}
+
 /// The least [`PairAgreement::contrast`] of two cameras that agree. Measured pairs that agree:
-/// the real board's six 2.3–3.6, the Blender hard sample's three (a glossy object, a rod in
-/// front of it) 1.8–3.0, rendered cloths in the hundreds; cameras whose images were swapped, or
-/// whose lens model was wildly wrong, 1.00–1.20 (docs/tracker.md, "Cameras that do not agree
-/// about the first mesh").
+/// the real board's six 2.5–5.5, the Blender hard sample's three (a glossy object, a rod in
+/// front of it) 1.7–8.8, synthetic clips 1.6 (two cameras that share a rim) to hundreds;
+/// cameras whose images were swapped or three frames late, or whose lens model was wildly
+/// wrong, 1.01–1.15 (docs/tracker.md, "Cameras that do not agree about the first mesh").
 pub const AGREE_CONTRAST: f64 = 1.4;
 
 impl ViewAgreement {
@@ -727,11 +794,12 @@ impl ViewAgreement {
     }
 }
 
-/// Whether the cameras' views agree about `mesh` at `frame` ([`ViewAgreement`]): each pair of
-/// cameras (blank images left out) compared as [`surface_offset`] compares all of them (each
-/// one's pixels warped into the other through the mesh, up to the gains, the convex loss, at
-/// most 1280 px wide) with the mesh moved −10 to +10 px along its normals; pairs that compare
-/// fewer than `MIN_COMPARED` pixels where the mesh is are left out.
+/// Whether the cameras' views agree about `mesh` at `frame` ([`ViewAgreement`]): pairs of
+/// cameras (blank images left out; each camera with its [`VIEW_PARTNERS`] partners,
+/// [`view_pairs`]) compared as [`surface_offset`] compares all of them (each one's pixels, every
+/// [`VIEW_STRIDE`]-th, warped into the other through the mesh, up to the gains, the convex
+/// loss, at most 1280 px wide) with the mesh moved along its normals by [`VIEW_OFFSETS`]; pairs
+/// that compare fewer than `MIN_COMPARED` pixels where the mesh is are left out.
 pub fn view_agreement(
     mesh: &Mesh,
     cameras: &[Camera],
@@ -754,40 +822,46 @@ pub fn view_agreement(
         return out;
     };
     let seen: Vec<usize> = (0..cameras.len()).filter(|&c| !blank[c]).collect();
-    for (i, &a) in seen.iter().enumerate() {
-        for (j, &b) in seen.iter().enumerate().skip(i + 1) {
-            let f = Frame {
-                targets: vec![all.targets[i], all.targets[j]],
-                projections: vec![all.projections[i].clone(), all.projections[j].clone()],
-                per_unit: all.per_unit,
-                opts: all.opts,
-                involving: None,
-            };
-            let scans = f.scan(
-                &m.positions,
-                &normals,
-                &m.triangles,
-                &edges,
-                closed,
-                -RANGE..=RANGE,
-            );
-            let compared = scans[RANGE as usize].as_ref().map_or(0.0, |s| s.pixels);
-            let costs: Vec<f64> = scans
-                .iter()
+    let seen_cams: Vec<&Camera> = seen.iter().map(|&c| &cameras[c]).collect();
+    for (i, j) in view_pairs(&seen_cams, frame, &m.positions, &normals, closed) {
+        let (a, b) = (seen[i], seen[j]);
+        let f = Frame {
+            targets: vec![all.targets[i], all.targets[j]],
+            projections: vec![all.projections[i].clone(), all.projections[j].clone()],
+            per_unit: all.per_unit,
+            opts: all.opts,
+            involving: None,
+            stride: VIEW_STRIDE,
+        };
+        let scan = |k: i32| {
+            f.scan(&m.positions, &normals, &m.triangles, &edges, closed, k..=k)
+                .pop()
                 .flatten()
-                .map(|s| s.cost)
-                .filter(|c| c.is_finite())
-                .collect();
-            let lo = costs.iter().copied().fold(f64::INFINITY, f64::min);
-            let hi = costs.iter().copied().fold(0.0, f64::max);
-            if compared >= MIN_COMPARED && costs.len() > RANGE as usize && lo > 0.0 {
-                out.pairs.push(PairAgreement {
-                    a,
-                    b,
-                    contrast: hi / lo,
-                    compared,
-                });
-            }
+        };
+        // Where the mesh is first: a pair that shares too little of it is not scanned on.
+        let at_mesh = scan(0);
+        let compared = at_mesh.as_ref().map_or(0.0, |s| s.pixels);
+        if compared < MIN_COMPARED {
+            continue;
+        }
+        let costs: Vec<f64> = VIEW_OFFSETS
+            .iter()
+            .filter(|&&k| k != 0)
+            .map(|&k| scan(k))
+            .chain([at_mesh])
+            .flatten()
+            .map(|s| s.cost)
+            .filter(|c| c.is_finite())
+            .collect();
+        let lo = costs.iter().copied().fold(f64::INFINITY, f64::min);
+        let hi = costs.iter().copied().fold(0.0, f64::max);
+        if costs.len() > VIEW_OFFSETS.len() / 2 && lo > 0.0 {
+            out.pairs.push(PairAgreement {
+                a,
+                b,
+                contrast: hi / lo,
+                compared,
+            });
         }
     }
     out
