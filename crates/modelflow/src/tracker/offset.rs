@@ -44,7 +44,7 @@ pub struct SurfaceOffset {
     #[serde(default)]
     pub texture_kept: f64,
     /// How far the offset moves where one camera's view of the surface lands in another's, in
-    /// pixels of the frames ([`disparity_per_unit`]: the median over the vertices two cameras
+    /// pixels of the frames (`disparity_per_unit`: the median over the vertices two cameras
     /// see): what the cameras' calibration must be good to for the offset to mean the mesh, not
     /// the calibration. A wide rig turns an offset into about as much disagreement between the
     /// cameras; two cameras 12° apart turn 5 px along the normals into 1 px between them.
@@ -84,7 +84,7 @@ impl SurfaceOffset {
 
     /// An offset the cameras agree on clearly better, but which moves their views of the
     /// surface relative to each other by less than a calibration's error
-    /// ([`MIN_DISPARITY_PX`]): not acted on, and worth a note.
+    /// (`MIN_DISPARITY_PX`): not acted on, and worth a note.
     pub fn explained_by_calibration(&self) -> bool {
         self.is_off_by_images() && self.within_calibration()
     }
@@ -118,7 +118,7 @@ pub const MIN_COMPARED: f64 = 200.0;
 pub const MIN_TEXTURE_KEPT: f64 = 0.25;
 /// The range searched, whole pixels either way (of the level compared).
 const RANGE: i32 = 10;
-/// [`RANGE`] as a number to print.
+/// `RANGE` as a number to print.
 pub const RANGE_PX: i32 = RANGE;
 /// The widest image [`surface_offset`] compares at full size; wider ones at a coarser level.
 const CHECK_WIDTH: u32 = 1280;
@@ -795,10 +795,10 @@ impl ViewAgreement {
 }
 
 /// Whether the cameras' views agree about `mesh` at `frame` ([`ViewAgreement`]): pairs of
-/// cameras (blank images left out; each camera with its [`VIEW_PARTNERS`] partners,
-/// [`view_pairs`]) compared as [`surface_offset`] compares all of them (each one's pixels, every
-/// [`VIEW_STRIDE`]-th, warped into the other through the mesh, up to the gains, the convex
-/// loss, at most 1280 px wide) with the mesh moved along its normals by [`VIEW_OFFSETS`]; pairs
+/// cameras (blank images left out; each camera with its `VIEW_PARTNERS` partners,
+/// `view_pairs`) compared as [`surface_offset`] compares all of them (each one's pixels, every
+/// `VIEW_STRIDE`-th, warped into the other through the mesh, up to the gains, the convex
+/// loss, at most 1280 px wide) with the mesh moved along its normals by `VIEW_OFFSETS`; pairs
 /// that compare fewer than `MIN_COMPARED` pixels where the mesh is are left out.
 pub fn view_agreement(
     mesh: &Mesh,
