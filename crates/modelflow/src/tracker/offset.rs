@@ -553,12 +553,7 @@ pub fn surface_offset(
         None => 0.0,
     };
     let length = pixels / f.per_unit;
-    let seen: Vec<&Camera> = cameras
-        .iter()
-        .zip(&blank)
-        .filter(|(_, b)| !**b)
-        .map(|(c, _)| c)
-        .collect();
+    let seen = not_blank(cameras, &blank);
     let per_unit: Vec<f64> = disparity_per_unit(&seen, frame, &m.positions, &normals, closed)
         .into_iter()
         .flatten()
@@ -588,13 +583,7 @@ pub(crate) fn disparity_of_move(
     frame: u32,
     images: &[RgbImage],
 ) -> Option<f64> {
-    let blank = crate::base::image::blank_images(images);
-    let seen: Vec<&Camera> = cameras
-        .iter()
-        .zip(&blank)
-        .filter(|(_, b)| !**b)
-        .map(|(c, _)| c)
-        .collect();
+    let seen = not_blank(cameras, &crate::base::image::blank_images(images));
     let (m, of_vertex) = tracked_mesh(mesh);
     let normals = m.vertex_normals();
     let per_unit = disparity_per_unit(&seen, frame, &m.positions, &normals, m.is_closed());
@@ -614,6 +603,33 @@ const DISPARITY_VERTICES: usize = 4096;
 /// The least cosine between a vertex's normal and the way to a camera for that camera to count
 /// as seeing it in [`disparity_per_unit`].
 const DISPARITY_MIN_COS: f64 = 0.3;
+
+/// Whether `cam` sees the vertex at `p` with unit normal `n` at `frame`: in view, in front, and
+/// facing it within `acos 0.3` (either side of an open sheet); where it sees it in the image,
+/// and from which side (the sign of the normal's cosine with the way to the camera).
+fn sees_vertex(
+    cam: &Camera,
+    frame: u32,
+    p: &Point3<f64>,
+    n: &Vector3<f64>,
+    closed: bool,
+) -> Option<(Point2<f64>, f64)> {
+    let proj = cam.at(frame);
+    let at = proj.project(p).filter(|q| cam.contains(q))?;
+    let cos = n.dot(&(proj.center() - p).normalize());
+    let facing = if closed { cos } else { cos.abs() };
+    (facing >= DISPARITY_MIN_COS).then_some((at, cos.signum()))
+}
+
+/// The cameras whose image is not `blank` (`image::blank_images`).
+fn not_blank<'a>(cameras: &'a [Camera], blank: &[bool]) -> Vec<&'a Camera> {
+    cameras
+        .iter()
+        .zip(blank)
+        .filter(|(_, b)| !**b)
+        .map(|(c, _)| c)
+        .collect()
+}
 
 /// Per vertex of `x` (with unit `normals`; every `k`-th, at most [`DISPARITY_VERTICES`], the
 /// others `None`): how many pixels of the frames where one camera's view of the surface lands
@@ -644,11 +660,8 @@ pub(crate) fn disparity_per_unit(
             let seeing: Vec<(&Projection, Point2<f64>, f64)> = cameras
                 .iter()
                 .filter_map(|cam| {
-                    let proj = cam.at(frame);
-                    let at = proj.project(p).filter(|q| cam.contains(q))?;
-                    let cos = n.dot(&(proj.center() - p).normalize());
-                    let facing = if closed { cos } else { cos.abs() };
-                    (facing >= DISPARITY_MIN_COS).then_some((proj, at, cos.signum()))
+                    let (at, side) = sees_vertex(cam, frame, p, n, closed)?;
+                    Some((cam.at(frame), at, side))
                 })
                 .collect();
             let mut d = Vec::new();
@@ -722,13 +735,7 @@ fn view_pairs(
     for (p, nv) in x.iter().zip(normals).step_by(step) {
         let sides: Vec<Option<f64>> = cameras
             .iter()
-            .map(|cam| {
-                let proj = cam.at(frame);
-                proj.project(p).filter(|q| cam.contains(q))?;
-                let cos = nv.dot(&(proj.center() - p).normalize());
-                let facing = if closed { cos } else { cos.abs() };
-                (facing >= DISPARITY_MIN_COS).then_some(cos.signum())
-            })
+            .map(|cam| sees_vertex(cam, frame, p, nv, closed).map(|(_, side)| side))
             .collect();
         for a in 0..n {
             for b in a + 1..n {
@@ -822,8 +829,14 @@ pub fn view_agreement(
         return out;
     };
     let seen: Vec<usize> = (0..cameras.len()).filter(|&c| !blank[c]).collect();
-    let seen_cams: Vec<&Camera> = seen.iter().map(|&c| &cameras[c]).collect();
-    for (i, j) in view_pairs(&seen_cams, frame, &m.positions, &normals, closed) {
+    let pairs = view_pairs(
+        &not_blank(cameras, &blank),
+        frame,
+        &m.positions,
+        &normals,
+        closed,
+    );
+    for (i, j) in pairs {
         let (a, b) = (seen[i], seen[j]);
         let f = Frame {
             targets: vec![all.targets[i], all.targets[j]],
