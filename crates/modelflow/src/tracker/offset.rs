@@ -445,6 +445,36 @@ fn pyramids(images: &[RgbImage], levels: usize) -> Vec<Pyramid> {
         .collect()
 }
 
+/// What [`surface_offset`] and [`view_agreement`] scan from: the mesh as the tracker works on
+/// it, with its normals and edges; which cameras' images are blank; and the images' pyramids
+/// down to the level compared. Large frames are compared at a coarser level (at most
+/// `CHECK_WIDTH` wide), so that a rig of 4K cameras is checked in about the time a 720p one
+/// is; offsets are still given in pixels of the frames themselves.
+struct ScanStart {
+    m: Mesh,
+    closed: bool,
+    normals: Vec<Vector3<f64>>,
+    edges: Vec<[u32; 2]>,
+    blank: Vec<bool>,
+    level: usize,
+    pyramids: Vec<Pyramid>,
+}
+
+fn scan_start(mesh: &Mesh, cameras: &[Camera], images: &[RgbImage]) -> ScanStart {
+    let (m, _) = tracked_mesh(mesh);
+    let widest = cameras.iter().map(|c| c.width).max().unwrap_or(0);
+    let level = (0..4).find(|&l| widest >> l <= CHECK_WIDTH).unwrap_or(4);
+    ScanStart {
+        closed: m.is_closed(),
+        normals: m.vertex_normals(),
+        edges: m.edges(),
+        m,
+        blank: crate::base::image::blank_images(images),
+        level,
+        pyramids: pyramids(images, level + 1),
+    }
+}
+
 /// The offset along the normals at which `cameras` agree best about `mesh` at `frame`
 /// (`images`: one per camera, pinhole); `None` when no two cameras see a common triangle.
 pub fn surface_offset(
@@ -456,20 +486,18 @@ pub fn surface_offset(
     if cameras.len() < 2 || images.len() != cameras.len() {
         return None;
     }
-    let blank = crate::base::image::blank_images(images);
+    let ScanStart {
+        m,
+        closed,
+        normals,
+        edges,
+        blank,
+        level,
+        pyramids: pyramids_here,
+    } = scan_start(mesh, cameras, images);
     if blank.iter().filter(|b| !**b).count() < 2 {
         return None;
     }
-    let (m, _) = tracked_mesh(mesh);
-    let closed = m.is_closed();
-    let normals = m.vertex_normals();
-    let edges = m.edges();
-    // Large frames are compared at a coarser level (at most 1280 px wide), so that a rig of 4K
-    // cameras is checked in about the time a 720p one is; offsets are still given in pixels of
-    // the frames themselves.
-    let widest = cameras.iter().map(|c| c.width).max().unwrap_or(0);
-    let level = (0..4).find(|&l| widest >> l <= CHECK_WIDTH).unwrap_or(4);
-    let pyramids_here = pyramids(images, level + 1);
     let f = frame_of(cameras, frame, &pyramids_here, level, &m.positions, &blank)?;
     let scale = (1u32 << level) as f64;
     let costs_of = |f: &Frame<'_>, center: i32| -> Vec<f64> {
@@ -817,14 +845,15 @@ pub fn view_agreement(
     if cameras.len() < 2 || images.len() != cameras.len() {
         return out;
     }
-    let blank = crate::base::image::blank_images(images);
-    let (m, _) = tracked_mesh(mesh);
-    let closed = m.is_closed();
-    let normals = m.vertex_normals();
-    let edges = m.edges();
-    let widest = cameras.iter().map(|c| c.width).max().unwrap_or(0);
-    let level = (0..4).find(|&l| widest >> l <= CHECK_WIDTH).unwrap_or(4);
-    let pyramids_here = pyramids(images, level + 1);
+    let ScanStart {
+        m,
+        closed,
+        normals,
+        edges,
+        blank,
+        level,
+        pyramids: pyramids_here,
+    } = scan_start(mesh, cameras, images);
     let Some(all) = frame_of(cameras, frame, &pyramids_here, level, &m.positions, &blank) else {
         return out;
     };
