@@ -486,7 +486,6 @@ pub fn placement(
     Some(found)
 }
 
-/// How far alignment `a` moved `mesh` ([`Placement`]), the motions it holds loosely undone.
 /// [`placement_of`]'s figures and the positions they measure (`align`'s result with the loose
 /// motions undone).
 struct Measured {
@@ -494,6 +493,7 @@ struct Measured {
     held: Vec<Point3<f64>>,
 }
 
+/// How far alignment `a` moved `mesh` ([`Placement`]), the motions it holds loosely undone.
 fn placement_of(mesh: &Mesh, a: &Alignment) -> Measured {
     // Along the motions the images hold loosely (a capsule's or a squashed sphere's spin about
     // its axis), noisy footage moves `align` by many degrees from a correct placement, and a
