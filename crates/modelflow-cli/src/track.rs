@@ -469,13 +469,13 @@ fn warn_views(scene: &Scene, images: &[modelflow::base::RgbImage], misplaced: bo
     let v = modelflow::tracker::view_agreement(&scene.mesh, &scene.cameras, scene.first, images);
     let name = |c: usize| scene.cameras[c].name.as_str();
     let bad = v.disagreeing();
-    if !bad.is_empty() && !misplaced {
+    // A camera is named only where some pair agrees: the best of them is said.
+    let best = v
+        .pairs
+        .iter()
+        .max_by(|a, b| a.contrast.total_cmp(&b.contrast));
+    if let (false, false, Some(best)) = (bad.is_empty(), misplaced, best) {
         let names: Vec<&str> = bad.iter().map(|&c| name(c)).collect();
-        let best = v
-            .pairs
-            .iter()
-            .max_by(|a, b| a.contrast.total_cmp(&b.contrast))
-            .expect("some pair agrees");
         let rest: Vec<&str> = (0..scene.cameras.len())
             .filter(|c| !bad.contains(c))
             .map(name)
