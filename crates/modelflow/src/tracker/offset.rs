@@ -845,24 +845,17 @@ pub fn view_agreement(
     if cameras.len() < 2 || images.len() != cameras.len() {
         return out;
     }
-    let ScanStart {
-        m,
-        closed,
-        normals,
-        edges,
-        blank,
-        level,
-        pyramids: pyramids_here,
-    } = scan_start(mesh, cameras, images);
-    let Some(all) = frame_of(cameras, frame, &pyramids_here, level, &m.positions, &blank) else {
+    let z = scan_start(mesh, cameras, images);
+    let (m, normals, edges, closed) = (&z.m, &z.normals, &z.edges, z.closed);
+    let Some(all) = frame_of(cameras, frame, &z.pyramids, z.level, &m.positions, &z.blank) else {
         return out;
     };
-    let seen: Vec<usize> = (0..cameras.len()).filter(|&c| !blank[c]).collect();
+    let seen: Vec<usize> = (0..cameras.len()).filter(|&c| !z.blank[c]).collect();
     let pairs = view_pairs(
-        &not_blank(cameras, &blank),
+        &not_blank(cameras, &z.blank),
         frame,
         &m.positions,
-        &normals,
+        normals,
         closed,
     );
     for (i, j) in pairs {
@@ -876,7 +869,7 @@ pub fn view_agreement(
             stride: VIEW_STRIDE,
         };
         let scan = |k: i32| {
-            f.scan(&m.positions, &normals, &m.triangles, &edges, closed, k..=k)
+            f.scan(&m.positions, normals, &m.triangles, edges, closed, k..=k)
                 .pop()
                 .flatten()
         };
