@@ -145,6 +145,17 @@ impl Projection {
             center: self.center,
         }
     }
+
+    /// The same camera with its image shifted by `d` pixels (x right, y down): every point
+    /// projects `d` further, `P' = T(d)·P`. A shift of the principal point, exact for pinhole
+    /// images.
+    pub fn shifted(&self, d: [f64; 2]) -> Projection {
+        let a = Matrix3::new(1.0, 0.0, d[0], 0.0, 1.0, d[1], 0.0, 0.0, 1.0);
+        Projection {
+            p: a * self.p,
+            center: self.center,
+        }
+    }
 }
 
 /// A calibrated camera over a sequence: its image size, its name and one pose per frame (or one
@@ -245,6 +256,15 @@ impl Camera {
         Camera {
             first_frame: first,
             poses,
+            ..self.clone()
+        }
+    }
+
+    /// The same camera with its images shifted by `d` pixels in every pose
+    /// ([`Projection::shifted`]).
+    pub fn shifted(&self, d: [f64; 2]) -> Camera {
+        Camera {
+            poses: self.poses.iter().map(|p| p.shifted(d)).collect(),
             ..self.clone()
         }
     }
@@ -365,6 +385,24 @@ mod tests {
         let b = p.downscaled(2).project(&x).unwrap();
         assert!((b.x - ((a.x + 0.5) / 2.0 - 0.5)).abs() < 1e-12);
         assert!((b.y - ((a.y + 0.5) / 2.0 - 0.5)).abs() < 1e-12);
+    }
+
+    #[test]
+    fn a_shifted_camera_sees_every_point_that_far_over_and_keeps_its_pose() {
+        // The shift the tracker gives a camera whose calibration disagrees with the others'
+        // (`tracker::camera_shifts`): every point moves by exactly (dx, dy) pixels, x right and
+        // y down, whatever its depth; the principal point moves by as much, R and t stay.
+        let p = cam();
+        let s = p.shifted([0.75, -0.25]);
+        for x in [Point3::new(0.13, 0.07, 0.4), Point3::new(-0.3, 0.2, 2.5)] {
+            let (a, b) = (p.project(&x).unwrap(), s.project(&x).unwrap());
+            assert!((b.x - a.x - 0.75).abs() < 1e-9 && (b.y - a.y + 0.25).abs() < 1e-9);
+        }
+        let ((k0, r0, t0), (k1, r1, t1)) = (p.krt(), s.krt());
+        assert!((k1[(0, 2)] - k0[(0, 2)] - 0.75).abs() < 1e-9);
+        assert!((k1[(1, 2)] - k0[(1, 2)] + 0.25).abs() < 1e-9);
+        assert!((r1 - r0).norm() < 1e-12 && (t1 - t0).norm() < 1e-9);
+        assert_eq!(s.center(), p.center());
     }
 
     #[test]
