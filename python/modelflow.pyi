@@ -76,6 +76,13 @@ class Tracker:
         "length", "ratio", "at_limit", "closed", "compared", "texture_kept"}, "median",
         "max"}, as run.json's
         `first_mesh_moved`; else None."""
+    @property
+    def camera_shifts(self) -> Optional[Dict[str, Any]]:
+        """The shifts of the cameras' images at which they agree best about the first mesh
+        (option "shift_cameras", on by default): {"shifts": [[dx, dy], ...] (pixels, one per
+        camera), "pairs", "cost_before", "cost_after", "applied"}, as run.json's
+        `camera_shifts`; the tracker sees every camera shifted by them when "applied". None
+        when not measured or no two cameras compare the mesh."""
 
 def track_scene(
     scene: Scene,

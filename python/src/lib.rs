@@ -334,6 +334,16 @@ impl Tracker {
             .map(|m| to_py(py, m))
             .transpose()
     }
+
+    /// The shifts of the cameras' images at which they agree best about the first mesh
+    /// (option "shift_cameras", on by default): a dict with "shifts" (one `[dx, dy]` per
+    /// camera, pixels), "pairs", "cost_before", "cost_after" and "applied", as `run.json`'s
+    /// `camera_shifts`; the tracker sees every camera shifted by them when "applied". None when
+    /// not measured or no two cameras compare the mesh.
+    #[getter]
+    fn camera_shifts<'py>(&self, py: Python<'py>) -> PyResult<Option<Bound<'py, PyAny>>> {
+        self.inner.camera_shifts().map(|s| to_py(py, s)).transpose()
+    }
 }
 
 /// Tracks the whole scene into the run folder `out` (as `modelflow track` does: one OBJ and one

@@ -60,6 +60,9 @@ def test_tracker_loop_gives_the_clis_result(cli_run):
         assert np.abs(tracker.positions - cli_mesh).max() <= 1e-9
     # The sample's mesh lies on the surface: nothing was moved before tracking.
     assert tracker.first_mesh_moved is None
+    # Its calibration is exact (rendered): the cameras were measured and seen as calibrated.
+    shifts = tracker.camera_shifts
+    assert shifts is not None and len(shifts["shifts"]) == 2 and not shifts["applied"]
 
 
 def test_part_of_a_scene_loads_by_cameras_and_frames():

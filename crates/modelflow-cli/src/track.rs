@@ -138,6 +138,12 @@ pub struct TrackArgs {
     /// along their normals onto the surface before tracking; only a warning then).
     #[arg(long)]
     pub keep_shape: bool,
+    /// See every camera as calibrated (by default, each camera's images are shifted by the
+    /// fraction of a pixel at which the cameras agree best about the first mesh, when that
+    /// makes them agree at least 5 % better: a calibration's error, which comparing the cameras
+    /// with each other would otherwise put into the mesh).
+    #[arg(long)]
+    pub keep_calibration: bool,
     /// Solve every frame with the calibrated poses, even when a camera's view of the background
     /// shows it turned since the first frame (by default such a camera, e.g. a knocked tripod,
     /// is posed turned with it from that frame on; docs/tracker.md, "A camera that moves").
@@ -250,6 +256,7 @@ impl TrackArgs {
             hidden_ahead: !self.keep_hidden,
             still_occluders: !self.keep_near_occluders,
             onto_surface: !self.keep_shape,
+            shift_cameras: !self.keep_calibration,
             steady_cameras: !self.keep_poses,
             blur: self.blur,
             checkerboard: !self.all_pixels,
@@ -459,6 +466,24 @@ fn first_mesh_checks(
     Ok(check)
 }
 
+/// Says by how much each camera's images were shifted to agree with the others about the first
+/// mesh (`tracker::camera_shifts`, applied).
+fn note_camera_shifts(scene: &Scene, s: &modelflow::tracker::CameraShifts) {
+    let each: Vec<String> = scene
+        .cameras
+        .iter()
+        .zip(&s.shifts)
+        .map(|(c, d)| format!("{} ({:+.2}, {:+.2})", c.name, d[0], d[1]))
+        .collect();
+    eprintln!(
+        "note: at frame {}, the cameras agree {:.0} % better about the first mesh with their images shifted by {} px (up to {:.2} px between two cameras): their calibration is good to about that. The tracker sees them shifted, so that comparing the cameras with each other does not put the calibration's error into the mesh (docs/tracker.md, \"Cameras that disagree by a fraction of a pixel\"); --keep-calibration sees them as calibrated.",
+        scene.first,
+        100.0 * (1.0 - s.cost_after / s.cost_before),
+        each.join(", "),
+        s.largest(),
+    );
+}
+
 /// Warns about cameras whose views do not agree with the others' about the first mesh
 /// (`tracker::view_agreement`): images that are another camera's, from another frame, or a
 /// calibration far off. No camera is named for a mesh the placement check calls `misplaced`:
@@ -647,6 +672,9 @@ pub fn run(args: Args, invocation: &Invocation) -> anyhow::Result<()> {
             len.show(m.max),
             len.unit(),
         );
+    }
+    if let Some(s) = summary.camera_shifts.as_ref().filter(|s| s.applied) {
+        note_camera_shifts(&scene, s);
     }
     let resumed = match summary.resumed_from {
         Some(f) => format!(", resumed after frame {f}"),

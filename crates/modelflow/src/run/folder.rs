@@ -354,6 +354,13 @@ impl RunFolder {
         self.manifest.write(&self.dir.join(MANIFEST))
     }
 
+    /// Records in the manifest the shifts of the cameras' images at which they agreed best
+    /// about the first mesh (`TrackOptions::shift_cameras`), and writes the manifest now.
+    pub fn record_camera_shifts(&mut self, shifts: crate::tracker::CameraShifts) -> Result<()> {
+        self.manifest.camera_shifts = Some(shifts);
+        self.manifest.write(&self.dir.join(MANIFEST))
+    }
+
     /// Records how the run ended in the manifest.
     pub fn finish(&mut self, status: Status) -> Result<()> {
         self.manifest.status = status;

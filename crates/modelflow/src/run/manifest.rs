@@ -106,6 +106,12 @@ pub struct Manifest {
     /// the vertices moved. The run's first mesh is the moved one.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub first_mesh_moved: Option<crate::tracker::SurfaceMove>,
+    /// The shifts of the cameras' images at which they agreed best about the first mesh
+    /// (`TrackOptions::shift_cameras`), measured before tracking; the tracker saw every camera
+    /// shifted by them when `applied`. `None` for the baseline, with the option off, where no
+    /// two cameras compare the mesh, or in a run written before it existed.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub camera_shifts: Option<crate::tracker::CameraShifts>,
 }
 
 /// The cross-camera check on a run's last frame (kept in `last_frame_check`): the verdict the
@@ -142,6 +148,7 @@ impl Manifest {
             resumed: Vec::new(),
             last_frame_check: None,
             first_mesh_moved: None,
+            camera_shifts: None,
         })
     }
 

@@ -25,6 +25,7 @@ pub(crate) mod patch;
 pub(crate) mod pyramid;
 pub(crate) mod regularise;
 pub(crate) mod sequence;
+mod shift;
 mod shot;
 pub(crate) mod smear;
 pub(crate) mod solve;
@@ -58,6 +59,10 @@ pub use regularise::Regularisation;
 pub use sequence::{
     prepare, FrameReport, Prepared, SecondStart, StepTiming, Tracker, SECOND_START_GAIN,
     SECOND_START_PX,
+};
+pub use shift::{
+    camera_shifts, CameraShifts, MAX_SHIFT_PX as MAX_CAMERA_SHIFT_PX,
+    MIN_GAIN as MIN_CAMERA_SHIFT_GAIN,
 };
 pub use shot::{median, track_scene, TrackSummary};
 pub use solve::{

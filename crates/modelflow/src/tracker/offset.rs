@@ -125,28 +125,28 @@ const CHECK_WIDTH: u32 = 1280;
 
 /// What the scans need of a frame: the cameras' images at one pyramid level and their
 /// projections there, pixels per scene unit at the mesh, and the comparison's options.
-struct Frame<'a> {
-    targets: Vec<&'a RgbImage>,
-    projections: Vec<Projection>,
-    per_unit: f64,
-    opts: SolverOptions,
+pub(crate) struct Frame<'a> {
+    pub(crate) targets: Vec<&'a RgbImage>,
+    pub(crate) projections: Vec<Projection>,
+    pub(crate) per_unit: f64,
+    pub(crate) opts: SolverOptions,
     /// Only the comparisons that involve this camera (index into `targets`); all without it.
-    involving: Option<u16>,
+    pub(crate) involving: Option<u16>,
     /// Of each patch's pixels, every `stride`-th (1 = all).
-    stride: usize,
+    pub(crate) stride: usize,
 }
 
 /// One offset's comparison (`None` where no two cameras see a common triangle).
-type Scanned = Option<Scan>;
+pub(crate) type Scanned = Option<Scan>;
 
 /// What the cameras' comparison gives at one offset.
-struct Scan {
+pub(crate) struct Scan {
     /// The mean cost per pixel over every triangle.
-    cost: f64,
+    pub(crate) cost: f64,
     /// Per triangle: its index, cost and compared pixels (weighted).
     per_triangle: Vec<(u32, f64, f64)>,
     /// The pixels compared.
-    pixels: f64,
+    pub(crate) pixels: f64,
     /// Their texture ([`texture`]).
     texture: f64,
 }
@@ -188,7 +188,7 @@ fn texture(set: &crate::tracker::patch::PatchSet) -> f64 {
 impl Frame<'_> {
     /// For offsets `center`−RANGE..=`center`+RANGE pixels of `x` along `normals`: what the
     /// cameras' comparison gives there (`None` where no two cameras see a common triangle).
-    fn scan(
+    pub(crate) fn scan(
         &self,
         x: &[Point3<f64>],
         normals: &[Vector3<f64>],
@@ -305,7 +305,7 @@ const VALLEY: f64 = 2.0;
 /// The comparison at pyramid `level` (of `pyramids`, blurred as the tracker's), between the
 /// cameras whose image is not `blank` (`image::blank_images`: a black frame or a lens cap
 /// compares alike with nothing, so any offset that moves the mesh out of view would look better).
-fn frame_of<'a>(
+pub(crate) fn frame_of<'a>(
     cameras: &[Camera],
     frame: u32,
     pyramids: &'a [Pyramid],
@@ -450,17 +450,17 @@ fn pyramids(images: &[RgbImage], levels: usize) -> Vec<Pyramid> {
 /// down to the level compared. Large frames are compared at a coarser level (at most
 /// `CHECK_WIDTH` wide), so that a rig of 4K cameras is checked in about the time a 720p one
 /// is; offsets are still given in pixels of the frames themselves.
-struct ScanStart {
-    m: Mesh,
-    closed: bool,
-    normals: Vec<Vector3<f64>>,
-    edges: Vec<[u32; 2]>,
-    blank: Vec<bool>,
-    level: usize,
-    pyramids: Vec<Pyramid>,
+pub(crate) struct ScanStart {
+    pub(crate) m: Mesh,
+    pub(crate) closed: bool,
+    pub(crate) normals: Vec<Vector3<f64>>,
+    pub(crate) edges: Vec<[u32; 2]>,
+    pub(crate) blank: Vec<bool>,
+    pub(crate) level: usize,
+    pub(crate) pyramids: Vec<Pyramid>,
 }
 
-fn scan_start(mesh: &Mesh, cameras: &[Camera], images: &[RgbImage]) -> ScanStart {
+pub(crate) fn scan_start(mesh: &Mesh, cameras: &[Camera], images: &[RgbImage]) -> ScanStart {
     let (m, _) = tracked_mesh(mesh);
     let widest = cameras.iter().map(|c| c.width).max().unwrap_or(0);
     let level = (0..4).find(|&l| widest >> l <= CHECK_WIDTH).unwrap_or(4);
@@ -650,7 +650,7 @@ fn sees_vertex(
 }
 
 /// The cameras whose image is not `blank` (`image::blank_images`).
-fn not_blank<'a>(cameras: &'a [Camera], blank: &[bool]) -> Vec<&'a Camera> {
+pub(crate) fn not_blank<'a>(cameras: &'a [Camera], blank: &[bool]) -> Vec<&'a Camera> {
     cameras
         .iter()
         .zip(blank)
@@ -750,7 +750,7 @@ const VIEW_STRIDE: usize = 4;
 /// [`VIEW_PARTNERS`] others that see the most vertices of `x` with it (in view, in front,
 /// facing within `acos 0.3`; every `k`-th vertex as [`disparity_per_unit`] takes them), and none
 /// that see no vertex together.
-fn view_pairs(
+pub(crate) fn view_pairs(
     cameras: &[&Camera],
     frame: u32,
     x: &[Point3<f64>],

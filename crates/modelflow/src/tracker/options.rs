@@ -117,6 +117,12 @@ pub struct TrackOptions {
     /// before it existed.
     #[serde(default)]
     pub steady_cameras: bool,
+    /// Each camera's images are shifted by the fraction of a pixel at which the cameras agree
+    /// best about the first mesh (`tracker::camera_shifts`: a calibration's error, which
+    /// the comparisons between cameras would otherwise turn into an error of the mesh). Off in
+    /// runs made before it existed.
+    #[serde(default)]
+    pub shift_cameras: bool,
     /// Every camera's shutter, as a fraction of a frame (0 to 1), instead of the scene's
     /// per-camera `shutter` (`None`: the scene's; `Some(0.0)`: compare the images as they are,
     /// as runs made before it existed did). With a shutter, each template and the frame being
@@ -162,6 +168,7 @@ impl Default for TrackOptions {
             still_occluders: true,
             onto_surface: true,
             steady_cameras: true,
+            shift_cameras: true,
             shutter: None,
         }
     }
@@ -615,6 +622,7 @@ mod tests {
             TrackOptions {
                 onto_surface: true,
                 steady_cameras: true,
+                shift_cameras: true,
                 ..read
             },
             TrackOptions::default()

@@ -31,6 +31,7 @@ use crate::tracker::options::{OptionsUsed, TrackOptions};
 use crate::tracker::patch::{CameraPatches, Patch, PatchOptions, PatchSet};
 use crate::tracker::pyramid::Pyramid;
 use crate::tracker::regularise::{self, EdgeSet, FrameContext, Regulariser};
+use crate::tracker::shift::CameraShifts;
 use crate::tracker::smear::{self, Velocities};
 use crate::tracker::solve::{
     moved_on, Interpolation, Lag, Loss, Motion, Problem, SolveSummary, SolverOptions, StageRole,
@@ -333,6 +334,9 @@ pub struct Tracker {
     weld: Option<Weld>,
     /// When the given mesh lay off the surface and was moved onto it (`TrackOptions::onto_surface`).
     first_mesh_moved: Option<SurfaceMove>,
+    /// The cameras' image shifts at the first frame (`TrackOptions::shift_cameras`); the
+    /// cameras above are shifted by them when applied.
+    camera_shifts: Option<CameraShifts>,
     /// Some cameras record colour and some do not (`image::mixes_grey_and_colour`, judged on
     /// the first frame): every image is compared in luminance.
     luminance: bool,
@@ -497,6 +501,21 @@ impl Tracker {
             }
             None => (mesh, None),
         };
+        // Each camera's images shifted by the fraction of a pixel at which the cameras agree
+        // about the (moved) first mesh: what its calibration is off by, which the comparisons
+        // between cameras would otherwise put into the mesh.
+        let camera_shifts = opts
+            .shift_cameras
+            .then(|| crate::tracker::shift::camera_shifts(mesh, &cameras, frame, images))
+            .flatten();
+        let cameras = match &camera_shifts {
+            Some(s) if s.applied => cameras
+                .iter()
+                .zip(&s.shifts)
+                .map(|(c, d)| c.shifted(*d))
+                .collect(),
+            _ => cameras,
+        };
         let opts = opts.resolved_for(cameras.iter().map(|c| (c.width, c.height)));
         let used = opts.used();
         let opts = used.options;
@@ -539,6 +558,7 @@ impl Tracker {
             before_frame: frame,
             weld,
             first_mesh_moved,
+            camera_shifts,
             luminance,
             first_blank: marked(&blank),
             folds: FoldWatch::new(&mesh.positions, &mesh.triangles),
@@ -818,6 +838,14 @@ impl Tracker {
     /// check found and how far they moved. [`Tracker::positions`] starts from the moved mesh.
     pub fn first_mesh_moved(&self) -> Option<&SurfaceMove> {
         self.first_mesh_moved.as_ref()
+    }
+
+    /// The shifts of the cameras' images at which they agree best about the first mesh, as
+    /// measured before tracking (`TrackOptions::shift_cameras`; `None`: not measured, or no
+    /// two cameras compare the mesh). The tracker sees every camera shifted by them when
+    /// [`CameraShifts::applied`].
+    pub fn camera_shifts(&self) -> Option<&CameraShifts> {
+        self.camera_shifts.as_ref()
     }
 
     /// The cameras (indices) whose image of the first frame is blank (black, capped, blown out:

@@ -11,6 +11,7 @@ use crate::tracker::health::{Checks, FrameCheck};
 use crate::tracker::offset::SurfaceMove;
 use crate::tracker::options::TrackOptions;
 use crate::tracker::sequence::{prepare, Tracker};
+use crate::tracker::shift::CameraShifts;
 use serde::Serialize;
 use std::path::Path;
 use std::time::Instant;
@@ -42,6 +43,9 @@ pub struct TrackSummary {
     /// When the scene's mesh lay off the surface the cameras agree on and was moved onto it
     /// before tracking (`TrackOptions::onto_surface`); the run's first mesh is the moved one.
     pub first_mesh_moved: Option<SurfaceMove>,
+    /// The shifts of the cameras' images at which they agreed best about the first mesh
+    /// (`TrackOptions::shift_cameras`; as `run.json`'s `camera_shifts`).
+    pub camera_shifts: Option<CameraShifts>,
     /// The cross-camera check on the last frame solved, taken once the shot was done (as
     /// `run.json`'s `last_frame_check`); `None` when this call solved no frame.
     pub last_frame_check: Option<LastFrameCheck>,
@@ -94,12 +98,16 @@ fn track_into(
     }
     tracker.set_gpu(run.gpu.clone());
     let first_mesh_moved = tracker.first_mesh_moved().copied();
+    let camera_shifts = tracker.camera_shifts().cloned();
     let mut checks = Checks::default();
     let start = match resumed {
         None => {
             folder.write_first(&scene.mesh.with_positions(tracker.positions().to_vec()))?;
             if let Some(m) = first_mesh_moved {
                 folder.record_first_mesh_moved(m)?;
+            }
+            if let Some(s) = &camera_shifts {
+                folder.record_camera_shifts(s.clone())?;
             }
             scene.first
         }
@@ -271,6 +279,7 @@ fn track_into(
         suspect_frames: pick(FrameCheck::suspect),
         checks,
         first_mesh_moved,
+        camera_shifts,
         last_frame_check,
     })
 }
