@@ -1189,8 +1189,13 @@ fn a_mesh_off_the_surface_is_moved_onto_it_before_tracking_and_named() {
         err.contains("agree best") && err.contains("it lies inside the surface"),
         "{err}"
     );
+    // 0.1 % out is too little to move (the cameras' image shifts take it up instead, and the
+    // note says so: docs/tracker.md, "Cameras that disagree by a fraction of a pixel").
     let (err, median, _) = run(0.001, "close", &[]);
-    assert!(!err.contains("agree"), "{err}");
+    assert!(
+        !err.contains("agree best") && !err.contains("agreed best"),
+        "{err}"
+    );
     assert!((median - 0.001).abs() < 1e-6, "{median}");
     // Far off: 6 % (17 px) and 10 % (29 px) out, beyond the ±10 px the check first searches,
     // where nothing compares alike and the cost drifts down outward (more background). Found
