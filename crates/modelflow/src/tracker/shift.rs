@@ -29,7 +29,8 @@ pub struct CameraShifts {
     pub shifts: Vec<[f64; 2]>,
     /// The pairs of cameras compared.
     pub pairs: usize,
-    /// The pairs' mean cost per pixel, summed, as calibrated and with the shifts.
+    /// The pairs' mean cost per pixel, summed, as calibrated and with the shifts (not measured
+    /// with a shift over [`MAX_SHIFT_PX`]: `cost_after` is then `cost_before`).
     pub cost_before: f64,
     pub cost_after: f64,
     /// Whether the shifts were applied: not when they lower the cost by less than
@@ -254,7 +255,8 @@ pub fn camera_shifts(
         .iter()
         .all(|s| s.iter().all(|v| v.is_finite()) && s[0].hypot(s[1]) <= MAX_SHIFT_PX);
     let after = if within { total(&d) } else { None };
-    let applied = after.is_some_and(|a| a <= (1.0 - MIN_GAIN) * before);
+    // (A rig whose pairs compare only flat colour, cost 0, has nothing to gain.)
+    let applied = before > 0.0 && after.is_some_and(|a| a <= (1.0 - MIN_GAIN) * before);
     Some(CameraShifts {
         shifts,
         pairs: pairs.len(),
