@@ -1011,14 +1011,14 @@ fn an_offset_a_pixel_of_calibration_explains_leaves_the_mesh_as_given() {
     let dir = tempfile::tempdir().unwrap();
     let mut scene = fixture_scene("blender-cloth-sample");
     scene["frames"]["last"] = 4.into();
-    let run = |shift: f64, name: &str| {
+    let run = |shift: f64, name: &str, args: &[&str]| {
         let mut s = scene.clone();
         let cx = s["cameras"][0]["K"][0][2].as_f64().unwrap();
         s["cameras"][0]["K"][0][2] = (cx + shift).into();
         let file = dir.path().join(format!("{name}.json"));
         std::fs::write(&file, s.to_string()).unwrap();
         let out = dir.path().join(name);
-        let err = track_ok(&file, &out);
+        let err = track_ok_with(&file, &out, args);
         let manifest: serde_json::Value =
             serde_json::from_str(&std::fs::read_to_string(out.join("run.json")).unwrap()).unwrap();
         // RMS distance to the truth over frames 0..=4, as a share of the cloth's size.
@@ -1040,18 +1040,20 @@ fn an_offset_a_pixel_of_calibration_explains_leaves_the_mesh_as_given() {
             worst = worst.max(rms / truth.bbox_diagonal());
         }
         let shifts = &manifest["camera_shifts"];
-        let rel =
-            shifts["shifts"][0][0].as_f64().unwrap() - shifts["shifts"][1][0].as_f64().unwrap();
-        let applied = shifts["applied"].as_bool().unwrap();
+        let applied = shifts["applied"].as_bool() == Some(true);
         if applied && shift < 1.5 {
+            let rel =
+                shifts["shifts"][0][0].as_f64().unwrap() - shifts["shifts"][1][0].as_f64().unwrap();
             // Camera 0 shifted back by the slip against camera 1 (at two pixels the mesh is
             // moved first, and the shifts are what is left).
             assert!((rel + shift).abs() < 0.15, "{shift}: {shifts}");
             assert!(err.contains("--keep-calibration"), "{err}");
         }
-        (err, manifest["first_mesh_moved"].clone(), worst, applied)
+        (err, manifest, worst, applied)
     };
-    let (err, moved, worst, applied) = run(0.5, "half_a_pixel");
+    let moved_of = |m: &serde_json::Value| m["first_mesh_moved"].clone();
+    let (err, m, worst, applied) = run(0.5, "half_a_pixel", &[]);
+    let moved = moved_of(&m);
     assert!(
         err.contains("relative to each other by only 0.5 px")
             && err.contains("it is tracked as given")
@@ -1065,7 +1067,8 @@ fn an_offset_a_pixel_of_calibration_explains_leaves_the_mesh_as_given() {
     );
     // At one pixel `align` would move the cloth as a whole by 1.8 % of its size (a misplacement
     // worth naming), and the warning names the calibration too.
-    let (err, moved, worst, applied) = run(1.0, "one_pixel");
+    let (err, m, worst, applied) = run(1.0, "one_pixel", &[]);
+    let moved = moved_of(&m);
     assert!(
         err.contains("it is not placed where the images put it")
             && err.contains("Or a camera's calibration is off")
@@ -1078,31 +1081,25 @@ fn an_offset_a_pixel_of_calibration_explains_leaves_the_mesh_as_given() {
         applied && worst < 0.0012,
         "{worst} of the size off at the worst frame"
     );
-    let (err, moved, _, _) = run(2.0, "two_pixels");
+    let (err, m, _, _) = run(2.0, "two_pixels", &[]);
+    let moved = moved_of(&m);
     assert!(err.contains("Every vertex was moved"), "{err}");
     let disparity = moved["found"]["disparity"].as_f64().unwrap();
     assert!((1.8..2.4).contains(&disparity), "{moved}");
     // As given, the cameras' disagreement is read as nothing to act on, and they are seen as
     // calibrated.
-    let (err, moved, worst, applied) = run(0.0, "as_calibrated");
+    let (err, m, worst, applied) = run(0.0, "as_calibrated", &[]);
     assert!(!err.contains("agree"), "{err}");
     assert!(
-        moved.is_null() && worst < 0.001 && !applied,
-        "{moved} {worst}"
+        moved_of(&m).is_null() && worst < 0.001 && !applied,
+        "{m} {worst}"
     );
-    // Asked to, the tracker sees the slipped camera as calibrated, and the cloth is held
-    // where the slipped views agree.
-    let mut s = scene.clone();
-    let cx = s["cameras"][0]["K"][0][2].as_f64().unwrap();
-    s["cameras"][0]["K"][0][2] = (cx + 1.0).into();
-    let file = dir.path().join("kept.json");
-    std::fs::write(&file, s.to_string()).unwrap();
-    let out = dir.path().join("kept");
-    let err = track_ok_with(&file, &out, &["--keep-calibration"]);
+    // Asked to, the tracker sees the slipped camera as calibrated (no shift measured), and the
+    // cloth is held where the slipped views agree: 0.32 % off at the worst frame, against
+    // under 0.12 % shifted.
+    let (err, m, worst, _) = run(1.0, "kept", &["--keep-calibration"]);
     assert!(!err.contains("--keep-calibration sees"), "{err}");
-    let manifest: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(out.join("run.json")).unwrap()).unwrap();
-    assert!(manifest["camera_shifts"].is_null(), "{manifest}");
+    assert!(m["camera_shifts"].is_null() && worst > 0.002, "{m} {worst}");
 }
 
 #[test]
