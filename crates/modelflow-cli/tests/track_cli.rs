@@ -1100,6 +1100,53 @@ fn an_offset_a_pixel_of_calibration_explains_leaves_the_mesh_as_given() {
 }
 
 #[test]
+fn a_witness_camera_of_half_the_size_is_compared_at_the_others_scale() {
+    // The Blender cloth sample with camera 1's images halved (2×2 means, K halved about the
+    // pixel-centre convention): a rig of a 320×240 camera and a 160×120 witness. Until
+    // 2026-12-07 the smallest camera decided the pyramid (1 level: the large camera lost its
+    // coarse level) and each level compared the witness at half the other's scale: the
+    // cloth ended 0.16 % of its size off by frame 6. Each camera now enters the levels by
+    // its size (`pyramid::level_skips`): 2 levels, the witness at full resolution in both,
+    // smoothed for each: 0.054 % (0.03–0.05 % with both cameras at 320×240).
+    use modelflow::input::{read_rgb, write_png};
+    let dir = tempfile::tempdir().unwrap();
+    let mut scene = fixture_scene("blender-cloth-sample");
+    scene["frames"]["last"] = 6.into();
+    let witness = dir.path().join("cam1");
+    std::fs::create_dir_all(&witness).unwrap();
+    for f in 0..=6 {
+        let img =
+            read_rgb(&std::path::Path::new(CLOTH_SAMPLE).join(format!("images/cam1/{f:04}.png")))
+                .unwrap();
+        write_png(&witness.join(format!("{f:04}.png")), &img.downsample2()).unwrap();
+    }
+    let cam = &mut scene["cameras"][1];
+    for (r, c) in [(0, 0), (1, 1)] {
+        cam["K"][r][c] = (cam["K"][r][c].as_f64().unwrap() / 2.0).into();
+    }
+    for r in 0..2 {
+        cam["K"][r][2] = ((cam["K"][r][2].as_f64().unwrap() + 0.5) / 2.0 - 0.5).into();
+    }
+    cam["width"] = 160.into();
+    cam["height"] = 120.into();
+    cam["images"] = format!("{}/{{frame:04}}.png", witness.display()).into();
+    let file = dir.path().join("witness.json");
+    std::fs::write(&file, scene.to_string()).unwrap();
+    let out = dir.path().join("run");
+    track_ok(&file, &out);
+    let manifest: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("run.json")).unwrap()).unwrap();
+    assert_eq!(
+        manifest["options"]["used"]["options"]["levels"], 2,
+        "{manifest}"
+    );
+    let worst = (0..=6)
+        .map(|f| error_share(std::path::Path::new(CLOTH_SAMPLE), &out, f))
+        .fold(0.0, f64::max);
+    assert!(worst < 0.0008, "{worst}");
+}
+
+#[test]
 fn a_mesh_off_the_surface_is_moved_onto_it_before_tracking_and_named() {
     // The blob's mesh moved outward along its normals by 2 % of its size (a visual hull is
     // that far out and more): the cameras agree best with it moved back in, so `track` moves

@@ -234,7 +234,7 @@ pub(crate) fn divide(pyramid: &mut Pyramid, balance: [f64; 3]) {
         return;
     }
     let inv = balance.map(|b| (1.0 / b) as f32);
-    for level in &mut pyramid.levels {
+    for level in pyramid.images_mut() {
         for p in level.pixels_mut() {
             for k in 0..3 {
                 p[k] *= inv[k];

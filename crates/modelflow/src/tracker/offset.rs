@@ -340,8 +340,9 @@ pub(crate) fn frame_of<'a>(
 }
 
 /// The cameras' comparison with each other (each camera's pixels of `x` warped into every other
-/// camera that sees the triangle, up to the gains, the convex loss) at pyramid `level`: its
-/// mean cost per pixel and, per triangle compared, its index, cost and weight, each camera `c` seen through `projections[c]` (full resolution) in
+/// camera that sees the triangle, up to the gains, the convex loss), each camera `c` at its
+/// pyramid level `levels[c]`: its mean cost per pixel and, per triangle compared, its index,
+/// cost and weight, each camera `c` seen through `projections[c]` (full resolution) in
 /// `images[c]` (that level's image, from any frame); only the comparisons that involve camera
 /// `involving` (its pixels warped into the others, theirs into it). `None` when it sees no
 /// triangle another camera sees. What [`surface_offset`] scans along the normals, at the mesh as
@@ -354,14 +355,15 @@ pub(crate) fn cross_scan(
     closed: bool,
     projections: &[&Projection],
     images: &[&RgbImage],
-    level: usize,
+    levels: &[usize],
     involving: usize,
 ) -> Option<(f64, Vec<(u32, f64, f64)>)> {
     let f = Frame {
         targets: images.to_vec(),
         projections: projections
             .iter()
-            .map(|p| level_projection(p, level))
+            .zip(levels)
+            .map(|(p, &l)| level_projection(p, l))
             .collect(),
         per_unit: 1.0,
         opts: SolverOptions {

@@ -4,7 +4,7 @@
 
 use crate::base::camera::Camera;
 use crate::error::{Error, Result};
-use crate::tracker::pyramid::auto_levels;
+use crate::tracker::pyramid::auto_levels_of;
 use crate::tracker::regularise::{self, Regularisation};
 use crate::tracker::solve::{Interpolation, SolverOptions};
 use serde::{Deserialize, Serialize};
@@ -477,14 +477,14 @@ impl TrackOptions {
     }
 
     /// These options with `levels = 0` (automatic) resolved for images of the given sizes
-    /// (width, height): the smallest image decides.
+    /// (width, height): the smallest image decides, counted at the largest's scale
+    /// (`pyramid::auto_levels_of`: a camera half as large enters the levels one later).
     pub fn resolved_for(&self, sizes: impl IntoIterator<Item = (u32, u32)>) -> TrackOptions {
         if self.levels > 0 {
             return *self;
         }
-        let short = sizes.into_iter().map(|(w, h)| w.min(h)).min().unwrap_or(0);
         TrackOptions {
-            levels: auto_levels(short).max(self.finest_level + 1),
+            levels: auto_levels_of(sizes).max(self.finest_level + 1),
             ..*self
         }
     }

@@ -29,7 +29,7 @@ use crate::tracker::occlusion;
 use crate::tracker::offset::{moved_onto_surface, moved_onto_surface_as_checked, SurfaceMove};
 use crate::tracker::options::{OptionsUsed, TrackOptions};
 use crate::tracker::patch::{CameraPatches, Patch, PatchOptions, PatchSet};
-use crate::tracker::pyramid::Pyramid;
+use crate::tracker::pyramid::{camera_level, level_skips, Pyramid};
 use crate::tracker::regularise::{self, EdgeSet, FrameContext, Regulariser};
 use crate::tracker::shift::CameraShifts;
 use crate::tracker::smear::{self, Velocities};
@@ -303,6 +303,9 @@ pub struct Tracker {
     cameras: Vec<Camera>,
     opts: TrackOptions,
     used: OptionsUsed,
+    /// Per camera, how many solve levels it enters later than the largest camera's images
+    /// (`pyramid::level_skips`; all 0 when the cameras' images are of one size).
+    skips: Vec<usize>,
     /// The mesh's edges: the normal equations' block pattern.
     pattern: Vec<[u32; 2]>,
     regularisers: Vec<Box<dyn Regulariser>>,
@@ -439,6 +442,37 @@ pub(crate) fn level_projection(p: &Projection, level: usize) -> Projection {
 }
 
 impl Tracker {
+    /// Camera `c`'s own pyramid level at solve level `level` (`pyramid::camera_level`).
+    fn camera_level(&self, c: usize, level: usize) -> usize {
+        camera_level(level, self.skips.get(c).copied().unwrap_or(0))
+    }
+
+    /// Camera `c`'s projection at `frame`, at solve level `level` (its own pyramid level).
+    fn projection_at(&self, c: usize, frame: u32, level: usize) -> Projection {
+        level_projection(self.cameras[c].at(frame), self.camera_level(c, level))
+    }
+
+    /// Every camera's projection at `frame`, at solve level `level`.
+    fn projections_at(&self, frame: u32, level: usize) -> Vec<Projection> {
+        (0..self.cameras.len())
+            .map(|c| self.projection_at(c, frame, level))
+            .collect()
+    }
+
+    /// Camera `c`'s image in its pyramid `p` at solve level `level` (`Pyramid::at`).
+    fn image_at<'a>(&self, p: &'a Pyramid, c: usize, level: usize) -> &'a RgbImage {
+        p.at(level, self.skips.get(c).copied().unwrap_or(0))
+    }
+
+    /// Each camera's image in `pyramids` (one per camera) at solve level `level`.
+    fn images_at<'a>(&self, pyramids: &'a [Pyramid], level: usize) -> Vec<&'a RgbImage> {
+        pyramids
+            .iter()
+            .enumerate()
+            .map(|(c, p)| self.image_at(p, c, level))
+            .collect()
+    }
+
     /// A tracker whose mesh lines up with `images` (one per camera) at `frame`.
     pub fn new(
         mesh: &Mesh,
@@ -520,6 +554,7 @@ impl Tracker {
         let used = opts.used();
         let opts = used.options;
         let levels = opts.levels;
+        let skips = level_skips(cameras.iter().map(|c| (c.width, c.height)));
         let pyramids = build_pyramids(images, levels, opts.blur);
         // Vertices at the same place merged (`Mesh::welded`), the triangles wound consistently
         // and outward (the facing test needs it); the meshes written keep the user's
@@ -536,6 +571,7 @@ impl Tracker {
             cameras,
             opts,
             used,
+            skips,
             pattern: edges.edges.clone(),
             regularisers: regularise::build(mesh, &edges, &opts.regularisation),
             two_sided: !mesh.is_closed(),
@@ -636,15 +672,8 @@ impl Tracker {
             &self.triangles,
             &set,
             &by_triangle,
-            self.prev
-                .pyramids
-                .iter()
-                .map(|p| &p.levels[level])
-                .collect(),
-            self.cameras
-                .iter()
-                .map(|c| level_projection(c.at(self.prev.frame), level))
-                .collect(),
+            self.images_at(&self.prev.pyramids, level),
+            self.projections_at(self.prev.frame, level),
             &self.pattern,
         );
         let opts = SolverOptions {
@@ -866,11 +895,7 @@ impl Tracker {
     /// converted image).
     fn in_luminance(&self, mut prepared: Prepared) -> Prepared {
         if self.luminance {
-            for level in prepared
-                .pyramids
-                .iter_mut()
-                .flat_map(|p| p.levels.iter_mut())
-            {
+            for level in prepared.pyramids.iter_mut().flat_map(|p| p.images_mut()) {
                 level.to_luminance();
             }
         }
@@ -957,7 +982,7 @@ impl Tracker {
                     Some(f) if f < frame => {
                         let mut p = self.held.get(c)?.as_ref()?.pyramid.clone();
                         if self.luminance {
-                            p.levels.iter_mut().for_each(RgbImage::to_luminance);
+                            p.images_mut().for_each(RgbImage::to_luminance);
                         }
                         if let Some(b) = self.balance.get(c) {
                             balance::divide(&mut p, *b);
@@ -1025,9 +1050,16 @@ impl Tracker {
         if set.len() < 2 {
             return None;
         }
-        let widest = self.cameras.iter().map(|c| c.width).max().unwrap_or(0);
+        // The first solve level at which every camera's own level is that narrow (cameras of
+        // different sizes each at their own level: `pyramid::level_skips`).
+        let widest = |l: usize| {
+            (0..self.cameras.len())
+                .map(|c| self.cameras[c].width >> self.camera_level(c, l))
+                .max()
+                .unwrap_or(0)
+        };
         let level = (0..self.opts.levels.max(1))
-            .find(|&l| widest >> l <= widest_compared)
+            .find(|&l| widest(l) <= widest_compared)
             .unwrap_or(self.opts.levels.max(1) - 1);
         let shown: Vec<(u32, &Pyramid)> = set.iter().map(|&o| image(o)).collect();
         crate::tracker::offset::cross_scan(
@@ -1039,11 +1071,13 @@ impl Tracker {
                 .zip(&shown)
                 .map(|(&o, (f, _))| self.cameras[o].at(*f))
                 .collect::<Vec<_>>(),
-            &shown
-                .iter()
-                .map(|(_, p)| &p.levels[level])
+            &set.iter()
+                .zip(&shown)
+                .map(|(&o, (_, p))| self.image_at(p, o, level))
                 .collect::<Vec<_>>(),
-            level,
+            &set.iter()
+                .map(|&o| self.camera_level(o, level))
+                .collect::<Vec<_>>(),
             set.iter().position(|&o| o == c).unwrap_or(0),
         )
     }
@@ -1296,8 +1330,8 @@ impl Tracker {
                         std::borrow::Cow::Borrowed(estimate)
                     };
                     smear::smeared_targets(
-                        &next[c].levels[level],
-                        &level_projection(self.cameras[c].at(frame), level),
+                        self.image_at(&next[c], c, level),
+                        &self.projection_at(c, frame, level),
                         &self.triangles,
                         &seen,
                         motions,
@@ -1344,12 +1378,8 @@ impl Tracker {
                     positions.iter().zip(lag).map(|(p, v)| p + v * d).collect()
                 })
                 .collect();
-            let projections: Vec<Projection> = self
-                .cameras
-                .iter()
-                .map(|c| level_projection(c.at(frame), level))
-                .collect();
-            let images: Vec<&RgbImage> = pyramids.iter().map(|p| &p.levels[level]).collect();
+            let projections = self.projections_at(frame, level);
+            let images = self.images_at(pyramids, level);
             let outlines: Vec<IndexBuffer> = (0..self.cameras.len())
                 .into_par_iter()
                 .map(|c| {
@@ -1457,7 +1487,7 @@ impl Tracker {
             .par_iter()
             .enumerate()
             .map(|(c, cam)| {
-                let proj = level_projection(cam.at(tpl.frame), level);
+                let proj = self.projection_at(c, tpl.frame, level);
                 let d = cam.time_offset;
                 let seen: std::borrow::Cow<[Point3<f64>]> = match before {
                     Some((b, gap)) if d != 0.0 => tpl
@@ -1472,7 +1502,7 @@ impl Tracker {
                     &seen,
                     &self.triangles,
                     &proj,
-                    &tpl.pyramids[c].levels[level],
+                    self.image_at(&tpl.pyramids[c], c, level),
                     c as u16,
                     weight,
                     &popts,
@@ -1505,15 +1535,11 @@ impl Tracker {
         let mut still = None;
         let mut near_still = 0;
         if self.opts.consensus > 0.0 && self.cameras.len() > 1 {
-            let projections: Vec<Projection> = self
-                .cameras
-                .iter()
-                .map(|c| level_projection(c.at(tpl.frame), level))
-                .collect();
-            let images: Vec<&RgbImage> = tpl.pyramids.iter().map(|p| &p.levels[level]).collect();
+            let projections = self.projections_at(tpl.frame, level);
+            let images = self.images_at(&tpl.pyramids, level);
             let copts = self.consensus_options();
             let next: Vec<&RgbImage> = ahead
-                .map(|(next, _)| next.iter().map(|p| &p.levels[level]).collect())
+                .map(|(next, _)| self.images_at(next, level))
                 .unwrap_or_default();
             let ahead = ahead
                 .filter(|_| self.opts.still_occluders)
@@ -1563,11 +1589,7 @@ impl Tracker {
         level: usize,
         images: &[&RgbImage],
     ) -> (PatchSet, Vec<IndexBuffer>) {
-        let projections: Vec<Projection> = self
-            .cameras
-            .iter()
-            .map(|c| level_projection(c.at(frame), level))
-            .collect();
+        let projections = self.projections_at(frame, level);
         // As in `align`: pixels up to the outline at the coarser levels, where a triangle may
         // be smaller than a pixel.
         let popts = PatchOptions {
@@ -1917,7 +1939,7 @@ impl Tracker {
                     .and_then(|(images, _)| images.get(k))
             };
             let targets: Vec<&RgbImage> = (0..n)
-                .map(|c| smeared_of(c, 0).unwrap_or(&next[c].levels[level]))
+                .map(|c| smeared_of(c, 0).unwrap_or(self.image_at(&next[c], c, level)))
                 .collect();
             let (mut set, near_still, stereo) = self.level_patches(
                 frame,
@@ -2404,11 +2426,7 @@ impl Tracker {
                 for p in anchor.patches.iter().filter(seen) {
                     kept.push_copy(anchor, *p);
                 }
-                let projections: Vec<Projection> = self
-                    .cameras
-                    .iter()
-                    .map(|c| level_projection(c.at(self.prev.frame), level))
-                    .collect();
+                let projections = self.projections_at(self.prev.frame, level);
                 let way = Way {
                     from: &self.prev.positions,
                     to: predicted,
@@ -2465,14 +2483,11 @@ impl Tracker {
         } else {
             self.opts.margin + 1
         };
-        let projections: Vec<Projection> = self
-            .cameras
+        let projections = self.projections_at(frame, level);
+        let sizes: Vec<(usize, usize)> = self
+            .images_at(next, level)
             .iter()
-            .map(|c| level_projection(c.at(frame), level))
-            .collect();
-        let sizes: Vec<(usize, usize)> = next
-            .iter()
-            .map(|p| (p.levels[level].width(), p.levels[level].height()))
+            .map(|i| (i.width(), i.height()))
             .collect();
         occlusion::drop_at_depth_edges(
             set,
@@ -2488,10 +2503,9 @@ impl Tracker {
     /// How far the mesh moved from `from` to `to`, in pixels at `level`: the RMS over the
     /// vertices of their projected displacement, in the camera where it is largest.
     fn moved_px(&self, frame: u32, level: usize, from: &[Point3<f64>], to: &[Point3<f64>]) -> f64 {
-        self.cameras
-            .iter()
+        (0..self.cameras.len())
             .map(|c| {
-                let p = level_projection(c.at(frame), level);
+                let p = self.projection_at(c, frame, level);
                 let sum: f64 = from
                     .iter()
                     .zip(to)
@@ -2567,11 +2581,8 @@ impl Tracker {
                 by_triangle,
                 targets.to_vec(),
                 // The first frame's patches' own cameras (`solve_frame`) repeat the rig.
-                self.cameras
-                    .iter()
-                    .cycle()
-                    .take(targets.len())
-                    .map(|c| level_projection(c.at(frame), level))
+                (0..targets.len())
+                    .map(|i| self.projection_at(i % self.cameras.len(), frame, level))
                     .collect(),
                 &self.pattern,
             )
@@ -3045,10 +3056,15 @@ pub fn prepare(images: &[RgbImage], opts: &TrackOptions) -> Prepared {
     }
 }
 
+/// Each camera's pyramid, a camera smaller than the largest with the images of the levels it
+/// enters late (`pyramid::level_skips`, from the images' sizes as the tracker's from its
+/// cameras').
 fn build_pyramids(images: &[RgbImage], levels: usize, blur: f64) -> Vec<Pyramid> {
+    let skips = level_skips(images.iter().map(|i| (i.width() as u32, i.height() as u32)));
     images
         .par_iter()
-        .map(|img| Pyramid::new(img, levels, blur))
+        .zip(skips)
+        .map(|(img, skip)| Pyramid::with_skip(img, levels, blur, skip))
         .collect()
 }
 

@@ -1455,7 +1455,10 @@ fn normal_equations_are_the_curvature_of_the_cost_with_its_gains_refitted() {
             img.pixels_mut()
                 .iter_mut()
                 .for_each(|px| *px = px.map(|c| 0.85 * c));
-            Pyramid { levels: vec![img] }
+            Pyramid {
+                levels: vec![img],
+                fine: Vec::new(),
+            }
         })
         .collect();
     let mut set = frame0_patches(&mesh, &cams, &src);
