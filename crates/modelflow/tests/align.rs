@@ -566,3 +566,50 @@ fn a_tracker_given_tracks_first_mesh_check_starts_where_one_that_measures_it_doe
         assert_eq!(given.0 != mesh.positions, moved);
     }
 }
+
+#[test]
+fn a_rig_with_two_cameras_of_half_the_size_lines_up_as_well_as_one_of_a_size() {
+    // The blob's four cameras at 320×240, and the same with two of them halved (160×120
+    // witnesses: 2×2 means, the projection halved about the pixel-centre convention). Until
+    // 2026-12-07 every camera was compared at the same pyramid index, the witnesses at half
+    // the others' scale at every level: 0.040 % off against 0.027 % (seeds 1–3, `align
+    // --perturb 5,10`). Each camera now enters the levels by its size (`pyramid::level_skips`).
+    use modelflow::base::Camera;
+    let (syn, images) = footage(Preset::Blob);
+    let size = syn.mesh.bbox_diagonal();
+    let start = syn.mesh.with_positions(perturb(&syn.mesh, 0.05, 10.0, 1));
+    let opts = AlignOptions::default();
+    let full = align(&start, &syn.cameras, 0, &images, &opts).unwrap();
+    let full = rms_pct(&full.positions, &syn.mesh.positions, size);
+    let halved = |c: usize| c < 2;
+    let cameras: Vec<Camera> = syn
+        .cameras
+        .iter()
+        .enumerate()
+        .map(|(c, cam)| {
+            if !halved(c) {
+                return cam.clone();
+            }
+            let (w, h) = (cam.width / 2, cam.height / 2);
+            Camera::fixed(cam.name.clone(), w, h, cam.at(0).downscaled(2))
+        })
+        .collect();
+    let small: Vec<modelflow::RgbImage> = images
+        .iter()
+        .enumerate()
+        .map(|(c, i)| {
+            if halved(c) {
+                i.downsample2()
+            } else {
+                i.clone()
+            }
+        })
+        .collect();
+    let mixed = align(&start, &cameras, 0, &small, &opts).unwrap();
+    let mixed = rms_pct(&mixed.positions, &syn.mesh.positions, size);
+    assert!(full < 0.05, "{full}");
+    assert!(
+        mixed < 1.15 * full,
+        "{mixed} % against {full} % with every camera at 320×240"
+    );
+}

@@ -36,7 +36,7 @@ use crate::base::raster::IndexBuffer;
 use crate::error::{Error, Result};
 use crate::tracker::outline;
 use crate::tracker::patch::{CameraPatches, Patch, PatchOptions, PatchSet};
-use crate::tracker::pyramid::Pyramid;
+use crate::tracker::pyramid::{camera_level, level_skips, Pyramid};
 use crate::tracker::sequence::{level_projection, one_per_camera};
 use crate::tracker::solve::{pose_stiffness, Motion, Problem, SolverOptions, StopReason};
 use nalgebra::{Matrix3, Point3, Vector3};
@@ -657,11 +657,15 @@ impl Alignment {
 }
 
 /// Levels that show the mesh about 24 pixels across at the coarsest (median over the cameras
-/// of its projected extent), at most 6 and none smaller than 16 pixels on its short side.
+/// of its projected extent), at most 6 and none smaller than 16 pixels on its short side; a
+/// camera smaller than the largest counted at the largest's scale, as it enters the levels
+/// (`pyramid::level_skips`).
 fn auto_levels(cameras: &[Camera], frame: u32, x: &[Point3<f64>]) -> usize {
+    let skips = level_skips(cameras.iter().map(|c| (c.width, c.height)));
     let mut extents: Vec<f64> = cameras
         .iter()
-        .filter_map(|c| {
+        .zip(&skips)
+        .filter_map(|(c, &k)| {
             let p = c.at(frame);
             let mut lo = [f64::INFINITY; 2];
             let mut hi = [f64::NEG_INFINITY; 2];
@@ -669,7 +673,7 @@ fn auto_levels(cameras: &[Camera], frame: u32, x: &[Point3<f64>]) -> usize {
                 lo = [lo[0].min(q.x), lo[1].min(q.y)];
                 hi = [hi[0].max(q.x), hi[1].max(q.y)];
             }
-            (hi[0] > lo[0]).then(|| (hi[0] - lo[0]).max(hi[1] - lo[1]))
+            (hi[0] > lo[0]).then(|| (hi[0] - lo[0]).max(hi[1] - lo[1]) * f64::from(1u32 << k))
         })
         .collect();
     if extents.is_empty() {
@@ -679,7 +683,8 @@ fn auto_levels(cameras: &[Camera], frame: u32, x: &[Point3<f64>]) -> usize {
     let extent = extents[extents.len() / 2];
     let short = cameras
         .iter()
-        .map(|c| c.width.min(c.height))
+        .zip(&skips)
+        .map(|(c, &k)| c.width.min(c.height) << k)
         .min()
         .unwrap_or(1);
     let mut levels = 1;
@@ -979,9 +984,13 @@ pub fn align(
     } else {
         opts.levels
     };
+    // A camera smaller than the largest enters the levels late (`pyramid::level_skips`), as
+    // in tracking.
+    let skips = level_skips(cameras.iter().map(|c| (c.width, c.height)));
     let pyramids: Vec<Pyramid> = images
         .par_iter()
-        .map(|img| Pyramid::new(img, levels, opts.blur))
+        .zip(&skips)
+        .map(|(img, &k)| Pyramid::with_skip(img, levels, opts.blur, k))
         .collect();
     let popts = PatchOptions {
         margin: opts.margin,
@@ -1014,9 +1023,14 @@ pub fn align(
             for level in (finest..=coarsest).rev() {
                 let projections: Vec<Projection> = cameras
                     .iter()
-                    .map(|c| level_projection(c.at(frame), level))
+                    .zip(&skips)
+                    .map(|(c, &k)| level_projection(c.at(frame), camera_level(level, k)))
                     .collect();
-                let targets: Vec<&RgbImage> = pyramids.iter().map(|p| &p.levels[level]).collect();
+                let targets: Vec<&RgbImage> = pyramids
+                    .iter()
+                    .zip(&skips)
+                    .map(|(p, &k)| p.at(level, k))
+                    .collect();
                 // At coarse levels a triangle may be smaller than a pixel, and the margin test (a
                 // pixel's neighbours must belong to its triangle or one sharing a vertex) would then
                 // drop every pixel: there the pixels are kept up to the outline, and the finest level
