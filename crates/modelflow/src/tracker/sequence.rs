@@ -2084,6 +2084,18 @@ impl Tracker {
                 self.early_ratios(frame, &x, &next, &checked_left_out),
             )
         };
+        // A camera that dropped a frame leaps once, at that frame; at the next its view changes
+        // by one frame's motion again. One whose view leaps again here has something coming
+        // into it (a rod or a hand entering the surface's view, which its previous image does
+        // not show yet): it is not judged here, and is asked again at the next frame, as it
+        // leapt here. Judged here, the Blender hard sample's rod coming into camera 1 took it
+        // for a camera a frame early at frame 13 whenever the footage was a little other
+        // (halved, one camera enlarged), and every later frame read its images a frame back.
+        let early_ratios: Vec<Option<f64>> = early_ratios
+            .into_iter()
+            .enumerate()
+            .map(|(c, r)| r.filter(|_| known_early[c] || !leapt[c]))
+            .collect();
         let found_early: Vec<bool> = early_ratios
             .iter()
             .map(|r| r.is_some_and(|r| r < health::LATE_RATIO))
