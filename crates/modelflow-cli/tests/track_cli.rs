@@ -734,6 +734,17 @@ fn error_share(footage: &std::path::Path, run: &std::path::Path, f: u32) -> f64 
         / truth.bbox_diagonal()
 }
 
+/// The largest [`error_share`] over `frames`.
+fn worst_error_share(
+    footage: &std::path::Path,
+    run: &std::path::Path,
+    frames: std::ops::RangeInclusive<u32>,
+) -> f64 {
+    frames
+        .map(|f| error_share(footage, run, f))
+        .fold(0.0, f64::max)
+}
+
 /// `frames` frames of the cloth seen by two cameras at 480×360 (shaken by `shake` px per frame)
 /// in `dir/footage`; the scene file's path.
 fn two_camera_cloth_480(dir: &std::path::Path, frames: u32, shake: f64) -> std::path::PathBuf {
@@ -998,7 +1009,6 @@ fn an_offset_a_pixel_of_calibration_explains_leaves_the_mesh_as_given() {
     // the slip (`tracker::camera_shifts`), so that comparing them with each other does not
     // hold the cloth where the slipped views agree: 0.03 % off, as calibrated exactly, where
     // the cameras seen as calibrated left it 0.3 % off.
-    use modelflow::input::read_mesh;
     let dir = tempfile::tempdir().unwrap();
     let mut scene = fixture_scene("blender-cloth-sample");
     scene["frames"]["last"] = 4.into();
@@ -1013,23 +1023,7 @@ fn an_offset_a_pixel_of_calibration_explains_leaves_the_mesh_as_given() {
         let manifest: serde_json::Value =
             serde_json::from_str(&std::fs::read_to_string(out.join("run.json")).unwrap()).unwrap();
         // RMS distance to the truth over frames 0..=4, as a share of the cloth's size.
-        let mut worst = 0.0f64;
-        for f in 0..=4 {
-            let truth =
-                read_mesh(&std::path::Path::new(CLOTH_SAMPLE).join(format!("truth/{f:04}.obj")))
-                    .unwrap();
-            let got = read_mesh(&out.join(format!("{f:04}.obj"))).unwrap();
-            let n = truth.positions.len() as f64;
-            let rms = (got
-                .positions
-                .iter()
-                .zip(&truth.positions)
-                .map(|(a, b)| (a - b).norm_squared())
-                .sum::<f64>()
-                / n)
-                .sqrt();
-            worst = worst.max(rms / truth.bbox_diagonal());
-        }
+        let worst = worst_error_share(std::path::Path::new(CLOTH_SAMPLE), &out, 0..=4);
         let shifts = &manifest["camera_shifts"];
         let applied = shifts["applied"].as_bool() == Some(true);
         if applied && shift < 1.5 {
@@ -1140,9 +1134,7 @@ fn a_witness_camera_of_half_the_size_is_compared_at_the_others_scale() {
         manifest["options"]["used"]["options"]["levels"], 2,
         "{manifest}"
     );
-    let worst = (0..=6)
-        .map(|f| error_share(std::path::Path::new(CLOTH_SAMPLE), &out, f))
-        .fold(0.0, f64::max);
+    let worst = worst_error_share(std::path::Path::new(CLOTH_SAMPLE), &out, 0..=6);
     assert!(worst < 0.0008, "{worst}");
 }
 

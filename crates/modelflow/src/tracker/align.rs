@@ -659,12 +659,11 @@ impl Alignment {
 /// Levels that show the mesh about 24 pixels across at the coarsest (median over the cameras
 /// of its projected extent), at most 6 and none smaller than 16 pixels on its short side; a
 /// camera smaller than the largest counted at the largest's scale, as it enters the levels
-/// (`pyramid::level_skips`).
-fn auto_levels(cameras: &[Camera], frame: u32, x: &[Point3<f64>]) -> usize {
-    let skips = level_skips(cameras.iter().map(|c| (c.width, c.height)));
+/// late by `skips` (`pyramid::level_skips`).
+fn auto_levels(cameras: &[Camera], skips: &[usize], frame: u32, x: &[Point3<f64>]) -> usize {
     let mut extents: Vec<f64> = cameras
         .iter()
-        .zip(&skips)
+        .zip(skips)
         .filter_map(|(c, &k)| {
             let p = c.at(frame);
             let mut lo = [f64::INFINITY; 2];
@@ -683,7 +682,7 @@ fn auto_levels(cameras: &[Camera], frame: u32, x: &[Point3<f64>]) -> usize {
     let extent = extents[extents.len() / 2];
     let short = cameras
         .iter()
-        .zip(&skips)
+        .zip(skips)
         .map(|(c, &k)| c.width.min(c.height) << k)
         .min()
         .unwrap_or(1);
@@ -979,14 +978,14 @@ pub fn align(
     let start = mesh.positions.clone();
     // Wound as the tracker winds them (`Mesh::facing_outward`): the facing test needs it.
     let triangles = mesh.facing_outward().0;
-    let levels = if opts.levels == 0 {
-        auto_levels(cameras, frame, &start)
-    } else {
-        opts.levels
-    };
     // A camera smaller than the largest enters the levels late (`pyramid::level_skips`), as
     // in tracking.
     let skips = level_skips(cameras.iter().map(|c| (c.width, c.height)));
+    let levels = if opts.levels == 0 {
+        auto_levels(cameras, &skips, frame, &start)
+    } else {
+        opts.levels
+    };
     let pyramids: Vec<Pyramid> = images
         .par_iter()
         .zip(&skips)
