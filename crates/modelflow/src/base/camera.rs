@@ -146,6 +146,19 @@ impl Projection {
         }
     }
 
+    /// The same camera for an image enlarged by an integer `factor` (pixel `j` of the large
+    /// image centred at `(j + 0.5) / factor - 0.5` of this one, the inverse of
+    /// [`Projection::downscaled`]): `u_large = factor·(u + 0.5) - 0.5`.
+    pub fn upscaled(&self, factor: u32) -> Projection {
+        let s = factor as f64;
+        let off = 0.5 * s - 0.5;
+        let a = Matrix3::new(s, 0.0, off, 0.0, s, off, 0.0, 0.0, 1.0);
+        Projection {
+            p: a * self.p,
+            center: self.center,
+        }
+    }
+
     /// The same camera with its image shifted by `d` pixels (x right, y down): every point
     /// projects `d` further, `P' = T(d)·P`. A shift of the principal point, exact for pinhole
     /// images.
@@ -269,6 +282,19 @@ impl Camera {
         }
     }
 
+    /// The same camera for pinhole images enlarged by an integer `factor` in every pose
+    /// ([`Projection::upscaled`]); its size grows by as much. Without a lens: what is enlarged
+    /// is the pinhole image the tracker compares, not the raw frame.
+    pub fn enlarged(&self, factor: u32) -> Camera {
+        Camera {
+            width: self.width * factor,
+            height: self.height * factor,
+            poses: self.poses.iter().map(|p| p.upscaled(factor)).collect(),
+            lens: None,
+            ..self.clone()
+        }
+    }
+
     /// All poses (one for a fixed camera).
     pub fn poses(&self) -> &[Projection] {
         &self.poses
@@ -385,6 +411,25 @@ mod tests {
         let b = p.downscaled(2).project(&x).unwrap();
         assert!((b.x - ((a.x + 0.5) / 2.0 - 0.5)).abs() < 1e-12);
         assert!((b.y - ((a.y + 0.5) / 2.0 - 0.5)).abs() < 1e-12);
+    }
+
+    #[test]
+    fn an_enlarged_camera_sees_every_point_at_the_enlarged_images_pixel() {
+        // Pixel centres at integers: pixel j of an image enlarged twice is centred at j/2 - 1/4
+        // of the original, so a point at u lands at 2u + 1/2; the size doubles, the pose stays.
+        let p = cam();
+        let x = Point3::new(0.13, 0.07, 0.4);
+        let a = p.project(&x).unwrap();
+        let b = p.upscaled(2).project(&x).unwrap();
+        assert!((b.x - (2.0 * a.x + 0.5)).abs() < 1e-9 && (b.y - (2.0 * a.y + 0.5)).abs() < 1e-9);
+        // Exactly the inverse of `downscaled`.
+        let back = p.upscaled(2).downscaled(2).project(&x).unwrap();
+        assert!((back - a).norm() < 1e-9);
+        let c = Camera::fixed("c", 320, 240, p.clone()).enlarged(2);
+        assert_eq!((c.width, c.height), (640, 480));
+        assert!((c.at(0).project(&x).unwrap() - b).norm() < 1e-12);
+        assert_eq!(c.at(0).center(), p.center());
+        assert!(c.lens.is_none());
     }
 
     #[test]

@@ -524,6 +524,16 @@ impl RgbImage {
         (gx, gy)
     }
 
+    /// The image enlarged twice along each axis by Catmull–Rom interpolation (the sampler the
+    /// tracker compares with): pixel `j` of the result is centred at `j / 2 - 0.25` of this
+    /// one, matching [`crate::base::camera::Projection::upscaled`]; beyond the border the edge
+    /// pixels are repeated.
+    pub fn enlarged2(&self) -> RgbImage {
+        RgbImage::from_fn(2 * self.width, 2 * self.height, |x, y| {
+            self.sample_cubic_value(x as f32 * 0.5 - 0.25, y as f32 * 0.5 - 0.25)
+        })
+    }
+
     /// Half-size image by averaging 2×2 blocks (odd last rows/columns are averaged with fewer
     /// pixels). Pixel `i` of the result is centred at `2i + 0.5` of this one, matching
     /// [`crate::base::camera::Projection::downscaled`].
@@ -631,6 +641,32 @@ mod tests {
 
     fn ramp() -> RgbImage {
         RgbImage::from_fn(8, 6, |x, y| [x as f32, y as f32, (x + 10 * y) as f32])
+    }
+
+    #[test]
+    fn an_image_enlarged_twice_has_its_pixels_where_the_enlarged_camera_looks() {
+        // Pixel (i, j) of the enlarged image is the original at (i/2 - 1/4, j/2 - 1/4)
+        // (`Projection::upscaled`). Catmull–Rom reproduces a linear ramp exactly away from the
+        // border, where the edge pixels are repeated.
+        let img = ramp();
+        let big = img.enlarged2();
+        assert_eq!((big.width(), big.height()), (16, 12));
+        for j in 3..9 {
+            for i in 3..13 {
+                let (u, v) = (i as f32 / 2.0 - 0.25, j as f32 / 2.0 - 0.25);
+                let p = big.get(i, j);
+                let want = [u, v, u + 10.0 * v];
+                for k in 0..3 {
+                    assert!(
+                        (p[k] - want[k]).abs() < 1e-4,
+                        "({i}, {j}): {p:?} vs {want:?}"
+                    );
+                }
+            }
+        }
+        // At the border the edge is repeated: no value beyond the original's range.
+        assert_eq!(big.get(0, 0), [0.0, 0.0, 0.0]);
+        assert!(big.pixels().iter().all(|p| p[0] <= 7.0 && p[1] <= 5.0));
     }
 
     /// The bicubic sample as a plain scalar loop over the 4×4 block (the implementation before
