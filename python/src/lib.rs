@@ -652,9 +652,11 @@ fn import_calibration<'py>(
 /// with their relative stiffness; below 1e-6 they were kept as placed, or with `outline` set
 /// from the contrast across the mesh's border, summarised in "outline"); "passes" and
 /// "kept_pass" (the coarse-to-fine passes solved and which one the result is from; `search`
-/// adds starts around the placement given, as `modelflow align` does unless `--no-search`).
+/// adds starts around the placement given, as `modelflow align` does unless `--no-search`);
+/// "enlarged" (how many times the images' resolution the cameras were compared at: `enlarge`,
+/// 0 chooses as `modelflow align --enlarge` does).
 #[pyfunction]
-#[pyo3(signature = (scene, positions=None, scale=false, outline=false, search=true))]
+#[pyo3(signature = (scene, positions=None, scale=false, outline=false, search=true, enlarge=0))]
 fn align<'py>(
     py: Python<'py>,
     scene: &Scene,
@@ -662,6 +664,7 @@ fn align<'py>(
     scale: bool,
     outline: bool,
     search: bool,
+    enlarge: u32,
 ) -> PyResult<Bound<'py, PyDict>> {
     let s = &scene.inner;
     let mesh = scene_mesh(s, positions)?;
@@ -670,6 +673,7 @@ fn align<'py>(
         scale,
         outline,
         search,
+        enlarge,
         ..Default::default()
     };
     let a = mf::tracker::align(&mesh, &s.cameras, s.first, &images, &opts).map_err(err)?;
@@ -694,6 +698,7 @@ fn align<'py>(
     d.set_item("agreement", to_py(py, &a.agreement)?)?;
     d.set_item("passes", to_py(py, &a.passes)?)?;
     d.set_item("kept_pass", a.kept_pass)?;
+    d.set_item("enlarged", a.enlarged)?;
     Ok(d)
 }
 

@@ -175,6 +175,12 @@ def test_align_brings_a_tilted_sheet_back_into_its_plane():
     assert len(free) == 3
     assert abs(out["angle_deg"] - 6.0) < 1.0
     assert out["outline"] is None
+    # 320x240 images are compared enlarged twice; enlarge=1 compares them as they are.
+    assert out["enlarged"] == 2
+    plain = modelflow.align(s, rough, search=False, enlarge=1)
+    assert plain["enlarged"] == 1 and off_plane(plain["positions"]) < 1e-3
+    with pytest.raises(modelflow.ModelflowError, match="--enlarge"):
+        modelflow.align(s, rough, enlarge=3)
     # The sheet's border is its outline against the background: with outline=True the in-plane
     # placement comes back too.
     slid = rough + np.array([0.04, 0.0, 0.02])  # and slid within its plane (x, z)

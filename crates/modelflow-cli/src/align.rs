@@ -41,6 +41,12 @@ pub struct Args {
     /// (docs/tracker.md, "With three cameras").
     #[arg(long)]
     no_search: bool,
+    /// Compare the cameras at this many times their images' resolution (1 or 2; 0 = twice
+    /// when every camera's image has at most 1 280 × 720 pixels): each image enlarged by
+    /// Catmull–Rom interpolation, which samples every triangle four times as densely and
+    /// holds the pose more finely (docs/tracker.md, "Compared at twice the resolution").
+    #[arg(long, default_value_t = AlignOptions::default().enlarge)]
+    enlarge: u32,
     /// Before aligning, misplace the mesh on purpose by PCT percent of its size and DEG degrees
     /// about a random axis (seeded by --seed): a check of how far off a placement may be. With
     /// ground truth, the error before and after is printed.
@@ -113,6 +119,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         levels: args.levels,
         outline: args.outline,
         search: !args.no_search,
+        enlarge: args.enlarge,
         ..AlignOptions::default()
     };
     opts.validate()?;
@@ -205,6 +212,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             "agreement": a.agreement,
             "passes": a.passes,
             "kept_pass": a.kept_pass,
+            "enlarged": a.enlarged,
             "error_before_pct": errors.map(|e| e.0),
             "error_after_pct": errors.map(|e| e.1),
             "surface_error_before_pct": errors.and_then(|e| e.2),
@@ -214,6 +222,12 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         });
         println!("{}", serde_json::to_string_pretty(&v)?);
     } else {
+        if a.enlarged > 1 {
+            eprintln!(
+                "compared at {} times the images' resolution (level 0: the enlarged images; --enlarge 1 compares them as they are)",
+                a.enlarged
+            );
+        }
         eprintln!("level  rounds  iterations  cost before → after    pixels  last move (px)");
         for l in &a.levels {
             if l.rounds == 0 {

@@ -84,6 +84,15 @@ pub struct AlignOptions {
     /// to full resolution).
     #[serde(default)]
     pub search: bool,
+    /// Compare the cameras at this many times their images' resolution: each image enlarged
+    /// by Catmull–Rom interpolation and its camera with it ([`Camera::enlarged`]), so that the
+    /// finest level samples every triangle four times as densely (`align`'s cost is a sum over
+    /// pixels, and a glossy near-sphere's spin is held by how finely it is summed:
+    /// docs/tracker.md, "Compared at twice the resolution"). 0 chooses: 2 when every camera's
+    /// image has at most [`ENLARGE_MAX_PIXELS`] pixels, 1 otherwise; 1 and 2 force it.
+    /// Option files written before it existed read 1 (as they were made).
+    #[serde(default = "one")]
+    pub enlarge: u32,
     /// The solver of each round (with the tracker's robust loss by default).
     pub solver: SolverOptions,
 }
@@ -98,6 +107,7 @@ impl Default for AlignOptions {
             outline: false,
             texture_pass: true,
             search: true,
+            enlarge: 0,
             blur: 1.0,
             margin: 1,
             min_cos: 0.1,
@@ -127,6 +137,13 @@ impl AlignOptions {
         if !(0.0..=20.0).contains(&self.blur) {
             return Err(Error::option("blur", self.blur, "0 to 20 pixels"));
         }
+        if self.enlarge > 2 {
+            return Err(Error::option(
+                "--enlarge",
+                self.enlarge,
+                "0 (chosen from the images' size), 1 or 2",
+            ));
+        }
         if !(0.0..=1.0).contains(&self.min_cos) {
             return Err(Error::option("min_cos", self.min_cos, "0 to 1"));
         }
@@ -138,6 +155,32 @@ impl AlignOptions {
             ));
         }
         Ok(())
+    }
+}
+
+/// [`AlignOptions::enlarge`]'s choice: cameras whose images have at most this many pixels
+/// (1 280 × 720) are compared at twice their resolution. Enlarged, such a rig's images are at
+/// most 3.7 megapixels each, and `align` takes about 1.5–2 times as long (a 1 280 × 720
+/// four-camera board 1.4 → 2.9 s); larger images are compared as they are.
+pub const ENLARGE_MAX_PIXELS: u64 = 1280 * 720;
+
+fn one() -> u32 {
+    1
+}
+
+impl AlignOptions {
+    /// The factor [`align`] enlarges `cameras`' images by ([`AlignOptions::enlarge`]).
+    pub fn enlargement(&self, cameras: &[Camera]) -> u32 {
+        match self.enlarge {
+            0 if cameras
+                .iter()
+                .all(|c| c.width as u64 * c.height as u64 <= ENLARGE_MAX_PIXELS) =>
+            {
+                2
+            }
+            0 => 1,
+            f => f,
+        }
     }
 }
 
@@ -192,6 +235,10 @@ pub struct Alignment {
     /// Which of `passes` the result is from (0, the plain pass, also when `passes` is empty:
     /// the cameras could not be compared).
     pub kept_pass: usize,
+    /// How many times the images' resolution the cameras were compared at
+    /// ([`AlignOptions::enlarge`]): `levels`' level 0, their pixel counts and moves are of the
+    /// images enlarged so.
+    pub enlarged: u32,
 }
 
 /// One coarse-to-fine pass of [`align`], by how well the cameras agree per unit of texture where
@@ -460,9 +507,12 @@ pub fn placement(
         })
     };
     // Whether the mesh is off, not where exactly it belongs: the plain pass alone.
+    // At the images' own resolution: a check made before every track, on frames already
+    // halved to at most `PLACEMENT_WIDTH` for time.
     let check = AlignOptions {
         texture_pass: false,
         search: false,
+        enlarge: 1,
         ..AlignOptions::default()
     };
     let a = aligned(&check)?;
@@ -975,6 +1025,23 @@ pub fn align(
             cameras.len(),
         ));
     }
+    // Compared at twice the resolution (`AlignOptions::enlarge`): the same alignment of the
+    // enlarged images, whose cameras see the mesh where these do, one level deeper.
+    if opts.enlargement(cameras) == 2 {
+        let cams: Vec<Camera> = cameras.iter().map(|c| c.enlarged(2)).collect();
+        let imgs: Vec<RgbImage> = images.par_iter().map(RgbImage::enlarged2).collect();
+        let inner = AlignOptions {
+            enlarge: 1,
+            levels: match opts.levels {
+                0 => 0,
+                l => l + 1,
+            },
+            ..*opts
+        };
+        let mut a = align(mesh, &cams, frame, &imgs, &inner)?;
+        a.enlarged = 2;
+        return Ok(a);
+    }
     let start = mesh.positions.clone();
     // Wound as the tracker winds them (`Mesh::facing_outward`): the facing test needs it.
     let triangles = mesh.facing_outward().0;
@@ -1320,6 +1387,7 @@ pub fn align(
         agreement,
         passes,
         kept_pass,
+        enlarged: 1,
     })
 }
 

@@ -41,7 +41,7 @@ pub use align::{
     FirstMeshCheck, LooseMotion, MotionKind, OutlineSummary, Placement, LOOSE, PLACEMENT_MIN_GAIN,
     PLACEMENT_WARN, TEXTURE_PASS_GAIN,
 };
-pub use align::{PassSummary, SEARCH_SHIFT, SEARCH_STARTS, SEARCH_TURN};
+pub use align::{PassSummary, ENLARGE_MAX_PIXELS, SEARCH_SHIFT, SEARCH_STARTS, SEARCH_TURN};
 pub use axes::{axes_swapped, AxesSwapped, AXES_GAIN};
 pub use coverage::{coverage, Coverage};
 pub use gpu::{Gpu, GpuStats};
