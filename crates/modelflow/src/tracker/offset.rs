@@ -13,7 +13,7 @@
 use crate::base::{Camera, Mesh, Projection, RgbImage};
 use crate::tracker::align::cross_patches;
 use crate::tracker::patch::PatchOptions;
-use crate::tracker::pyramid::Pyramid;
+use crate::tracker::pyramid::{camera_level, level_skips, Pyramid};
 use crate::tracker::sequence::{level_projection, tracked_mesh};
 use crate::tracker::solve::{Loss, Problem, SolverOptions};
 use nalgebra::{Point2, Point3, Vector3};
@@ -305,6 +305,9 @@ const VALLEY: f64 = 2.0;
 /// The comparison at pyramid `level` (of `pyramids`, blurred as the tracker's), between the
 /// cameras whose image is not `blank` (`image::blank_images`: a black frame or a lens cap
 /// compares alike with nothing, so any offset that moves the mesh out of view would look better).
+/// A camera smaller than the largest is taken at the level of its own pyramid that shows the
+/// scene at the same scale (`pyramid::level_skips`, as the tracker's), down to its full
+/// resolution.
 pub(crate) fn frame_of<'a>(
     cameras: &[Camera],
     frame: u32,
@@ -319,14 +322,16 @@ pub(crate) fn frame_of<'a>(
         return None;
     }
     let seen = |c: &usize| !blank.get(*c).copied().unwrap_or(false);
+    let skips = level_skips(cameras.iter().map(|c| (c.width, c.height)));
+    let at = |c: usize| camera_level(level, skips[c]).min(pyramids[c].levels.len() - 1);
     Some(Frame {
         targets: (0..pyramids.len())
             .filter(seen)
-            .map(|c| &pyramids[c].levels[level])
+            .map(|c| &pyramids[c].levels[at(c)])
             .collect(),
         projections: (0..cameras.len())
             .filter(seen)
-            .map(|c| level_projection(cameras[c].at(frame), level))
+            .map(|c| level_projection(cameras[c].at(frame), at(c)))
             .collect(),
         per_unit,
         // The convex loss: a highlight or an occluder differs between viewpoints at any offset.
@@ -1154,6 +1159,47 @@ pub fn onto_surface(
 #[cfg(test)]
 mod tests {
     use super::{best_offset, clearest_valley, round_levels};
+
+    #[test]
+    fn a_camera_of_half_the_size_is_compared_at_its_level_of_the_same_scale() {
+        // A 64×48 camera and one of 32×24 that sees exactly what it sees (its projection
+        // downscaled by 2): at level 1 the large one is taken at its level 1 and the small one at
+        // its full resolution, both 32×24, and every point lands on the same pixel in both.
+        use super::frame_of;
+        use crate::base::{Camera, Projection, RgbImage};
+        use crate::tracker::pyramid::Pyramid;
+        use nalgebra::{Matrix3, Point3, Vector3};
+        let k = Matrix3::new(60.0, 0.0, 31.5, 0.0, 60.0, 23.5, 0.0, 0.0, 1.0);
+        let pose =
+            Projection::from_krt(&k, &Matrix3::identity(), &Vector3::new(0.0, 0.0, 2.0)).unwrap();
+        let cams = [
+            Camera::fixed("big", 64, 48, pose.clone()),
+            Camera::fixed("small", 32, 24, pose.downscaled(2)),
+        ];
+        let texture = |w: usize, h: usize| {
+            RgbImage::from_fn(w, h, |x, y| [((x * 7 + y * 3) % 5) as f32 / 5.0; 3])
+        };
+        let pyramids = [
+            Pyramid::new(&texture(64, 48), 2, 1.0),
+            Pyramid::new(&texture(32, 24), 2, 1.0),
+        ];
+        let x = [
+            Point3::new(-0.2, -0.2, 0.0),
+            Point3::new(0.2, -0.2, 0.0),
+            Point3::new(0.0, 0.2, 0.0),
+        ];
+        for (level, small_level) in [(1, 0), (0, 0)] {
+            let f = frame_of(&cams, 0, &pyramids, level, &x, &[false, false]).unwrap();
+            assert!(std::ptr::eq(f.targets[0], &pyramids[0].levels[level]));
+            assert!(std::ptr::eq(f.targets[1], &pyramids[1].levels[small_level]));
+            if level == 1 {
+                for p in &x {
+                    let (a, b) = (f.projections[0].project(p), f.projections[1].project(p));
+                    assert!((a.unwrap() - b.unwrap()).norm() < 1e-9, "{a:?} {b:?}");
+                }
+            }
+        }
+    }
 
     #[test]
     fn the_rounds_end_at_a_comparison_as_fine_as_a_1080p_rigs() {

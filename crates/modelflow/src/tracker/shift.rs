@@ -16,6 +16,7 @@
 
 use crate::base::{Camera, Mesh, RgbImage};
 use crate::tracker::offset::{frame_of, not_blank, scan_start, view_pairs, Frame, MIN_COMPARED};
+use crate::tracker::pyramid::{camera_level, level_skips};
 use nalgebra::{DMatrix, DVector, Matrix4, Vector4};
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
@@ -246,9 +247,12 @@ pub fn camera_shifts(
         }
     }
     let before = before?;
-    let scale = f64::from(1u32 << z.level);
+    // Each camera's shift in pixels of its own level (`offset::frame_of`: a smaller camera's
+    // level is finer by its skip), then of its own images.
+    let skips = level_skips(cameras.iter().map(|c| (c.width, c.height)));
     let mut shifts = vec![[0.0; 2]; cameras.len()];
     for (i, &c) in seen.iter().enumerate() {
+        let scale = f64::from(1u32 << camera_level(z.level, skips[c]));
         shifts[c] = [d[i][0] * scale, d[i][1] * scale];
     }
     let within = shifts
