@@ -42,7 +42,7 @@ pub struct Args {
     #[arg(long)]
     no_search: bool,
     /// Compare the cameras at this many times their images' resolution (1 or 2; 0 = twice
-    /// when every camera's image has at most 1 280 × 720 pixels): each image enlarged by
+    /// when the images have at most 4 × 1 280 × 720 pixels together): each image enlarged by
     /// Catmull–Rom interpolation, which samples every triangle four times as densely and
     /// holds the pose more finely (docs/tracker.md, "Compared at twice the resolution").
     #[arg(long, default_value_t = AlignOptions::default().enlarge)]
