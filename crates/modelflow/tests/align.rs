@@ -435,6 +435,30 @@ fn a_glossy_near_sphere_rendered_by_blender_comes_back_within_about_a_tenth_of_a
 }
 
 #[test]
+fn every_level_count_it_accepts_is_solved_enlarged_or_not() {
+    // The Blender cloth sample (two 320×240 cameras) is compared enlarged twice, one level
+    // deeper; the deepest count `validate` accepts must still run (it asked for 9 levels once).
+    let (scene, images, truth) = blender_cloth();
+    let size = scene.mesh.bbox_diagonal();
+    for enlarge in [0, 1] {
+        let opts = AlignOptions {
+            levels: 8,
+            search: false,
+            enlarge,
+            ..AlignOptions::default()
+        };
+        let a = align(&scene.mesh, &scene.cameras, 0, &images, &opts).unwrap();
+        assert_eq!(a.enlarged, if enlarge == 0 { 2 } else { 1 });
+        assert_eq!(a.levels.len(), 8);
+        let off = rms_pct(&a.positions, &truth, size);
+        assert!(
+            off < 0.05,
+            "enlarge {enlarge}: {off:.3} % from the truth it started at"
+        );
+    }
+}
+
+#[test]
 fn align_refuses_what_it_cannot_do() {
     let (syn, images) = footage(Preset::Irregular);
     // One camera cannot be compared with anything.

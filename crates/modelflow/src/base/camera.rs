@@ -137,20 +137,19 @@ impl Projection {
     /// image averages pixels `factor·i .. factor·i + factor - 1`). With centres at integer
     /// coordinates, `u_small = (u + 0.5) / factor - 0.5`.
     pub fn downscaled(&self, factor: u32) -> Projection {
-        let s = 1.0 / factor as f64;
-        let off = 0.5 * s - 0.5;
-        let a = Matrix3::new(s, 0.0, off, 0.0, s, off, 0.0, 0.0, 1.0);
-        Projection {
-            p: a * self.p,
-            center: self.center,
-        }
+        self.scaled(1.0 / factor as f64)
     }
 
     /// The same camera for an image enlarged by an integer `factor` (pixel `j` of the large
     /// image centred at `(j + 0.5) / factor - 0.5` of this one, the inverse of
     /// [`Projection::downscaled`]): `u_large = factor·(u + 0.5) - 0.5`.
     pub fn upscaled(&self, factor: u32) -> Projection {
-        let s = factor as f64;
+        self.scaled(factor as f64)
+    }
+
+    /// The same camera for its image resampled by `s` about pixel centres at integers:
+    /// `u' = s·(u + 0.5) - 0.5`.
+    fn scaled(&self, s: f64) -> Projection {
         let off = 0.5 * s - 0.5;
         let a = Matrix3::new(s, 0.0, off, 0.0, s, off, 0.0, 0.0, 1.0);
         Projection {

@@ -1034,11 +1034,13 @@ pub fn align(
     if opts.enlargement(cameras) == 2 {
         let cams: Vec<Camera> = cameras.iter().map(|c| c.enlarged(2)).collect();
         let imgs: Vec<RgbImage> = images.par_iter().map(RgbImage::enlarged2).collect();
+        // A level count given keeps its coarsest level's scale (one more level, within the 8
+        // that `validate` allows: given 8, the coarsest is then twice as fine).
         let inner = AlignOptions {
             enlarge: 1,
             levels: match opts.levels {
                 0 => 0,
-                l => l + 1,
+                l => (l + 1).min(8),
             },
             ..*opts
         };
