@@ -121,6 +121,13 @@ pub struct TrackArgs {
     /// shutter). 0 compares the images as they are. Default: the scene's (0 where it gives none).
     #[arg(long, value_name = "FRACTION")]
     pub shutter: Option<f64>,
+    /// Sticky edges (the thesis' §8.4.3): follow the mesh's outline against the background from
+    /// frame to frame, each point along it weighed as this many template pixels per pixel of
+    /// outline (0 = off, the default; 0 to 100). For a closed object against a plain
+    /// background whose top or sides no camera faces; 1 is the setting measured
+    /// (docs/tracker.md, "Sticky edges").
+    #[arg(long, value_name = "WEIGHT", default_value_t = TrackOptions::default().sticky_edges)]
+    pub sticky_edges: f64,
     /// Keep template pixels that another part of the mesh hides in the frame being solved (an
     /// arm in front of the body, a fold turned over); by default they are left out, judged
     /// from the mesh where each pyramid level starts.
@@ -253,6 +260,7 @@ impl TrackArgs {
             approach_decrease: self.approach_decrease,
             lent_anchor: self.lent_anchor,
             shutter: self.shutter,
+            sticky_edges: self.sticky_edges,
             hidden_ahead: !self.keep_hidden,
             still_occluders: !self.keep_near_occluders,
             onto_surface: !self.keep_shape,

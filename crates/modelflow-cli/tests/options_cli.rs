@@ -54,6 +54,8 @@ fn track_options_out_of_range_are_refused_by_name() {
         ("--min-decrease", "NaN", "[0, 1)"),
         ("--approach-decrease", "1", "[0, 1)"),
         ("--lent-anchor", "11", "[0, 10]"),
+        ("--sticky-edges", "-0.5", "[0, 100]"),
+        ("--sticky-edges", "NaN", "[0, 100]"),
         ("--shutter", "1.5", "[0, 1]"),
         ("--shutter", "NaN", "[0, 1]"),
         ("--max-iterations", "0", "[1, 10000]"),

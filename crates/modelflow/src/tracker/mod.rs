@@ -24,6 +24,7 @@ pub(crate) mod outline;
 pub(crate) mod patch;
 pub(crate) mod pyramid;
 pub(crate) mod regularise;
+pub(crate) mod rim;
 pub(crate) mod sequence;
 mod shift;
 mod shot;

@@ -129,6 +129,12 @@ pub struct TrackOptions {
     /// solved are compared under the smear their motions give both (`tracker::smear`).
     #[serde(default)]
     pub shutter: Option<f64>,
+    /// Weight of the sticky edges (`tracker::rim`, the thesis' §8.4.3): the mesh's outline
+    /// against the background followed from the frame before, each point along it counting as
+    /// this many template pixels per pixel of outline. 0 = off: the default, and runs made
+    /// before it existed.
+    #[serde(default)]
+    pub sticky_edges: f64,
 }
 
 fn default_consensus() -> f64 {
@@ -170,6 +176,7 @@ impl Default for TrackOptions {
             steady_cameras: true,
             shift_cameras: true,
             shutter: None,
+            sticky_edges: 0.0,
         }
     }
 }
@@ -264,6 +271,13 @@ impl TrackOptions {
                 low: (0.0, true),
                 high: (100.0, true),
                 why: "",
+            },
+            Range {
+                option: "--sticky-edges",
+                value: self.sticky_edges,
+                low: (0.0, true),
+                high: (100.0, true),
+                why: "template pixels per pixel of outline; 0 = off",
             },
             Range {
                 option: "--consensus",

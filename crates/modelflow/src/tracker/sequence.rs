@@ -31,6 +31,7 @@ use crate::tracker::options::{OptionsUsed, TrackOptions};
 use crate::tracker::patch::{CameraPatches, Patch, PatchOptions, PatchSet};
 use crate::tracker::pyramid::{camera_level, level_skips, Pyramid};
 use crate::tracker::regularise::{self, EdgeSet, FrameContext, Regulariser};
+use crate::tracker::rim;
 use crate::tracker::shift::CameraShifts;
 use crate::tracker::smear::{self, Velocities};
 use crate::tracker::solve::{
@@ -309,6 +310,8 @@ pub struct Tracker {
     /// The mesh's edges: the normal equations' block pattern.
     pattern: Vec<[u32; 2]>,
     regularisers: Vec<Box<dyn Regulariser>>,
+    /// The edges that can be rims (`rim`).
+    rim_edges: Vec<rim::RimEdge>,
     two_sided: bool,
     cancel: Option<Arc<AtomicBool>>,
     /// When set, the solver's per-pixel work runs on this GPU.
@@ -574,6 +577,7 @@ impl Tracker {
             skips,
             pattern: edges.edges.clone(),
             regularisers: regularise::build(mesh, &edges, &opts.regularisation),
+            rim_edges: rim::rim_edges(&mesh.triangles),
             two_sided: !mesh.is_closed(),
             cancel: None,
             gpu: None,
@@ -1835,6 +1839,9 @@ impl Tracker {
             .collect();
         let checked_left_out = next_left_out;
         let next_left_out: Vec<bool> = (0..n).map(|c| checked_left_out[c] || probed[c]).collect();
+        let rim_left_out: Vec<bool> = (0..n)
+            .map(|c| next_left_out[c] || self.prev.left_out.get(c).copied().unwrap_or(false))
+            .collect();
         let prepared = self.in_luminance(prepared);
         let mut next = prepared.pyramids;
         let next_thumbs = prepared.thumbs;
@@ -2009,6 +2016,7 @@ impl Tracker {
             let by_triangle = set.by_triangle();
             out.timing.patches += tp.elapsed().as_secs_f64();
             let input = LevelInput {
+                left_out: &rim_left_out,
                 frame,
                 level,
                 set: &set,
@@ -2548,6 +2556,7 @@ impl Tracker {
             stereo_x0,
             targets,
             lag,
+            left_out,
         } = *input;
         let (levels, finest) = (self.opts.levels, self.opts.finest_level);
         let ts = Instant::now();
@@ -2580,8 +2589,31 @@ impl Tracker {
             },
             ..robust
         };
+        // The outline against the background, followed from the frame before (`rim`; off
+        // unless asked).
+        let rims = (self.opts.sticky_edges > 0.0).then(|| {
+            let n = self.cameras.len();
+            let projections: Vec<Projection> = (0..n)
+                .map(|c| self.projection_at(c, frame, level))
+                .collect();
+            let before_proj: Vec<Projection> = (0..n)
+                .map(|c| self.projection_at(c, self.prev.frame, level))
+                .collect();
+            let before_img: Vec<&RgbImage> = self.images_at(&self.prev.pyramids, level);
+            rim::Rims::find(
+                x,
+                &self.triangles,
+                &self.rim_edges,
+                &projections,
+                &targets[..n],
+                (&self.prev.positions[..], &before_proj[..], &before_img[..]),
+                left_out,
+                self.opts.sticky_edges,
+            )
+        });
         let mut problem = Problem {
             regularisers: &self.regularisers,
+            rims: rims.as_ref(),
             cancel: self.cancel.as_deref(),
             moving_source: stereo_x0,
             // Until a velocity is known the templates are taken as the cameras saw them
@@ -2816,6 +2848,9 @@ struct LevelInput<'a> {
     /// where a shutter is open (`smear`).
     targets: &'a [&'a RgbImage],
     lag: Option<Lag<'a>>,
+    /// Per camera, whether its image of this frame or of the frame before is left out (blank,
+    /// a repeat, probed): its outline is not followed (`rim`).
+    left_out: &'a [bool],
 }
 
 /// What a frame's levels have found so far: the [`FrameReport`]'s figures before the frame's

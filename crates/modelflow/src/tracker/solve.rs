@@ -24,6 +24,7 @@ use crate::base::mesh::{centroid, rms_radius};
 use crate::tracker::gpu::Uploaded;
 use crate::tracker::patch::{Patch, PatchSet, PixelSample};
 use crate::tracker::regularise::Regulariser;
+use crate::tracker::rim::Rims;
 use crate::tracker::sparse::{solve_pcg_until, BlockSparse, CgStop};
 use crate::tracker::warp::{source_matrix, warp_h};
 use nalgebra::{Matrix3, Point3, Vector3};
@@ -204,6 +205,8 @@ pub(crate) struct Problem<'a> {
     /// previous frame's positions: camera `c` sees the surface at `x + δ_c·(x − previous)/gap`.
     /// `None`: every camera on time.
     pub lag: Option<Lag<'a>>,
+    /// The rims held to the outline the images show (`rim`); `None`: no such term.
+    pub rims: Option<&'a Rims>,
 }
 
 impl<'a> Problem<'a> {
@@ -232,6 +235,7 @@ impl<'a> Problem<'a> {
             moving_source: None,
             gauge_floor: 0.0,
             lag: None,
+            rims: None,
         }
     }
 }
@@ -1179,6 +1183,9 @@ impl Problem<'_> {
         for r in self.regularisers {
             cost += r.accumulate(x, sys.as_mut().map(|(a, b)| (&mut **a, &mut b[..])));
         }
+        if let Some(rims) = self.rims {
+            cost += rims.accumulate(x, sys.as_mut().map(|(a, b)| (&mut **a, &mut **b)), inv_n);
+        }
         (cost, pixels, parts, median)
     }
 
@@ -1299,7 +1306,11 @@ impl Problem<'_> {
         // Summed in triangle order: the same bits whatever the thread count.
         let (cost, weight) = parts.iter().fold((0.0, 0.0), |a, b| (a.0 + b.0, a.1 + b.1));
         let photometric = if weight > 0.0 { cost / weight } else { 0.0 };
+        let rims = self.rims.map_or(0.0, |r| {
+            r.accumulate(x, None, 1.0 / self.weighted_pixels().max(1.0))
+        });
         photometric
+            + rims
             + self
                 .regularisers
                 .iter()

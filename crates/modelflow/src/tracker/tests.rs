@@ -930,6 +930,7 @@ fn springs_alone_relax_a_stretched_mesh() {
         moving_source: None,
         gauge_floor: 0.0,
         lag: None,
+        rims: None,
     };
     let opts = SolverOptions {
         max_iterations: 60,
