@@ -7,7 +7,8 @@
 //!
 //! A *rim* is an interior edge between a triangle facing the camera and one facing away whose
 //! outline is against the background: the pixel just inside belongs to a triangle at the edge
-//! and the pixel just beyond shows nothing of the mesh. At the start of each pyramid level,
+//! and the pixel just beyond shows nothing of the mesh; it is followed where that background
+//! was plain in the frame before ([`PLAIN_BEYOND`]). At the start of each pyramid level,
 //! points are taken every [`SPACING_PX`] pixels along every rim of every camera. Each point's
 //! profile across the outline in the frame before (the same material point of the mesh, where
 //! the previous frame's solution put it: from [`INSIDE_PX`] inside to [`OUTSIDE_PX`] beyond,
@@ -43,6 +44,11 @@ const OUTSIDE_PX: f64 = 1.0;
 /// The least change of colour across the outline (RGB norm, image units, over two pixels) for
 /// a profile to hold a point: a surface against a background of its own colour shows none.
 const MIN_CHANGE: f64 = 0.05;
+/// How much (RGB norm, image units) the background may vary from 2.5 to 4.5 pixels beyond the
+/// outline in the frame before (past the tail of the level's smoothing of the outline) for a
+/// point to be followed: a textured background stays where it is while the outline moves over
+/// it, and the match would follow the background.
+const PLAIN_BEYOND: f64 = 0.03;
 
 /// An interior edge of the mesh: its vertices, its two triangles (one runs the edge forward,
 /// the other backward) and their third vertices.
@@ -284,7 +290,8 @@ fn visible(
 /// [`OUTSIDE_PX`] beyond, every half pixel, compared by their summed squared difference,
 /// minimised over [`SEARCH_PX`] either way every quarter pixel and refined by a parabola; with
 /// the profile's change across the outline, per pixel. `None` where the profile shows no
-/// outline ([`MIN_CHANGE`]), leaves an image, or fits best at the range's end.
+/// outline ([`MIN_CHANGE`]), the background beyond it is not plain ([`PLAIN_BEYOND`]), it
+/// leaves an image, or it fits best at the range's end.
 pub(crate) fn matched(
     img: &RgbImage,
     before: &RgbImage,
@@ -298,6 +305,15 @@ pub(crate) fn matched(
     while s <= OUTSIDE_PX + 1e-9 {
         tpl.push((s, value(before, qt[0] + s * m[0], qt[1] + s * m[1])?));
         s += 0.5;
+    }
+    let far = value(before, qt[0] + 4.5 * m[0], qt[1] + 4.5 * m[1])?;
+    for k in [2.5, 3.0, 3.5, 4.0] {
+        let v = value(before, qt[0] + k * m[0], qt[1] + k * m[1])?;
+        let d =
+            ((v[0] - far[0]).powi(2) + (v[1] - far[1]).powi(2) + (v[2] - far[2]).powi(2)).sqrt();
+        if d > PLAIN_BEYOND {
+            return None;
+        }
     }
     let o = value(before, qt[0] + m[0], qt[1] + m[1])?;
     let i = value(before, qt[0] - m[0], qt[1] - m[1])?;
@@ -434,6 +450,32 @@ mod tests {
                 );
             }
         }
+    }
+
+    #[test]
+    fn an_outline_before_a_textured_background_is_not_followed() {
+        let textured = |at: f64| {
+            RgbImage::from_fn(40, 20, |x, y| {
+                let base = edge_image(at).get(x, 0);
+                if (x as f64) > at + 1.0 {
+                    let t = 0.1 * ((x * 7 + y * 3) % 5) as f32;
+                    [base[0] + t, base[1] + t, base[2]]
+                } else {
+                    base
+                }
+            })
+            .blurred(1.0)
+        };
+        let (before, now) = (textured(20.0), textured(20.5));
+        assert!(matched(
+            &now,
+            &before,
+            [20.0, 10.0],
+            [1.0, 0.0],
+            [20.0, 10.0],
+            [1.0, 0.0]
+        )
+        .is_none());
     }
 
     #[test]
