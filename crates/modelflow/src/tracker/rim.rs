@@ -30,13 +30,14 @@
 use crate::base::camera::Projection;
 use crate::base::image::RgbImage;
 use crate::base::raster::{facing_cosines, rasterize, IndexBuffer, NONE};
+use crate::tracker::solve::tukey;
 use crate::tracker::sparse::BlockSparse;
 use nalgebra::{Point2, Point3, Vector2, Vector3};
 
 /// Pixels of the level between two points along a rim's projection.
-pub(crate) const SPACING_PX: f64 = 2.0;
+const SPACING_PX: f64 = 2.0;
 /// How far (pixels of the level) the profile is looked for, either way.
-pub(crate) const SEARCH_PX: f64 = 1.5;
+const SEARCH_PX: f64 = 1.5;
 /// How far inside the outline the profile reaches (pixels of the level).
 const INSIDE_PX: f64 = 2.5;
 /// How far beyond it (what lies behind the surface does not move with it: kept short).
@@ -246,16 +247,6 @@ impl Rims {
             b[ib] -= g * (s * r * wb);
         }
         cost
-    }
-}
-
-/// Tukey's loss `ρ(r²)` with threshold `d2`, and its IRLS weight.
-fn tukey(r2: f64, d2: f64) -> (f64, f64) {
-    if r2 >= d2 {
-        (d2 / 3.0, 0.0)
-    } else {
-        let t = 1.0 - r2 / d2;
-        (d2 / 3.0 * (1.0 - t * t * t), t * t)
     }
 }
 

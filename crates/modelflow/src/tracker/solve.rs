@@ -171,6 +171,18 @@ impl Default for SolverOptions {
     }
 }
 
+/// Tukey's loss `ρ(e²) = δ²/3·(1 − (1 − e²/δ²)³)` below the threshold `d2 = δ²`, `δ²/3` above,
+/// and its IRLS weight `ρ' = (1 − e²/δ²)²` (0 above): the pixels' loss, and the rims' (`rim`).
+#[inline(always)]
+pub(crate) fn tukey(e2: f64, d2: f64) -> (f64, f64) {
+    if e2 >= d2 {
+        (d2 / 3.0, 0.0)
+    } else {
+        let t = 1.0 - e2 / d2;
+        (d2 / 3.0 * (1.0 - t * t * t), t * t)
+    }
+}
+
 /// What the solver needs about one frame pair at one pyramid level.
 #[derive(Clone)]
 pub(crate) struct Problem<'a> {
@@ -918,11 +930,8 @@ impl Problem<'_> {
                         pd2 += d2;
                         if e2 >= d2 {
                             acc.rejected += 1;
-                            (d2 / 3.0, 0.0)
-                        } else {
-                            let t = 1.0 - e2 / d2;
-                            (d2 / 3.0 * (1.0 - t * t * t), t * t)
                         }
+                        tukey(e2, d2)
                     }
                 };
                 pcost += rho;
