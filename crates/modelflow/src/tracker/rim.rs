@@ -51,6 +51,16 @@ const MIN_CHANGE: f64 = 0.05;
 /// it, and the match would follow the background.
 const PLAIN_BEYOND: f64 = 0.03;
 
+/// Samples in a profile: every half pixel from [`INSIDE_PX`] inside to [`OUTSIDE_PX`] beyond.
+const PROFILE: usize = ((INSIDE_PX + OUTSIDE_PX) / 0.5) as usize + 1;
+/// Quarter-pixel offsets tried either way of the outline: [`SEARCH_PX`] of them.
+const STEPS: usize = (SEARCH_PX / 0.25) as usize;
+
+/// Squared RGB distance.
+fn distance2(a: &[f64; 3], b: &[f64; 3]) -> f64 {
+    (a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2) + (a[2] - b[2]).powi(2)
+}
+
 /// An interior edge of the mesh: its vertices, its two triangles (one runs the edge forward,
 /// the other backward) and their third vertices.
 #[derive(Clone, Copy, Debug)]
@@ -291,37 +301,35 @@ pub(crate) fn matched(
     qt: [f64; 2],
     m: [f64; 2],
 ) -> Option<(f64, f64)> {
-    let mut tpl = Vec::new();
-    let mut s = -INSIDE_PX;
-    while s <= OUTSIDE_PX + 1e-9 {
-        tpl.push((s, value(before, qt[0] + s * m[0], qt[1] + s * m[1])?));
-        s += 0.5;
+    // Fixed-size buffers: no allocation per point.
+    let mut tpl = [(0.0f64, [0.0f64; 3]); PROFILE];
+    for (k, slot) in tpl.iter_mut().enumerate() {
+        let s = -INSIDE_PX + 0.5 * k as f64;
+        *slot = (s, value(before, qt[0] + s * m[0], qt[1] + s * m[1])?);
     }
     let far = value(before, qt[0] + 4.5 * m[0], qt[1] + 4.5 * m[1])?;
     for k in [2.5, 3.0, 3.5, 4.0] {
         let v = value(before, qt[0] + k * m[0], qt[1] + k * m[1])?;
-        let d =
-            ((v[0] - far[0]).powi(2) + (v[1] - far[1]).powi(2) + (v[2] - far[2]).powi(2)).sqrt();
-        if d > PLAIN_BEYOND {
+        if distance2(&v, &far).sqrt() > PLAIN_BEYOND {
             return None;
         }
     }
     let o = value(before, qt[0] + m[0], qt[1] + m[1])?;
     let i = value(before, qt[0] - m[0], qt[1] - m[1])?;
-    let change = ((o[0] - i[0]).powi(2) + (o[1] - i[1]).powi(2) + (o[2] - i[2]).powi(2)).sqrt();
+    let change = distance2(&o, &i).sqrt();
     if change < MIN_CHANGE {
         return None;
     }
-    let steps = (SEARCH_PX / 0.25).round() as i32;
-    let mut ssd = Vec::with_capacity(2 * steps as usize + 1);
-    for k in -steps..=steps {
+    let steps = STEPS as i32;
+    let mut ssd = [0.0f64; 2 * STEPS + 1];
+    for (slot, k) in ssd.iter_mut().zip(-steps..=steps) {
         let off = k as f64 * 0.25;
         let mut sum = 0.0;
         for (sp, t) in &tpl {
             let v = value(img, q[0] + (off + sp) * n[0], q[1] + (off + sp) * n[1])?;
-            sum += (v[0] - t[0]).powi(2) + (v[1] - t[1]).powi(2) + (v[2] - t[2]).powi(2);
+            sum += distance2(&v, t);
         }
-        ssd.push(sum);
+        *slot = sum;
     }
     let (at, _) = ssd.iter().enumerate().min_by(|a, b| a.1.total_cmp(b.1))?;
     if at == 0 || at == ssd.len() - 1 {
