@@ -1044,3 +1044,32 @@ fn a_k_made_at_another_resolution_is_named_by_its_principal_point() {
         ],
     );
 }
+
+/// A camera's JPEGs with colour at half resolution (4:2:0, as webcams, phones and most encoders
+/// write them) are loaded with their colour smoothed by [1 2 1]/4 and their luma as decoded
+/// (docs/scene-format.md, "JPEG colour"); `read_rgb` gives the file as decoded.
+#[test]
+fn a_4_2_0_jpegs_colour_is_smoothed_at_load_and_its_luma_kept() {
+    let path = Path::new(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../../fixtures/caliscope-board-sample/scene.json"
+    ));
+    let scene = Scene::load(path).unwrap();
+    let loaded = scene.load_raw_images(scene.first).unwrap();
+    let file = path
+        .parent()
+        .unwrap()
+        .join(format!("images_undist/cam0/{:04}.jpg", scene.first));
+    let decoded = modelflow::input::read_rgb(&file).unwrap();
+    let mut smoothed = decoded.clone();
+    smoothed.smooth_chroma(true, true);
+    assert_eq!(loaded[0].pixels(), smoothed.pixels());
+    let y = |p: &[f32; 3]| 0.299 * p[0] + 0.587 * p[1] + 0.114 * p[2];
+    let (mut luma, mut colour) = (0.0f32, 0.0f32);
+    for (a, b) in loaded[0].pixels().iter().zip(decoded.pixels()) {
+        luma = luma.max((y(a) - y(b)).abs());
+        colour = colour.max((a[0] - b[0]).abs().max((a[2] - b[2]).abs()));
+    }
+    assert!(luma < 1e-5, "the luma moved by {luma}");
+    assert!(colour > 0.01, "the colour was not smoothed ({colour})");
+}

@@ -291,6 +291,45 @@ impl RgbImage {
         }
     }
 
+    /// Smooths the colour (BT.601 Cb and Cr, as JPEG stores it) with the binomial `[1 2 1] / 4`
+    /// along each axis asked for, and keeps the luma as it is: what a file whose chroma was stored
+    /// at half resolution (JPEG 4:2:0 or 4:2:2) holds is the luma's detail, and colour whose
+    /// finest detail the decoder's interpolation made up on the file's pixel grid, different in
+    /// every camera. The filter is zero at the full grid's Nyquist frequency. Since RGB → YCbCr
+    /// is linear, this is the smoothed RGB plus the luma the smoothing took away, in all three
+    /// channels. Borders repeat their edge pixel. (Hand-written: a 3-tap filter on our own type.)
+    pub fn smooth_chroma(&mut self, horizontal: bool, vertical: bool) {
+        let (w, h) = (self.width, self.height);
+        if w == 0 || h == 0 || !(horizontal || vertical) {
+            return;
+        }
+        let luma = |p: [f32; 3]| 0.299 * p[0] + 0.587 * p[1] + 0.114 * p[2];
+        let tap3 = |a: [f32; 3], b: [f32; 3], c: [f32; 3]| {
+            [0, 1, 2].map(|k| 0.25 * a[k] + 0.5 * b[k] + 0.25 * c[k])
+        };
+        let mut smooth = self.data.clone();
+        if horizontal {
+            for (src, dst) in self.data.chunks_exact(w).zip(smooth.chunks_exact_mut(w)) {
+                for (x, out) in dst.iter_mut().enumerate() {
+                    *out = tap3(src[x.saturating_sub(1)], src[x], src[(x + 1).min(w - 1)]);
+                }
+            }
+        }
+        if vertical {
+            let rows = smooth.clone();
+            for (y, dst) in smooth.chunks_exact_mut(w).enumerate() {
+                let (up, down) = (y.saturating_sub(1) * w, (y + 1).min(h - 1) * w);
+                for (x, out) in dst.iter_mut().enumerate() {
+                    *out = tap3(rows[up + x], rows[y * w + x], rows[down + x]);
+                }
+            }
+        }
+        for (p, s) in self.data.iter_mut().zip(&smooth) {
+            let dy = luma(*p) - luma(*s);
+            *p = [s[0] + dy, s[1] + dy, s[2] + dy];
+        }
+    }
+
     /// Whether a bilinear sample at `(u, v)` touches only pixels inside the image.
     #[inline]
     pub fn inside(&self, u: f64, v: f64) -> bool {
@@ -641,6 +680,57 @@ mod tests {
 
     fn ramp() -> RgbImage {
         RgbImage::from_fn(8, 6, |x, y| [x as f32, y as f32, (x + 10 * y) as f32])
+    }
+
+    #[test]
+    fn smoothing_the_chroma_keeps_every_pixels_luma_and_spreads_colour_by_1_2_1() {
+        let y = |p: [f32; 3]| 0.299 * p[0] + 0.587 * p[1] + 0.114 * p[2];
+        // A grey ramp has no colour: nothing changes.
+        let mut grey = RgbImage::from_fn(7, 5, |x, y| [(x + y) as f32 * 0.1; 3]);
+        let before = grey.clone();
+        grey.smooth_chroma(true, true);
+        for (a, b) in grey.pixels().iter().zip(before.pixels()) {
+            for k in 0..3 {
+                assert!((a[k] - b[k]).abs() < 1e-6, "{a:?} vs {b:?}");
+            }
+        }
+        // One red dot on grey: its colour (RGB minus luma) spreads as [1 2 1]/4 along each axis
+        // asked for, the luma of every pixel stays.
+        let dot = |x: usize, y: usize| {
+            if (x, y) == (3, 2) {
+                [0.9, 0.2, 0.2]
+            } else {
+                [0.5; 3]
+            }
+        };
+        let chroma = |p: [f32; 3]| [p[0] - y(p), p[2] - y(p)];
+        let c0 = chroma(dot(3, 2));
+        for (axes, weight) in [
+            ([true, true], [[0.0625, 0.125], [0.125, 0.25]]),
+            ([true, false], [[0.0, 0.0], [0.25, 0.5]]),
+        ] {
+            let mut img = RgbImage::from_fn(7, 5, dot);
+            img.smooth_chroma(axes[0], axes[1]);
+            for j in 0..5 {
+                for i in 0..7 {
+                    let p = img.get(i, j);
+                    assert!((y(p) - y(dot(i, j))).abs() < 1e-6, "luma at ({i}, {j})");
+                    let (di, dj) = (i.abs_diff(3), j.abs_diff(2));
+                    let w = if di <= 1 && dj <= 1 {
+                        weight[1 - dj][1 - di]
+                    } else {
+                        0.0
+                    };
+                    let c = chroma(p);
+                    for k in 0..2 {
+                        assert!(
+                            (c[k] - w * c0[k]).abs() < 1e-6,
+                            "{axes:?} ({i}, {j}): {c:?} vs {w} x {c0:?}"
+                        );
+                    }
+                }
+            }
+        }
     }
 
     #[test]

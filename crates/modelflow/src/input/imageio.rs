@@ -49,28 +49,82 @@ fn open(path: &Path) -> Result<ImageReader<std::io::BufReader<std::fs::File>>> {
         .map_err(|e| Error::io(path, e))
 }
 
-/// Reads an image file as RGB `f32` (see the module doc for the value convention).
-pub fn read_rgb(path: &Path) -> Result<RgbImage> {
-    read_rgb_stored(path).map(|(img, _)| img)
+/// Which axes of a JPEG's colour (its second and third components) are stored at a lower
+/// resolution than its luma: `[horizontal, vertical]`, both for 4:2:0, the first for 4:2:2;
+/// `[false, false]` for 4:4:4, a grey JPEG or a header it cannot read (the decoder then reports
+/// that). Read from the start-of-frame segment's sampling factors. (Hand-written: the decoder
+/// does not report them, and the header is a few bytes.)
+pub(crate) fn jpeg_chroma_subsampling(bytes: &[u8]) -> [bool; 2] {
+    let mut i = 2; // after the start-of-image marker FF D8
+    while i + 4 <= bytes.len() {
+        if bytes[i] != 0xFF {
+            return [false, false];
+        }
+        let marker = bytes[i + 1];
+        if marker == 0xFF {
+            i += 1; // fill byte
+            continue;
+        }
+        let len = u16::from_be_bytes([bytes[i + 2], bytes[i + 3]]) as usize;
+        let is_frame = (0xC0..=0xCF).contains(&marker) && ![0xC4, 0xC8, 0xCC].contains(&marker);
+        if is_frame {
+            // P, Y, X, Nf, then per component: id, H << 4 | V, table.
+            let seg = &bytes[(i + 4).min(bytes.len())..(i + 2 + len).min(bytes.len())];
+            let n = *seg.get(5).unwrap_or(&0) as usize;
+            if n < 3 || seg.len() < 6 + 3 * n {
+                return [false, false];
+            }
+            let hv = |c: usize| (seg[6 + 3 * c + 1] >> 4, seg[6 + 3 * c + 1] & 0x0F);
+            let (hy, vy) = hv(0);
+            let ((hb, vb), (hr, vr)) = (hv(1), hv(2));
+            return [hb.max(hr) < hy, vb.max(vr) < vy];
+        }
+        if marker == 0xDA || len < 2 {
+            return [false, false]; // image data before any frame header: not a JPEG we know
+        }
+        i += 2 + len;
+    }
+    [false, false]
 }
 
-/// [`read_rgb`], and whether the file stored floating-point values (OpenEXR, float TIFF):
-/// those are scene-linear unless the scene says otherwise (`input::transfer`).
-pub(crate) fn read_rgb_stored(path: &Path) -> Result<(RgbImage, bool)> {
+/// Reads an image file as RGB `f32` (see the module doc for the value convention).
+pub fn read_rgb(path: &Path) -> Result<RgbImage> {
+    read_rgb_stored(path).map(|s| s.image)
+}
+
+/// An image file as [`read_rgb`] reads it, and what its format says about its values.
+pub(crate) struct Stored {
+    pub image: RgbImage,
+    /// The file stored floating-point values (OpenEXR, float TIFF): those are scene-linear
+    /// unless the scene says otherwise (`input::transfer`).
+    pub float: bool,
+    /// The colour was stored at half resolution along `[x, y]` (a JPEG's chroma subsampling,
+    /// [`jpeg_chroma_subsampling`]).
+    pub chroma_halved: [bool; 2],
+}
+
+/// [`read_rgb`], with what [`Stored`] says about the file.
+pub(crate) fn read_rgb_stored(path: &Path) -> Result<Stored> {
     crate::fsutil::require_file(path, "image")?;
     let reader = open(path)?;
     if reader.format().is_none() {
         // Not a format `image` knows from its first bytes: DPX, or an error from `image`.
         let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
         if super::dpx::is_dpx(&bytes) {
-            return super::dpx::decode(path, &bytes).map(|img| (img, false));
+            return super::dpx::decode(path, &bytes).map(|image| Stored {
+                image,
+                float: false,
+                chroma_halved: [false, false],
+            });
         }
     }
     let exr = reader.format() == Some(image::ImageFormat::OpenExr);
+    let mut chroma_halved = [false, false];
     let img = if reader.format() == Some(image::ImageFormat::Jpeg) {
         // Read once: checked for completeness, then decoded from memory.
         let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
         check_jpeg_complete(path, &bytes)?;
+        chroma_halved = jpeg_chroma_subsampling(&bytes);
         ImageReader::with_format(std::io::Cursor::new(bytes), image::ImageFormat::Jpeg).decode()
     } else {
         reader.decode()
@@ -133,7 +187,11 @@ pub(crate) fn read_rgb_stored(path: &Path) -> Result<(RgbImage, bool)> {
     let img = RgbImage::from_pixels(w, h, data).ok_or_else(|| {
         Error::invalid(path, "size", "decoded pixel count does not match its size")
     })?;
-    Ok((img, float))
+    Ok(Stored {
+        image: img,
+        float,
+        chroma_halved,
+    })
 }
 
 /// The beauty pass of a multi-layer OpenEXR, as Blender's "OpenEXR MultiLayer" and compositing
@@ -331,6 +389,65 @@ mod tests {
         Image::from_layer(layer).write().to_file(path).unwrap();
     }
 
+    /// A JPEG's first bytes up to its frame header: start of image, an APP0 segment, then a
+    /// start-of-frame `marker` with the components' sampling factors (`H << 4 | V`).
+    fn jpeg_header(marker: u8, factors: &[u8]) -> Vec<u8> {
+        let mut b = vec![0xFF, 0xD8, 0xFF, 0xE0, 0x00, 0x04, b'J', b'F'];
+        let len = 8 + 3 * factors.len() as u16;
+        b.extend([0xFF, marker]);
+        b.extend(len.to_be_bytes());
+        b.extend([8, 0, 16, 0, 16, factors.len() as u8]);
+        for (id, f) in factors.iter().enumerate() {
+            b.extend([id as u8 + 1, *f, 0]);
+        }
+        b
+    }
+
+    #[test]
+    fn a_jpegs_chroma_subsampling_is_read_from_its_frame_header() {
+        // The real webcams' JPEGs (OpenCV's encoder): 4:2:0.
+        let board = concat!(
+            env!("CARGO_MANIFEST_DIR"),
+            "/../../fixtures/caliscope-board-sample/images_undist/cam0/0000.jpg"
+        );
+        let bytes = std::fs::read(board).unwrap();
+        assert_eq!(jpeg_chroma_subsampling(&bytes), [true, true]);
+        let stored = read_rgb_stored(Path::new(board)).unwrap();
+        assert_eq!(stored.chroma_halved, [true, true]);
+        // Baseline and progressive; 4:4:4, 4:2:2, 4:4:0, 4:2:0; a grey JPEG; not a JPEG.
+        assert_eq!(
+            jpeg_chroma_subsampling(&jpeg_header(0xC0, &[0x11, 0x11, 0x11])),
+            [false, false]
+        );
+        assert_eq!(
+            jpeg_chroma_subsampling(&jpeg_header(0xC0, &[0x21, 0x11, 0x11])),
+            [true, false]
+        );
+        assert_eq!(
+            jpeg_chroma_subsampling(&jpeg_header(0xC1, &[0x12, 0x11, 0x11])),
+            [false, true]
+        );
+        assert_eq!(
+            jpeg_chroma_subsampling(&jpeg_header(0xC2, &[0x22, 0x11, 0x11])),
+            [true, true]
+        );
+        assert_eq!(
+            jpeg_chroma_subsampling(&jpeg_header(0xC0, &[0x22])),
+            [false, false]
+        );
+        // A Huffman table segment (C4) is not a frame header; the frame after it is read.
+        let mut b = vec![0xFF, 0xD8, 0xFF, 0xC4, 0x00, 0x03, 0x00];
+        b.extend(&jpeg_header(0xC0, &[0x22, 0x11, 0x11])[2..]);
+        assert_eq!(jpeg_chroma_subsampling(&b), [true, true]);
+        assert_eq!(jpeg_chroma_subsampling(b"\x89PNG\r\n"), [false, false]);
+        assert_eq!(jpeg_chroma_subsampling(&[0xFF, 0xD8, 0xFF]), [false, false]);
+        // PNGs are not touched.
+        let dir = tempfile::tempdir().unwrap();
+        let png = dir.path().join("a.png");
+        write_png(&png, &RgbImage::new(4, 4)).unwrap();
+        assert_eq!(read_rgb_stored(&png).unwrap().chroma_halved, [false, false]);
+    }
+
     #[test]
     fn a_multi_layer_exr_gives_its_beauty_pass() {
         let dir = tempfile::tempdir().unwrap();
@@ -354,7 +471,9 @@ mod tests {
             ],
         );
         assert_eq!(image_size(&path).unwrap(), (8, 4));
-        let (img, float) = read_rgb_stored(&path).unwrap();
+        let Stored {
+            image: img, float, ..
+        } = read_rgb_stored(&path).unwrap();
         assert!(float, "scene-linear, like any float EXR");
         assert_eq!((img.width(), img.height()), (8, 4));
         // Pixel (3, 2) is sample 19.

@@ -1526,8 +1526,9 @@ impl Scene {
             .collect())
     }
 
-    /// The image files of every camera at `frame` as they are (distorted, for a camera with a
-    /// lens).
+    /// The image files of every camera at `frame` on their own pixel grids (distorted, for a
+    /// camera with a lens), a JPEG's half-resolution colour smoothed
+    /// ([`RgbImage::smooth_chroma`]; docs/scene-format.md, "JPEG colour").
     pub fn load_raw_images(&self, frame: u32) -> Result<Vec<RgbImage>> {
         self.check_frame(frame)?;
         self.cameras
@@ -1543,7 +1544,16 @@ impl Scene {
                         let mut r = reader.lock().unwrap_or_else(|e| e.into_inner());
                         (r.frame(n)?, false)
                     }
-                    None => read_rgb_stored(&p)?,
+                    None => {
+                        let stored = read_rgb_stored(&p)?;
+                        let mut img = stored.image;
+                        // Colour stored at half resolution carries no detail finer than
+                        // that; what the decoder interpolated on this camera's grid is
+                        // smoothed away (docs/scene-format.md, "JPEG colour").
+                        let [h, v] = stored.chroma_halved;
+                        img.smooth_chroma(h, v);
+                        (img, stored.float)
+                    }
                 };
                 if pat.transfer.encodes(float) {
                     encode_linear(&mut img);
