@@ -119,8 +119,8 @@ impl BlockMeans {
 /// Which of one frame's images (one per camera) are blank: they show nothing to compare (a
 /// dropped frame written black, a lens cap, a flash that blew the frame out). The tracker leaves
 /// a blank image out of that frame, as template and as target (docs/tracker.md, "Blank
-/// frames"); an image is blank when its [`RgbImage::texture`] is below [`BLANK_TEXTURE`], or
-/// below [`BLANK_SHARE`] of the most textured camera's.
+/// frames"); an image is blank when its [`RgbImage::texture`] is below `BLANK_TEXTURE`, or
+/// below `BLANK_SHARE` of the most textured camera's.
 pub fn blank_images(images: &[RgbImage]) -> Vec<bool> {
     let texture: Vec<f32> = images.iter().map(RgbImage::texture).collect();
     blank_of(&texture)

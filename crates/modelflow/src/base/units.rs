@@ -76,7 +76,7 @@ impl Length {
         self.factor * scene_units
     }
 
-    /// A length in scene units, in the shown unit, written with [`significant`] digits.
+    /// A length in scene units, in the shown unit, written with `significant` digits.
     pub fn show(&self, scene_units: f64) -> String {
         significant(self.value(scene_units))
     }

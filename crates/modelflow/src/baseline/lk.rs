@@ -43,7 +43,7 @@ pub struct LkOptions {
     /// `None` disables the check.
     pub forward_backward: Option<f64>,
     /// Gaussian blur (pixels of each level) applied to every pyramid level before its gradients
-    /// are taken (see [`pyramid`]); 0 uses the images as they are.
+    /// are taken (see `pyramid`); 0 uses the images as they are.
     pub pyramid_sigma: f64,
 }
 

@@ -109,7 +109,7 @@ pub struct EvalReport {
     pub units: Option<Units>,
 }
 
-/// Compares a run (as from [`read_run`]) with the scene's ground truth, frame by frame over all
+/// Compares a run (as from `read_run`) with the scene's ground truth, frame by frame over all
 /// the scene's frames. Every scene frame must be in the run and no other.
 pub fn evaluate(scene: &Scene, run: &[(u32, Mesh)]) -> Result<EvalReport> {
     if scene.ground_truth.is_none() {

@@ -594,7 +594,7 @@ pub struct FirstMeshCheck {
     /// off it pulls the pose), farther off it than `track` would move it onto it
     /// ([`crate::tracker::SurfaceOffset::is_off_within`]: misplaced, not a visual hull), or off
     /// it within that reach where the placement explains the cameras better
-    /// ([`misplaced_instead`]); `None` otherwise or when it cannot tell.
+    /// (`misplaced_instead`); `None` otherwise or when it cannot tell.
     pub placement: Option<Placement>,
 }
 
@@ -621,7 +621,7 @@ impl FirstMeshCheck {
     /// The offset along the normals that `track` moves the mesh by onto the surface
     /// (`offset::moved_onto_surface`): off the surface within its reach
     /// ([`crate::tracker::SurfaceOffset::is_off_within`], `size` the mesh's bounding-box
-    /// diagonal) and not rather misplaced as a whole ([`misplaced_instead`]).
+    /// diagonal) and not rather misplaced as a whole (`misplaced_instead`).
     pub fn off_surface(&self, size: f64) -> Option<&crate::tracker::SurfaceOffset> {
         self.surface
             .as_ref()

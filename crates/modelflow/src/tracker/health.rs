@@ -95,17 +95,17 @@ pub enum Concern {
     /// was, not where it is, and were left out of this frame.
     Repeated { cameras: usize },
     /// `cameras` cameras that repeated a frame agree with the other cameras' previous frame
-    /// better than with this one ([`LATE_RATIO`]): they run a frame late since, and the mesh
+    /// better than with this one (`LATE_RATIO`): they run a frame late since, and the mesh
     /// is pulled toward where it was.
     Late { cameras: usize },
     /// `cameras` cameras whose image of the previous frame agrees with the other cameras' images
-    /// of this one clearly better than their own image of this frame does ([`LATE_RATIO`]):
+    /// of this one clearly better than their own image of this frame does (`LATE_RATIO`):
     /// they dropped a frame and run a frame early since; from this frame on each frame takes
     /// their file for the frame before.
     Early { cameras: usize },
     /// `cameras` cameras taken a frame back since they were found running early are taken as
     /// they are from here: their own files of this frame agree with the other cameras clearly
-    /// better ([`LATE_RATIO`]), or the file they would be taken back to repeats the last (they
+    /// better (`LATE_RATIO`), or the file they would be taken back to repeats the last (they
     /// caught up). The frames since they were taken back are in doubt.
     Rejoined { cameras: usize },
     /// The next frame found `cameras` cameras running a frame early since this one: this frame
@@ -128,7 +128,7 @@ pub enum Concern {
         rise: f64,
         since: u32,
     },
-    /// The solution is `share` of the mesh's size (RMS over the vertices, above [`JUMP_SHARE`])
+    /// The solution is `share` of the mesh's size (RMS over the vertices, above `JUMP_SHARE`)
     /// from where the previous frame's motion carried on would have put it
     /// ([`FrameReport::jump`]): a leap no motion the tracker follows makes in one frame; it
     /// slipped onto something else (after an occluder left, a camera's images came back...).

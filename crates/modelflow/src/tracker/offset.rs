@@ -39,7 +39,7 @@ pub struct SurfaceOffset {
     #[serde(default)]
     pub compared: f64,
     /// The texture of the pixels compared at the best offset over that where the mesh is
-    /// ([`texture`]'s measure): near 0 when moving the mesh there only moves its pixels onto a
+    /// (`texture`'s measure): near 0 when moving the mesh there only moves its pixels onto a
     /// plain background, which every camera sees alike.
     #[serde(default)]
     pub texture_kept: f64,
@@ -89,7 +89,7 @@ impl SurfaceOffset {
         self.is_off_by_images() && self.within_calibration()
     }
 
-    /// Off the surface ([`SurfaceOffset::is_off`]) by at most [`MAX_MOVE`] of the size
+    /// Off the surface ([`SurfaceOffset::is_off`]) by at most `MAX_MOVE` of the size
     /// (bounding-box diagonal) of the mesh checked: what [`moved_onto_surface`] moves onto it.
     /// Farther off, the mesh is not a visual hull outside the surface but misplaced (a blob
     /// turned 5° and moved 3 % of its size read as 142 px outside it, a quarter of its size),
@@ -1031,7 +1031,7 @@ fn moved_onto(
 /// of the range, not more than `OTHER_SIDE_PX` on the other side of the trusted ones' median)
 /// and replaced by the median of the trusted ones in its ring; then filled in and
 /// smoothed over the mesh (vertices no two cameras see take their neighbours'), and applied;
-/// `rounds` times (at least; [`round_levels`]) from the moved mesh, coarse to fine. `found`
+/// `rounds` times (at least; `round_levels`) from the moved mesh, coarse to fine. `found`
 /// ([`surface_offset`]'s result for the mesh, when known): an offset beyond the first round's
 /// reach (more than `REACH_PX` pixels there) is applied to every vertex first, so that the
 /// rounds scan around the surface rather than around a mesh whose neighbourhood compares

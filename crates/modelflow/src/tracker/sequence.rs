@@ -110,7 +110,7 @@ pub struct FrameReport {
     /// `smear::Texture::kept`). Logs written before it existed read as 1.
     #[serde(default = "one")]
     pub information_share: f64,
-    /// The frame may be wrong, by its own report ([`health::own_concerns`]): `contradicted_share`
+    /// The frame may be wrong, by its own report (`health::own_concerns`): `contradicted_share`
     /// rose more than [`health::SUSPECT_RISE`] above `contradicted_at_first` (the cameras
     /// disagree about where the previous frame left the surface, so this frame started from a
     /// doubtful place), or `information_share` is below [`health::INFORMATION_FLOOR`] (the mesh
@@ -129,20 +129,20 @@ pub struct FrameReport {
     pub blank_cameras: Vec<u16>,
     /// The cameras (indices) whose image of this frame repeats their image of the previous frame
     /// solved, over the mesh's window, while another camera's view of the mesh changed
-    /// ([`health::REPEAT_CHANGE`]; a dropped frame filled in by the recorder, a stream that
+    /// (`health::REPEAT_CHANGE`; a dropped frame filled in by the recorder, a stream that
     /// froze): left out of the frame as a blank one is (docs/tracker.md, "Repeated frames").
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub repeated_cameras: Vec<u16>,
     /// The cameras (indices) that repeated a frame and, at this one, agree with the other
     /// cameras' *previous* frame at the previous solution clearly better than with their
-    /// frame at this solution ([`health::LATE_RATIO`]): the camera runs a frame late since the
+    /// frame at this solution (`health::LATE_RATIO`): the camera runs a frame late since the
     /// repeat, and its images pull the mesh back (docs/tracker.md, "Repeated frames").
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub late_cameras: Vec<u16>,
     /// The cameras (indices) found running a frame early (a frame they dropped without
     /// repeating one): their image of the previous frame agreed with the other cameras' images
     /// of this one clearly better than their own image of this frame did
-    /// ([`health::LATE_RATIO`]). From the frame they are found in (solved again) on, each
+    /// (`health::LATE_RATIO`). From the frame they are found in (solved again) on, each
     /// frame takes their file for the frame before as their image of it; listed at each
     /// (docs/tracker.md, "A camera that runs a frame early").
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
@@ -157,20 +157,20 @@ pub struct FrameReport {
     /// RMS change of its 8×8-pixel block means (0–1 luminance) over the window the mesh covered
     /// there (`null`: not measured, e.g. a blank image; and for a camera found early or taken
     /// as it is again at this frame, whose image is not the one after the previous frame's). A
-    /// camera whose change leaps against the others' ([`health::LEAP_RATIO`]) is checked at
+    /// camera whose change leaps against the others' (`health::LEAP_RATIO`) is checked at
     /// the next frame for running early.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub view_changes: Vec<Option<f64>>,
     /// The cameras (indices) taken a frame back since an earlier frame that are taken as they
     /// are again from this frame on: their own file of this frame agrees with the other
-    /// cameras clearly better than the one taken back ([`health::LATE_RATIO`]: the alarm was
+    /// cameras clearly better than the one taken back (`health::LATE_RATIO`: the alarm was
     /// false, or the camera caught up; the frame is solved again without its template), or
     /// the file it would be taken back to repeats the one the previous frame was solved with
     /// while the others moved (it caught up by writing a frame twice). The frames in between
     /// are in doubt.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub rejoined_cameras: Vec<u16>,
-    /// The cameras (indices) whose view leapt at this frame ([`health::growth_of`]): checked at
+    /// The cameras (indices) whose view leapt at this frame (`health::growth_of`): checked at
     /// the next frame for running a frame early (never after a stalled frame, nor a camera
     /// found late).
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
@@ -188,7 +188,7 @@ pub struct FrameReport {
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub colour_readings: Vec<Vec<[f64; 3]>>,
     /// The cameras (indices) found turned at this frame by their view of the background, which
-    /// moved against their first frame's by more than [`steady::MOVED_PX`] from where the
+    /// moved against their first frame's by more than `steady::MOVED_PX` from where the
     /// tracker had them (a knock on a tripod, a slipping mount): the frame is solved with each
     /// one's pose turned to match, and so is every later frame (docs/tracker.md, "A camera that
     /// moves").
@@ -207,7 +207,7 @@ pub struct FrameReport {
     /// RMS over the vertices of its distance from the constant-velocity prediction (the
     /// previous frame's motion carried on, from rest after the given mesh), that is of the
     /// change in velocity, as a share of the previous shape's bounding-box diagonal. Above
-    /// [`health::JUMP_SHARE`] the mesh leapt farther in one frame than anything the tracker can
+    /// `health::JUMP_SHARE` the mesh leapt farther in one frame than anything the tracker can
     /// follow does: it slipped onto something else. 0 for a stalled frame and in logs written
     /// before it existed.
     #[serde(default)]
