@@ -125,6 +125,63 @@ fn frame_accuracy(codec: &str, name: &str) {
     );
 }
 
+/// A 10-bit video (a cinema camera's or a phone's HDR mode) keeps its precision: a grey ramp
+/// from 0.3 to 0.7 over 512 pixels, from 16-bit PNGs encoded as `yuv444p10le`, reads back with
+/// far more than the 103 levels 8 bits would leave, each within 2 of its 1 023 levels; the
+/// same ramp in 8-bit video reads back in steps of 1/255.
+#[test]
+fn a_10_bit_video_is_read_with_its_precision_kept() {
+    if !have_ffmpeg() {
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let ramp = |x: usize| 0.3 + 0.4 * x as f32 / 511.0;
+    for n in 0..3 {
+        let img = RgbImage::from_fn(512, 16, |x, _| [ramp(x); 3]);
+        modelflow::input::write_png16(&dir.path().join(format!("{n:04}.png")), &img).unwrap();
+    }
+    let levels = |video: &Path| {
+        let mut r = VideoReader::open(video).unwrap();
+        let img = r.frame(1).unwrap();
+        let mut worst = 0.0f32;
+        let mut values: Vec<u32> = (0..512)
+            .map(|x| {
+                let v = img.get(x, 8)[1];
+                worst = worst.max((v - ramp(x)).abs());
+                (v * 65535.0).round() as u32
+            })
+            .collect();
+        values.sort_unstable();
+        values.dedup();
+        (r.info().deep, values.len(), worst, img.get(200, 8)[1])
+    };
+    for (pix_fmt, name) in [("yuv444p10le", "deep.mp4"), ("yuv444p", "eight.mp4")] {
+        let st = Command::new("ffmpeg")
+            .args(["-v", "error", "-y", "-framerate", "25", "-i"])
+            .arg(dir.path().join("%04d.png"))
+            .args(["-c:v", "libx264", "-qp", "0", "-pix_fmt", pix_fmt])
+            .arg(dir.path().join(name))
+            .status()
+            .unwrap();
+        if !st.success() {
+            eprintln!("SKIPPED: this FFmpeg's libx264 cannot encode {pix_fmt}");
+            return;
+        }
+    }
+    let (deep, distinct, worst, _) = levels(&dir.path().join("deep.mp4"));
+    assert!(deep, "yuv444p10le is deeper than 8 bits");
+    assert!(distinct > 300, "{distinct} levels over the ramp");
+    assert!(worst < 2.0 / 1023.0, "off by {worst}");
+    let (deep, distinct, worst, v) = levels(&dir.path().join("eight.mp4"));
+    assert!(!deep);
+    assert!(distinct <= 110, "{distinct} levels from 8-bit video");
+    assert!(worst < 2.0 / 255.0, "off by {worst}");
+    assert!(
+        ((v * 255.0).round() - v * 255.0).abs() < 1e-4,
+        "{v} is not a step of 1/255"
+    );
+}
+
 #[test]
 fn footage_from_video_files_is_tracked_like_its_frames() {
     if !have_ffmpeg() {

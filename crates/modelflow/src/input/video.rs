@@ -8,7 +8,8 @@
 //! `n`-th frame the decoder outputs (FFmpeg's `select=gte(n,N)` with pass-through timing, so no
 //! frame is dropped or duplicated to fit a frame rate). A reader keeps one decoder running and
 //! reads frames in order; asking for an earlier frame, or one far ahead, restarts it. Pixels are
-//! 8-bit RGB as FFmpeg converts them, scaled by 1/255 like 8-bit image files.
+//! RGB as FFmpeg converts them: 8-bit, scaled by 1/255 like 8-bit image files, for 8-bit video;
+//! 16-bit, scaled by 1/65535, for video with deeper samples (10-, 12-bit: [`VideoInfo::deep`]).
 
 use crate::base::image::RgbImage;
 use crate::error::{Error, Result};
@@ -33,6 +34,34 @@ pub struct VideoInfo {
     pub height: u32,
     /// Frames in the first video stream (its packets, counted without decoding).
     pub frames: u64,
+    /// Its samples have more than 8 bits (FFmpeg's pixel format, e.g. `yuv420p10le` from a
+    /// cinema camera or a phone's HDR mode, `yuv444p12le`, `rgb48le`): its frames are converted
+    /// to 16-bit RGB and scaled by 1/65535, so that no precision is rounded away; 8-bit video is
+    /// converted to 8-bit RGB and scaled by 1/255.
+    pub deep: bool,
+}
+
+/// Whether FFmpeg's pixel format `name` has more than 8 bits per sample: a bit depth of 9 to 16
+/// in its name (`yuv420p10le`, `gray12be`, `gbrp16le`, `p010le`, `y210le`) or one of the packed
+/// 16-bit RGB formats (`rgb48le`, `bgra64be`, `x2rgb10le`).
+fn deep_pixel_format(name: &str) -> bool {
+    let name = name.trim().trim_end_matches("le").trim_end_matches("be");
+    if [
+        "rgb48", "bgr48", "rgba64", "bgra64", "x2rgb10", "x2bgr10", "p010", "p012", "p016", "p210",
+        "p216", "p410", "p416", "y210", "y212", "v210", "nv20",
+    ]
+    .iter()
+    .any(|f| name.ends_with(f))
+    {
+        return true;
+    }
+    // A planar or grey format's bits per sample end its name, after a `p` (`yuv420p10`,
+    // `gbrap12`) or `gray` / `ya` (`gray10`, `ya16`); other trailing digits are not a depth
+    // (`nv12`, `rgb24`, `yuyv422`).
+    let digits = name.trim_end_matches(|c: char| c.is_ascii_digit());
+    let bits = name[digits.len()..].parse::<u32>().ok();
+    let depth_named = digits.ends_with('p') || digits == "gray" || digits == "ya";
+    depth_named && bits.is_some_and(|b| (9..=16).contains(&b))
 }
 
 fn tool(name: &str, path: &Path) -> Error {
@@ -49,7 +78,7 @@ pub fn probe(path: &Path) -> Result<VideoInfo> {
         .args(["-v", "error", "-select_streams", "v:0", "-count_packets"])
         .args([
             "-show_entries",
-            "stream=width,height,nb_read_packets",
+            "stream=width,height,pix_fmt,nb_read_packets",
             "-of",
             "csv=p=0",
         ])
@@ -63,6 +92,11 @@ pub fn probe(path: &Path) -> Result<VideoInfo> {
         .split(',')
         .filter_map(|s| s.trim().parse().ok())
         .collect();
+    // The one field that is not a number (ffprobe writes the fields in its own order).
+    let deep = text
+        .trim()
+        .split(',')
+        .any(|s| s.trim().parse::<u64>().is_err() && deep_pixel_format(s));
     match (out.status.success(), fields.as_slice()) {
         (true, [w, h, n])
             if *w > 0 && *h > 0 && *n > 0 && *w <= u32::MAX as u64 && *h <= u32::MAX as u64 =>
@@ -71,6 +105,7 @@ pub fn probe(path: &Path) -> Result<VideoInfo> {
                 width: *w as u32,
                 height: *h as u32,
                 frames: *n,
+                deep,
             })
         }
         _ => Err(Error::invalid(
@@ -137,7 +172,7 @@ impl VideoReader {
                 "-f",
                 "rawvideo",
                 "-pix_fmt",
-                "rgb24",
+                if self.info.deep { "rgb48le" } else { "rgb24" },
                 "-",
             ])
             .stdin(Stdio::null())
@@ -178,7 +213,8 @@ impl VideoReader {
             self.start(n)?;
         }
         let (w, h) = (self.info.width as usize, self.info.height as usize);
-        let mut buf = vec![0u8; w * h * 3];
+        let bytes = if self.info.deep { 2 } else { 1 };
+        let mut buf = vec![0u8; w * h * 3 * bytes];
         while self.next <= n {
             let (_, out) = self
                 .decoder
@@ -194,16 +230,19 @@ impl VideoReader {
             }
             self.next += 1;
         }
-        let data = buf
-            .chunks_exact(3)
-            .map(|p| {
-                [
-                    p[0] as f32 / 255.0,
-                    p[1] as f32 / 255.0,
-                    p[2] as f32 / 255.0,
-                ]
-            })
-            .collect();
+        let data = if self.info.deep {
+            buf.chunks_exact(6)
+                .map(|p| {
+                    let c =
+                        |i: usize| u16::from_le_bytes([p[2 * i], p[2 * i + 1]]) as f32 / 65535.0;
+                    [c(0), c(1), c(2)]
+                })
+                .collect()
+        } else {
+            buf.chunks_exact(3)
+                .map(|p| [p[0], p[1], p[2]].map(|c| c as f32 / 255.0))
+                .collect()
+        };
         RgbImage::from_pixels(w, h, data)
             .ok_or_else(|| Error::invalid(&self.path, "video", "frame size mismatch"))
     }
@@ -218,6 +257,34 @@ impl Drop for VideoReader {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn pixel_formats_deeper_than_8_bits_are_told_by_their_name() {
+        for deep in [
+            "yuv420p10le",
+            "yuv422p10be",
+            "yuv444p12le",
+            "yuv420p16le",
+            "gray10le",
+            "gbrp12le",
+            "yuva444p10le",
+            "p010le",
+            "p016be",
+            "y210le",
+            "rgb48le",
+            "bgra64be",
+            "x2rgb10le",
+            "yuv420p9le",
+        ] {
+            assert!(deep_pixel_format(deep), "{deep}");
+        }
+        for eight in [
+            "yuv420p", "yuvj420p", "yuv422p", "yuv444p", "nv12", "nv21", "rgb24", "bgr0", "gray",
+            "yuyv422", "uyvy422", "gbrp", "yuva420p", "pal8", "nv16", "nv24", "",
+        ] {
+            assert!(!deep_pixel_format(eight), "{eight}");
+        }
+    }
 
     #[test]
     fn video_files_are_told_by_their_extension() {
