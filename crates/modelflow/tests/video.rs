@@ -182,6 +182,93 @@ fn a_10_bit_video_is_read_with_its_precision_kept() {
     );
 }
 
+/// A phone's video stored sideways with a display rotation of 90°: read at the size it is shown
+/// at, as FFmpeg and players show it (its pixels the stored frame's turned a quarter, not the
+/// stored bytes laid out at the wrong width), and a camera declared at the stored size is
+/// refused at load with the turn named.
+#[test]
+fn a_video_stored_turned_is_read_as_shown_and_a_camera_of_its_stored_size_refused() {
+    if !have_ffmpeg() {
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    // 64×48, a different colour in each quadrant.
+    let quadrant = |x: usize, y: usize| match (x < 32, y < 24) {
+        (true, true) => [0.9, 0.1, 0.1],
+        (false, true) => [0.1, 0.9, 0.1],
+        (true, false) => [0.1, 0.1, 0.9],
+        (false, false) => [0.9, 0.9, 0.1],
+    };
+    for n in 0..3 {
+        let img = RgbImage::from_fn(64, 48, quadrant);
+        write_png(&dir.path().join(format!("{n:04}.png")), &img).unwrap();
+    }
+    let plain = dir.path().join("plain.mp4");
+    encode(dir.path(), &plain, 10);
+    // FFmpeg 5 writes the turn from a `rotate` tag, FFmpeg 6 and later from -display_rotation.
+    let turned = dir.path().join("turned.mp4");
+    let tries: [&[&str]; 2] = [
+        &[
+            "-i",
+            "plain.mp4",
+            "-c",
+            "copy",
+            "-metadata:s:v:0",
+            "rotate=90",
+        ],
+        &[
+            "-display_rotation:v:0",
+            "90",
+            "-i",
+            "plain.mp4",
+            "-c",
+            "copy",
+        ],
+    ];
+    let made = tries.iter().any(|args| {
+        Command::new("ffmpeg")
+            .current_dir(dir.path())
+            .args(["-v", "error", "-y"])
+            .args(*args)
+            .arg(&turned)
+            .status()
+            .is_ok_and(|s| s.success())
+            && probe(&turned).is_ok_and(|i| i.rotation != 0)
+    });
+    if !made {
+        eprintln!("SKIPPED: this FFmpeg cannot write a display rotation to make the test footage");
+        return;
+    }
+    let info = probe(&turned).unwrap();
+    assert_eq!((info.width, info.height, info.rotation % 180), (48, 64, 90));
+    let img = VideoReader::open(&turned).unwrap().frame(1).unwrap();
+    assert_eq!((img.width(), img.height()), (48, 64));
+    // Shown turned a quarter either way: each quadrant's colour where the turn takes it.
+    let near = |a: [f32; 3], b: [f32; 3]| (0..3).all(|k| (a[k] - b[k]).abs() < 0.1);
+    let clockwise = |x: usize, y: usize| quadrant(y, 47 - x);
+    let anticlockwise = |x: usize, y: usize| quadrant(63 - y, x);
+    let probes = [(10, 10), (38, 10), (10, 54), (38, 54)];
+    let as_turned = |f: &dyn Fn(usize, usize) -> [f32; 3]| {
+        probes.iter().all(|&(x, y)| near(img.get(x, y), f(x, y)))
+    };
+    assert!(
+        as_turned(&clockwise) || as_turned(&anticlockwise),
+        "not the stored frame turned: {:?}",
+        probes.map(|(x, y)| img.get(x, y))
+    );
+    // A camera declared at the stored 64×48 is refused, naming the turn.
+    let (path, mut file) = common::write_scene(dir.path());
+    file.cameras[0].width = 64;
+    file.cameras[0].height = 48;
+    file.cameras[0].images = turned.to_string_lossy().into_owned();
+    file.write(&path).unwrap();
+    let e = Scene::load(&path).unwrap_err().to_string();
+    assert!(
+        e.contains("cameras[0].images") && e.contains("is 48x64") && e.contains("turns it by"),
+        "{e}"
+    );
+}
+
 #[test]
 fn footage_from_video_files_is_tracked_like_its_frames() {
     if !have_ffmpeg() {

@@ -1382,12 +1382,20 @@ impl Scene {
                     path,
                     field,
                     format!(
-                        "{} is {}x{}, but the camera is declared {}x{}",
+                        "{} is {}x{}, but the camera is declared {}x{}{}",
                         p.display(),
                         info.width,
                         info.height,
                         cam.width,
-                        cam.height
+                        cam.height,
+                        if info.rotation != 0 {
+                            format!(
+                                " (the video is stored turned: its display matrix turns it by {}°, which FFmpeg and players apply; the camera's size and calibration must be those of the frames as shown)",
+                                info.rotation
+                            )
+                        } else {
+                            String::new()
+                        }
                     ),
                 ));
             }

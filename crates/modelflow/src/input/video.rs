@@ -10,6 +10,8 @@
 //! reads frames in order; asking for an earlier frame, or one far ahead, restarts it. Pixels are
 //! RGB as FFmpeg converts them: 8-bit, scaled by 1/255 like 8-bit image files, for 8-bit video;
 //! 16-bit, scaled by 1/65535, for video with deeper samples (10-, 12-bit: [`VideoInfo::deep`]).
+//! A video stored turned (a display rotation) is read turned, as FFmpeg and players show it, at
+//! the size it is shown at ([`VideoInfo::rotation`]).
 
 use crate::base::image::RgbImage;
 use crate::error::{Error, Result};
@@ -39,6 +41,10 @@ pub struct VideoInfo {
     /// to 16-bit RGB and scaled by 1/65535, so that no precision is rounded away; 8-bit video is
     /// converted to 8-bit RGB and scaled by 1/255.
     pub deep: bool,
+    /// The turn its display matrix asks for (0, 90, 180 or 270 degrees, as `ffprobe` reports
+    /// it), which FFmpeg applies when it decodes, as players do: `width` and `height` are the
+    /// size after it.
+    pub rotation: u32,
 }
 
 /// Whether FFmpeg's pixel format `name` has more than 8 bits per sample: a bit depth of 9 to 16
@@ -72,43 +78,26 @@ fn tool(name: &str, path: &Path) -> Error {
     )
 }
 
-/// Size and frame count of a video's first video stream (`ffprobe`).
+/// Size, frame count and sample depth of a video's first video stream (`ffprobe`). The size is
+/// the one the video is shown at, which FFmpeg decodes it to: a phone's video stored sideways with
+/// a rotation of ±90° in its display matrix (or an older `rotate` tag) has its stored width and
+/// height swapped, so that a camera declared at the stored size is refused rather than read
+/// garbled.
 pub fn probe(path: &Path) -> Result<VideoInfo> {
     let out = Command::new("ffprobe")
         .args(["-v", "error", "-select_streams", "v:0", "-count_packets"])
         .args([
             "-show_entries",
-            "stream=width,height,pix_fmt,nb_read_packets",
+            "stream=width,height,pix_fmt,nb_read_packets:stream_tags=rotate:stream_side_data=rotation",
             "-of",
-            "csv=p=0",
+            "json",
         ])
         .arg(path)
         .stdin(Stdio::null())
         .output()
         .map_err(|_| tool("ffprobe", path))?;
-    let text = String::from_utf8_lossy(&out.stdout);
-    let fields: Vec<u64> = text
-        .trim()
-        .split(',')
-        .filter_map(|s| s.trim().parse().ok())
-        .collect();
-    // The one field that is not a number (ffprobe writes the fields in its own order).
-    let deep = text
-        .trim()
-        .split(',')
-        .any(|s| s.trim().parse::<u64>().is_err() && deep_pixel_format(s));
-    match (out.status.success(), fields.as_slice()) {
-        (true, [w, h, n])
-            if *w > 0 && *h > 0 && *n > 0 && *w <= u32::MAX as u64 && *h <= u32::MAX as u64 =>
-        {
-            Ok(VideoInfo {
-                width: *w as u32,
-                height: *h as u32,
-                frames: *n,
-                deep,
-            })
-        }
-        _ => Err(Error::invalid(
+    let unreadable = || {
+        Error::invalid(
             path,
             "video",
             format!(
@@ -119,8 +108,43 @@ pub fn probe(path: &Path) -> Result<VideoInfo> {
                     .next()
                     .unwrap_or("no video stream")
             ),
-        )),
+        )
+    };
+    if !out.status.success() {
+        return Err(unreadable());
     }
+    let json: serde_json::Value = serde_json::from_slice(&out.stdout).map_err(|_| unreadable())?;
+    let stream = &json["streams"][0];
+    // ffprobe writes some numbers as JSON numbers and others (the packet count, tags) as strings.
+    let number = |v: &serde_json::Value| -> Option<f64> {
+        v.as_f64()
+            .or_else(|| v.as_str().and_then(|s| s.trim().parse().ok()))
+    };
+    let whole = |v: &serde_json::Value| {
+        number(v).filter(|&x| x >= 1.0 && x <= u32::MAX as f64 && x.fract() == 0.0)
+    };
+    let (Some(w), Some(h), Some(n)) = (
+        whole(&stream["width"]),
+        whole(&stream["height"]),
+        whole(&stream["nb_read_packets"]),
+    ) else {
+        return Err(unreadable());
+    };
+    let rotation = stream["side_data_list"]
+        .as_array()
+        .and_then(|list| list.iter().find_map(|d| number(&d["rotation"])))
+        .or_else(|| number(&stream["tags"]["rotate"]))
+        .unwrap_or(0.0);
+    let rotation = ((rotation / 90.0).round() as i64).rem_euclid(4) as u32 * 90;
+    let sideways = rotation % 180 == 90;
+    let (width, height) = if sideways { (h, w) } else { (w, h) };
+    Ok(VideoInfo {
+        width: width as u32,
+        height: height as u32,
+        frames: n as u64,
+        deep: stream["pix_fmt"].as_str().is_some_and(deep_pixel_format),
+        rotation,
+    })
 }
 
 /// Frames after the decoder's position that are read through rather than restarting it.
