@@ -47,9 +47,10 @@ impl MemoryArgs {
 
 /// Says on stderr which cameras see none of the mesh at the scene's first frame, and why
 /// (`Scene::blind_cameras`), when the mesh is far too small or large in the images
-/// (`Scene::mesh_out_of_scale`), and which cameras' principal points lie far from their images'
-/// centres (`Scene::off_centre_principal_points`): a calibration in another convention, unit
-/// or resolution loads, and would otherwise be tracked past in silence.
+/// (`Scene::mesh_out_of_scale`), which cameras' principal points lie far from their images'
+/// centres (`Scene::off_centre_principal_points`), and which cameras' image files ask to be
+/// shown turned (`Scene::turned_images`): a calibration in another convention, unit,
+/// resolution or orientation loads, and would otherwise be tracked past in silence.
 pub fn warn_calibration(scene: &Scene) {
     if let Some(m) = scene.mesh_out_of_scale() {
         eprintln!("warning: {m} (docs/scene-format.md, \"Convention\").");
@@ -61,6 +62,9 @@ pub fn warn_calibration(scene: &Scene) {
     }
     for o in scene.off_centre_principal_points() {
         eprintln!("warning: {o} (docs/scene-format.md, \"Convention\").");
+    }
+    for t in scene.turned_images() {
+        eprintln!("warning: {t} (docs/scene-format.md, \"Files\").");
     }
 }
 

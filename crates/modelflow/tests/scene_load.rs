@@ -1073,3 +1073,82 @@ fn a_4_2_0_jpegs_colour_is_smoothed_at_load_and_its_luma_kept() {
     assert!(luma < 1e-5, "the luma moved by {luma}");
     assert!(colour > 0.01, "the colour was not smoothed ({colour})");
 }
+
+/// `bytes` (a JPEG) with an EXIF segment saying `orientation` (1–8) inserted after its
+/// start-of-image marker, as a phone writes one: TIFF little-endian, one IFD entry (0x0112).
+fn with_exif_orientation(bytes: &[u8], orientation: u8) -> Vec<u8> {
+    let mut app1 = vec![0xFF, 0xE1, 0x00, 34];
+    app1.extend(b"Exif\0\0");
+    app1.extend([0x49, 0x49, 0x2A, 0x00, 0x08, 0x00, 0x00, 0x00]);
+    app1.extend([0x01, 0x00]);
+    app1.extend([
+        0x12,
+        0x01,
+        0x03,
+        0x00,
+        0x01,
+        0x00,
+        0x00,
+        0x00,
+        orientation,
+        0,
+        0,
+        0,
+    ]);
+    app1.extend([0x00; 4]);
+    let mut out = bytes[..2].to_vec();
+    out.extend(app1);
+    out.extend(&bytes[2..]);
+    out
+}
+
+/// JPEGs whose EXIF orientation asks viewers to turn them (a phone shot held upright): the
+/// scene names the camera and the turn, and the pixels are read as stored.
+#[test]
+fn image_files_that_ask_to_be_shown_turned_are_named_and_read_as_stored() {
+    let dir = tempfile::tempdir().unwrap();
+    let (path, mut file) = write_scene(dir.path());
+    assert!(Scene::load(&path).unwrap().turned_images().is_empty());
+    for f in file.frames.first..=file.frames.last {
+        let png = dir.path().join(format!("images/cam1/{f:04}.png"));
+        let img = modelflow::input::read_rgb(&png).unwrap();
+        let jpg = dir.path().join(format!("images/cam1/{f:04}.jpg"));
+        modelflow::input::write_jpeg(&jpg, &img, 95).unwrap();
+        let bytes = std::fs::read(&jpg).unwrap();
+        std::fs::write(&jpg, with_exif_orientation(&bytes, 3)).unwrap();
+    }
+    file.cameras[1].images = "images/cam1/{frame:04}.jpg".into();
+    file.write(&path).unwrap();
+    let scene = Scene::load(&path).unwrap();
+    let turned = scene.turned_images();
+    assert_eq!(turned.len(), 1, "{turned:?}");
+    let msg = turned[0].to_string();
+    assert_names(
+        &msg,
+        &["camera cam1", "0000.jpg", "turned 180°", "as stored"],
+    );
+    // Read as stored: the same pixels as the file without the EXIF segment.
+    let stored = modelflow::input::read_rgb(&dir.path().join("images/cam1/0000.jpg")).unwrap();
+    let plain = dir.path().join("plain.jpg");
+    let bytes = std::fs::read(dir.path().join("images/cam1/0000.jpg")).unwrap();
+    std::fs::write(&plain, [&bytes[..2], &bytes[2 + 36..]].concat()).unwrap();
+    assert_eq!(
+        stored.pixels(),
+        modelflow::input::read_rgb(&plain).unwrap().pixels()
+    );
+    // The EXIF values are told apart.
+    let base = [&bytes[..2], &bytes[2 + 36..]].concat();
+    for (value, words) in [
+        (1, None),
+        (6, Some("90° clockwise")),
+        (8, Some("90° anticlockwise")),
+        (2, Some("mirrored")),
+    ] {
+        std::fs::write(&plain, with_exif_orientation(&base, value)).unwrap();
+        let got = modelflow::input::image_orientation(&plain);
+        match words {
+            None => assert_eq!(got, None),
+            Some(w) => assert!(got.is_some_and(|g| g.contains(w)), "{value}: {got:?}"),
+        }
+    }
+}

@@ -87,6 +87,26 @@ pub(crate) fn jpeg_chroma_subsampling(bytes: &[u8]) -> [bool; 2] {
     [false, false]
 }
 
+/// The turn an image file's metadata (EXIF `Orientation`, as phones and cameras write it in JPEG
+/// and TIFF) asks viewers to apply, in words (`"turned 90° clockwise"`), or `None` for none, a
+/// format without it, or a file it cannot read (loading it names that). modelflow reads the
+/// pixels as stored and does not apply it ([`read_rgb`]).
+pub fn image_orientation(path: &Path) -> Option<&'static str> {
+    use image::metadata::Orientation as O;
+    use image::ImageDecoder;
+    let mut decoder = open(path).ok()?.into_decoder().ok()?;
+    match decoder.orientation().ok()? {
+        O::NoTransforms => None,
+        O::Rotate90 => Some("turned 90° clockwise"),
+        O::Rotate180 => Some("turned 180°"),
+        O::Rotate270 => Some("turned 90° anticlockwise"),
+        O::FlipHorizontal => Some("mirrored left to right"),
+        O::FlipVertical => Some("mirrored top to bottom"),
+        O::Rotate90FlipH => Some("turned 90° clockwise and mirrored"),
+        O::Rotate270FlipH => Some("turned 90° anticlockwise and mirrored"),
+    }
+}
+
 /// Reads an image file as RGB `f32` (see the module doc for the value convention).
 pub fn read_rgb(path: &Path) -> Result<RgbImage> {
     read_rgb_stored(path).map(|s| s.image)

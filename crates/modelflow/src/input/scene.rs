@@ -191,6 +191,29 @@ impl Scene {
         off_centre_principal_points(&self.cameras, self.first)
     }
 
+    /// The cameras whose image file at the first frame asks viewers to turn or mirror it (its
+    /// EXIF orientation: a phone's or a camera's JPEG shot upright). modelflow reads the pixels as
+    /// stored, as PIL's `Image.open` does; OpenCV's `imread` and photo viewers turn them, and a
+    /// calibration made on those does not fit the stored pixels (turned 180°, even the size
+    /// agrees).
+    pub fn turned_images(&self) -> Vec<TurnedImages> {
+        self.cameras
+            .iter()
+            .zip(&self.images)
+            .enumerate()
+            .filter(|(_, (_, pat))| !pat.video)
+            .filter_map(|(index, (cam, pat))| {
+                let file = pat.path(self.first);
+                crate::input::imageio::image_orientation(&file).map(|turn| TurnedImages {
+                    index,
+                    name: cam.name.clone(),
+                    file,
+                    turn,
+                })
+            })
+            .collect()
+    }
+
     /// The mesh's size in the images at the first frame when it is too small to track or many
     /// times the images ([`mesh_out_of_scale`]): a mesh in another unit than the calibration.
     pub fn mesh_out_of_scale(&self) -> Option<MeshOutOfScale> {
@@ -1161,6 +1184,33 @@ pub fn mesh_out_of_scale(cameras: &[Camera], frame: u32, mesh: &Mesh) -> Option<
 /// footage's (a camera calibrated from 1920×1080 stills and filmed at 1280×720) puts it a
 /// quarter of the image off or more.
 pub const PRINCIPAL_POINT_OFF: f64 = 0.2;
+
+/// A camera whose image files ask viewers to turn or mirror them ([`Scene::turned_images`]).
+#[derive(Clone, Debug, PartialEq)]
+pub struct TurnedImages {
+    pub index: usize,
+    pub name: String,
+    /// The first frame's file.
+    pub file: PathBuf,
+    /// The turn, in words (`"turned 90° clockwise"`).
+    pub turn: &'static str,
+}
+
+impl std::fmt::Display for TurnedImages {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(
+            f,
+            "camera {}: {} asks viewers to show it {} (its EXIF orientation). modelflow reads the \
+             pixels as stored, as PIL does, not as OpenCV's imread and photo viewers show them: \
+             the camera's size and calibration must be those of the stored pixels. If the \
+             calibration was made on the images as shown, write the frames turned first (e.g. \
+             ImageMagick's `mogrify -auto-orient`)",
+            self.name,
+            self.file.display(),
+            self.turn
+        )
+    }
+}
 
 /// A camera whose principal point lies far from its image's centre
 /// ([`off_centre_principal_points`]).
