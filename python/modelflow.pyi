@@ -224,6 +224,12 @@ def off_centre_principal_points(scene: Scene) -> List[Dict[str, Any]]:
     [{"camera": name, "index": int, "cx": float, "cy": float, "message": str}] (the message names
     the likely cause, a K made at another resolution, and the scale to apply)."""
 
+def turned_images(scene: Scene) -> List[Dict[str, Any]]:
+    """The cameras whose image file at the first frame asks viewers to turn or mirror it (its EXIF
+    orientation: a phone's JPEG shot upright): [{"camera": name, "index": int, "file": str,
+    "turn": str, "message": str}]. modelflow reads the pixels as stored (as PIL does), so a
+    calibration made on the images as shown does not fit them. Empty when none does."""
+
 def mesh_out_of_scale(scene: Scene) -> Optional[Dict[str, Any]]:
     """The mesh's size in the images at the first frame when it is under 8 px or over 10 times
     the images' diagonal: {"pixels": float, "image": float, "message": str}; None otherwise.

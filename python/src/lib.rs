@@ -765,6 +765,24 @@ fn off_centre_principal_points<'py>(
     Ok(out)
 }
 
+/// The cameras whose image file at the first frame asks viewers to turn or mirror it (its EXIF
+/// orientation: a phone's JPEG shot upright), as a list of dicts: "camera", "index", "file",
+/// "turn" (in words) and "message". modelflow reads the pixels as stored. Empty when none does.
+#[pyfunction]
+fn turned_images<'py>(py: Python<'py>, scene: &Scene) -> PyResult<Bound<'py, PyList>> {
+    let out = PyList::empty(py);
+    for t in scene.inner.turned_images() {
+        let d = PyDict::new(py);
+        d.set_item("camera", &t.name)?;
+        d.set_item("index", t.index)?;
+        d.set_item("file", t.file.to_string_lossy())?;
+        d.set_item("turn", t.turn)?;
+        d.set_item("message", t.to_string())?;
+        out.append(d)?;
+    }
+    Ok(out)
+}
+
 /// The mesh's size in the images at the scene's first frame when it is too small to track
 /// (under 8 px) or many times the images (over 10 times their diagonal), as a dict: "pixels"
 /// (the projected vertices' bounding-box diagonal, median over the cameras), "image" (the
@@ -916,6 +934,7 @@ fn modelflow_py(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(blind_cameras, m)?)?;
     m.add_function(wrap_pyfunction!(mesh_out_of_scale, m)?)?;
     m.add_function(wrap_pyfunction!(off_centre_principal_points, m)?)?;
+    m.add_function(wrap_pyfunction!(turned_images, m)?)?;
     m.add_function(wrap_pyfunction!(first_mesh_check, m)?)?;
     m.add_function(wrap_pyfunction!(align, m)?)?;
     m.add_function(wrap_pyfunction!(import_calibration, m)?)?;

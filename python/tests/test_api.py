@@ -236,6 +236,31 @@ def test_a_camera_in_another_convention_is_named_by_blind_cameras(tmp_path):
     assert "negate the second and third rows of its R" in blind[0]["message"]
 
 
+def test_jpegs_that_ask_to_be_shown_turned_are_named_by_turned_images(tmp_path):
+    import json
+    assert modelflow.turned_images(modelflow.Scene.load(SCENE)) == []
+    # The real board's camera 0 frames with an EXIF orientation of 3 (turned 180°) added.
+    board = ROOT / "fixtures" / "caliscope-board-sample" / "scene.json"
+    scene = json.loads(board.read_text())
+    scene["mesh"] = str(board.parent / scene["mesh"])
+    scene.pop("ground_truth", None)
+    for c in scene["cameras"]:
+        c["images"] = str(board.parent / c["images"])
+    exif = (b"\xff\xe1\x00\x22Exif\x00\x00II*\x00\x08\x00\x00\x00\x01\x00"
+            b"\x12\x01\x03\x00\x01\x00\x00\x00\x03\x00\x00\x00\x00\x00\x00\x00")
+    (tmp_path / "cam0").mkdir()
+    for f in range(scene["frames"]["first"], scene["frames"]["last"] + 1):
+        src = scene["cameras"][0]["images"].replace("{frame:04}", f"{f:04}")
+        data = open(src, "rb").read()
+        (tmp_path / "cam0" / f"{f:04}.jpg").write_bytes(data[:2] + exif + data[2:])
+    scene["cameras"][0]["images"] = str(tmp_path / "cam0" / "{frame:04}.jpg")
+    path = tmp_path / "scene.json"
+    path.write_text(json.dumps(scene))
+    turned = modelflow.turned_images(modelflow.Scene.load(path))
+    assert [(t["camera"], t["index"], t["turn"]) for t in turned] == [("cam0", 0, "turned 180°")]
+    assert "as stored" in turned[0]["message"]
+
+
 def test_a_mesh_in_another_unit_is_named_by_mesh_out_of_scale(tmp_path):
     import json
     assert modelflow.mesh_out_of_scale(modelflow.Scene.load(SCENE)) is None
