@@ -307,26 +307,27 @@ impl RgbImage {
         let tap3 = |a: [f32; 3], b: [f32; 3], c: [f32; 3]| {
             [0, 1, 2].map(|k| 0.25 * a[k] + 0.5 * b[k] + 0.25 * c[k])
         };
-        let mut smooth = self.data.clone();
+        // The horizontal pass into one buffer; the vertical pass (or the buffer itself) and the
+        // luma put back written straight into the image, row by row.
+        let mut rows = self.data.clone();
         if horizontal {
-            for (src, dst) in self.data.chunks_exact(w).zip(smooth.chunks_exact_mut(w)) {
+            for (src, dst) in self.data.chunks_exact(w).zip(rows.chunks_exact_mut(w)) {
                 for (x, out) in dst.iter_mut().enumerate() {
                     *out = tap3(src[x.saturating_sub(1)], src[x], src[(x + 1).min(w - 1)]);
                 }
             }
         }
-        if vertical {
-            let rows = smooth.clone();
-            for (y, dst) in smooth.chunks_exact_mut(w).enumerate() {
-                let (up, down) = (y.saturating_sub(1) * w, (y + 1).min(h - 1) * w);
-                for (x, out) in dst.iter_mut().enumerate() {
-                    *out = tap3(rows[up + x], rows[y * w + x], rows[down + x]);
-                }
+        for (y, dst) in self.data.chunks_exact_mut(w).enumerate() {
+            let (up, down) = (y.saturating_sub(1) * w, (y + 1).min(h - 1) * w);
+            for (x, p) in dst.iter_mut().enumerate() {
+                let s = if vertical {
+                    tap3(rows[up + x], rows[y * w + x], rows[down + x])
+                } else {
+                    rows[y * w + x]
+                };
+                let dy = luma(*p) - luma(s);
+                *p = [s[0] + dy, s[1] + dy, s[2] + dy];
             }
-        }
-        for (p, s) in self.data.iter_mut().zip(&smooth) {
-            let dy = luma(*p) - luma(*s);
-            *p = [s[0] + dy, s[1] + dy, s[2] + dy];
         }
     }
 
