@@ -49,6 +49,9 @@ const LUMA: [f64; 3] = [0.2126, 0.7152, 0.0722];
 /// shows there (an open surface's back, which no facing test leaves out, read the front's
 /// colours as a change of balance once an object had turned far enough: the `synth` irregular
 /// preset turned 4° a frame read up to 80 % more blue in one camera and ended 3 % off).
+///
+/// Also returns, per camera read, that index buffer: the next frame's finest template views the
+/// same mesh through the same camera and takes it rather than rasterising it again.
 pub(crate) fn change(
     anchor: &PatchSet,
     triangles: &[[u32; 3]],
@@ -57,7 +60,7 @@ pub(crate) fn change(
     images: &[&RgbImage],
     skip: &[bool],
     two_sided: bool,
-) -> Vec<Option<[f64; 3]>> {
+) -> (Vec<Option<[f64; 3]>>, Vec<Option<IndexBuffer>>) {
     // Per camera: (ratio per channel, pixels read) of each group read, and the group being
     // summed: consecutive patches (neighbouring triangles, mostly) until it holds `GROUP`
     // pixels, so that small triangles count together and a large one alone.
@@ -151,7 +154,7 @@ pub(crate) fn change(
             flush(s, r);
         }
     }
-    reads
+    let changes = reads
         .into_iter()
         .map(|r| {
             if r.iter().map(|(_, n)| n).sum::<usize>() < MIN_TOTAL {
@@ -163,7 +166,11 @@ pub(crate) fn change(
             let luma: f64 = (0..3).map(|k| LUMA[k] * d[k]).sum();
             (luma > 0.0 && d.iter().all(|v| v.is_finite() && *v > 0.0)).then(|| d.map(|v| v / luma))
         })
-        .collect()
+        .collect();
+    (
+        changes,
+        views.into_iter().map(|v| v.map(|(ib, _)| ib)).collect(),
+    )
 }
 
 /// How many of a camera's latest readings its balance is the median of: a white balance moves

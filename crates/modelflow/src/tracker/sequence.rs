@@ -287,6 +287,11 @@ struct Template {
     left_out: Vec<bool>,
     /// Per camera, its image's block means (whether the next frame's image repeats it).
     thumbs: Vec<BlockMeans>,
+    /// Per camera, the index buffer of `positions` in its full-resolution image, where the
+    /// colour balance rasterised it after the solve (`balance::change`); empty otherwise. The
+    /// finest template takes it instead of rasterising the same view again. Whatever changes
+    /// `positions` makes a new `Template` or clears it.
+    buffers: Vec<Option<IndexBuffer>>,
 }
 
 /// The first frame as the anchor's smear needs it (`Tracker::first`).
@@ -593,6 +598,7 @@ impl Tracker {
                 frame,
                 left_out: blank.clone(),
                 thumbs,
+                buffers: Vec::new(),
             },
             before_prev: None,
             before_frame: frame,
@@ -699,6 +705,7 @@ impl Tracker {
     pub fn set_positions(&mut self, positions: Vec<Point3<f64>>) -> Result<()> {
         self.check_positions(&positions)?;
         self.prev.positions = self.merged(positions);
+        self.prev.buffers.clear();
         self.before_prev = None;
         self.sync_given();
         Ok(())
@@ -794,6 +801,7 @@ impl Tracker {
             frame,
             left_out,
             thumbs: prepared.thumbs,
+            buffers: Vec::new(),
         };
         self.before_prev = before;
         self.before_frame = frame.saturating_sub(1);
@@ -1187,7 +1195,7 @@ impl Tracker {
         let projections: Vec<Projection> =
             self.cameras.iter().map(|c| c.at(frame).clone()).collect();
         let images: Vec<&RgbImage> = self.prev.pyramids.iter().map(|p| &p.levels[0]).collect();
-        let change = balance::change(
+        let (change, buffers) = balance::change(
             anchor,
             &self.triangles,
             &self.prev.positions,
@@ -1196,6 +1204,14 @@ impl Tracker {
             &self.prev.left_out,
             self.two_sided,
         );
+        // Kept for the next frame's finest template where that is the same view: the camera's
+        // full-resolution image (`image_at` at level 0 is another for a camera whose pyramid
+        // skips levels).
+        self.prev.buffers = buffers
+            .into_iter()
+            .enumerate()
+            .map(|(c, b)| b.filter(|_| self.skips.get(c).copied().unwrap_or(0) == 0))
+            .collect();
         if self.balance.is_empty() {
             self.balance = vec![[1.0; 3]; self.cameras.len()];
             self.readings = vec![Vec::new(); self.cameras.len()];
@@ -1502,16 +1518,28 @@ impl Tracker {
                         .collect(),
                     _ => std::borrow::Cow::Borrowed(&tpl.positions),
                 };
+                // The colour balance's view of the same positions, camera and image, if it made
+                // one (`Template::buffers`).
+                let image = self.image_at(&tpl.pyramids[c], c, level);
+                let made = match (&seen, tpl.buffers.get(c)) {
+                    (std::borrow::Cow::Borrowed(_), Some(Some(b)))
+                        if self.camera_level(c, level) == 0
+                            && (b.width, b.height) == (image.width(), image.height()) =>
+                    {
+                        Some(b)
+                    }
+                    _ => None,
+                };
                 CameraPatches::new(
                     &seen,
                     &self.triangles,
                     &proj,
-                    self.image_at(&tpl.pyramids[c], c, level),
+                    image,
                     c as u16,
                     weight,
                     &popts,
                     None,
-                    None,
+                    made,
                 )
             })
             .collect();
@@ -2227,6 +2255,7 @@ impl Tracker {
                     frame,
                     left_out: next_left_out,
                     thumbs: next_thumbs,
+                    buffers: Vec::new(),
                 },
             );
             if let Some(first) = self.first.as_mut().filter(|f| f.velocity.is_none()) {
