@@ -1,10 +1,12 @@
-"""Imports modelflow's glTF, PC2 and MDD exports into Blender (the `bpy` package) and checks the
-vertex positions Blender evaluates at the first, middle and last frame against the run folder's
-OBJs (within 1e-6 of the run's largest coordinate; the files hold 32-bit floats).
+"""Imports modelflow's Alembic, glTF, PC2 and MDD exports into Blender (the `bpy` package) and
+checks the vertex positions Blender evaluates at the first, middle and last frame against the run
+folder's OBJs (within 1e-6 of the run's largest coordinate; the files hold 32-bit floats); for
+Alembic also the faces (each the OBJ's, corner for corner: Alembic winds them the other way and the
+importer turns them back) and, where the OBJ has them, the texture coordinates per corner.
 
-    python tools/check_blender.py RUN_DIR STEM      # reads STEM.glb, STEM.pc2, STEM.mdd, STEM.obj
+    python tools/check_blender.py RUN_DIR STEM      # reads STEM.abc, STEM.glb, STEM.pc2, STEM.mdd, STEM.obj
 
-The glTF importer turns glTF's +Y up into Blender's +Z up: (x, y, z) -> (x, -z, y); the OBJ is
+The Alembic and glTF importers turn +Y up into Blender's +Z up: (x, y, z) -> (x, -z, y); the OBJ is
 imported with forward Y, up Z so that its coordinates stay as they are. `tools/check_blender.sh`
 makes the environment and runs this on a tracked run.
 """
@@ -75,6 +77,35 @@ def check_glb(run, stem, fps, frames, scale):
     return out
 
 
+def check_abc(run, stem, fps, frames, scale):
+    reset()
+    bpy.context.scene.render.fps = int(fps)
+    bpy.ops.wm.alembic_import(filepath=stem + ".abc", as_background_job=False)
+    obj = [o for o in bpy.context.scene.objects if o.type == "MESH"][0]
+    first = run[frames[0]]
+    faces, at = [], 0
+    for n in first["fc"]:
+        faces.append(first["fv"][at:at + n])
+        at += n
+    polygons = [list(p.vertices) for p in obj.data.polygons]
+    if polygons != faces:
+        return [("faces", f"{len(polygons)} polygons, not the OBJ's {len(faces)} faces in order", False)]
+    out = [("faces", 0.0, True)]
+    if first["vt"] and all(t is not None for t in first["ft"]):
+        if not obj.data.uv_layers:
+            return out + [("uv", "no UV layer", False)]
+        uv = obj.data.uv_layers[0].data
+        got = [tuple(uv[i].uv) for p in obj.data.polygons for i in p.loop_indices]
+        w, ok = close(got, [first["vt"][t] for t in first["ft"]], 1.0)
+        out.append(("uv", w, ok))
+    # Frame f is at f / fps seconds: Blender's frame f at the same rate.
+    for f in sorted({frames[0], frames[len(frames) // 2], frames[-1]}):
+        want = [(x, -z, y) for (x, y, z) in run[f]["v"]]
+        w, ok = close(evaluated(obj, f), want, scale)
+        out.append((f, w, ok))
+    return out
+
+
 def _fcurves(action):
     if hasattr(action, "fcurves") and len(action.fcurves):
         return action.fcurves
@@ -98,6 +129,7 @@ def main():
     frames = list(run)
     scale = scale_of(run[frames[0]]["v"])
     results = {
+        "abc": check_abc(run, stem, fps, frames, scale),
         "glb": check_glb(run, stem, fps, frames, scale),
         "pc2": check_cache(run, stem, "pc2", fps, frames, scale),
         "mdd": check_cache(run, stem, "mdd", fps, frames, scale),

@@ -483,14 +483,14 @@ fn frames_to_check<'py>(
 }
 
 /// Writes a run folder as one animated file for a 3D package; the format comes from `out`'s
-/// extension (.usda, .glb, .pc2, .mdd). Returns the files written. A USD export whose run's
+/// extension (.usda, .abc, .glb, .pc2, .mdd). Returns the files written. A USD export whose run's
 /// scene file cannot be read holds the mesh without the cameras and warns why (`UserWarning`).
 #[pyfunction]
 #[pyo3(signature = (run, out, fps=24.0))]
 fn export(py: Python<'_>, run: PathBuf, out: PathBuf, fps: f64) -> PyResult<Vec<PathBuf>> {
     let format = mf::export::ExportFormat::from_path(&out).ok_or_else(|| {
         ModelflowError::new_err(format!(
-            "{}: give a file ending in .usda, .glb, .pc2 or .mdd",
+            "{}: give a file ending in .usda, .abc, .glb, .pc2 or .mdd",
             out.display()
         ))
     })?;

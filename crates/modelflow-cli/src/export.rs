@@ -1,5 +1,5 @@
-//! `modelflow export`: one run folder becomes one animated file for a 3D package (USD, glTF, PC2
-//! or MDD); the writing is the library's (`export`).
+//! `modelflow export`: one run folder becomes one animated file for a 3D package (USD, Alembic,
+//! glTF, PC2 or MDD); the writing is the library's (`export`).
 
 use modelflow::base::Units;
 use modelflow::export::{export_run, ExportFormat, ExportOptions};
@@ -9,6 +9,8 @@ use std::path::PathBuf;
 pub enum Format {
     /// USD text: one Mesh prim, points as time samples, UVs and normals as primvars.
     Usda,
+    /// Alembic (Ogawa): one PolyMesh under an Xform, points sampled at every frame, UVs.
+    Abc,
     /// Binary glTF 2.0: the first frame's mesh, one morph target per frame, an animation.
     Glb,
     /// PC2 point cache, with the first frame's mesh as OBJ beside it.
@@ -25,7 +27,7 @@ pub struct Args {
     /// The file to write (replaced if it exists; written under a temporary name, then renamed).
     #[arg(long)]
     out: PathBuf,
-    /// The format (default: from --out's extension: .usda, .glb, .pc2, .mdd).
+    /// The format (default: from --out's extension: .usda, .abc, .glb, .pc2, .mdd).
     #[arg(long, value_enum)]
     format: Option<Format>,
     /// Frames per second of the footage: the animation's time codes (above 0, at most 1000).
@@ -40,12 +42,13 @@ pub struct Args {
 pub fn run(args: Args) -> anyhow::Result<()> {
     let format = match args.format {
         Some(Format::Usda) => ExportFormat::Usda,
+        Some(Format::Abc) => ExportFormat::Abc,
         Some(Format::Glb) => ExportFormat::Glb,
         Some(Format::Pc2) => ExportFormat::Pc2,
         Some(Format::Mdd) => ExportFormat::Mdd,
         None => ExportFormat::from_path(&args.out).ok_or_else(|| {
             anyhow::anyhow!(
-                "--out {}: give --format, or a file ending in .usda, .glb, .pc2 or .mdd",
+                "--out {}: give --format, or a file ending in .usda, .abc, .glb, .pc2 or .mdd",
                 args.out.display()
             )
         })?,

@@ -236,7 +236,7 @@ fn track_keeps_the_input_meshes_uvs_and_normals() {
         .output()
         .unwrap();
     assert_eq!(o.status.code(), Some(1));
-    assert!(String::from_utf8_lossy(&o.stderr).contains(".usda, .glb, .pc2 or .mdd"));
+    assert!(String::from_utf8_lossy(&o.stderr).contains(".usda, .abc, .glb, .pc2 or .mdd"));
 }
 
 /// `track` on synthetic footage of `preset` seen by `cameras` cameras (two frames): its stderr.

@@ -1,13 +1,15 @@
 //! Results out, for the users' 3D packages: a tracked run (one OBJ per frame, as
-//! `run::read_run` reads it) becomes one animated file, USD (`.usda`), glTF 2.0 (`.glb`, morph
-//! targets), or a PC2 / MDD point cache with the first frame's mesh as OBJ beside it. Topology,
+//! `run::read_run` reads it) becomes one animated file, USD (`.usda`), Alembic (`.abc`), glTF 2.0
+//! (`.glb`, morph targets), or a PC2 / MDD point cache with the first frame's mesh as OBJ beside
+//! it. Topology,
 //! texture coordinates and normals come from the run's first frame, positions from every frame.
-//! The file formats are written by hand (no maintained Rust crate writes USD or point caches;
+//! The file formats are written by hand (no maintained Rust crate writes USD, Alembic or point caches;
 //! glTF's JSON is small enough to build with `serde_json`), each atomically. USD also carries
 //! the scene's cameras ([`ExportCamera`]: their projections, as pinhole cameras), so the mesh
 //! can be looked at through them over the footage. This module knows nothing of images or
 //! tracking.
 
+mod alembic;
 mod cache;
 mod gltf;
 mod usd;
@@ -24,6 +26,8 @@ use std::path::{Path, PathBuf};
 pub enum ExportFormat {
     /// USD text (`.usda`): one Mesh prim, points as time samples.
     Usda,
+    /// Alembic (`.abc`, Ogawa): one PolyMesh under an Xform, points sampled at every frame.
+    Abc,
     /// Binary glTF 2.0 (`.glb`): the first frame's mesh, one morph target per frame and an
     /// animation that plays them.
     Glb,
@@ -34,8 +38,9 @@ pub enum ExportFormat {
 }
 
 impl ExportFormat {
-    pub const ALL: [ExportFormat; 4] = [
+    pub const ALL: [ExportFormat; 5] = [
         ExportFormat::Usda,
+        ExportFormat::Abc,
         ExportFormat::Glb,
         ExportFormat::Pc2,
         ExportFormat::Mdd,
@@ -45,6 +50,7 @@ impl ExportFormat {
     pub fn extension(self) -> &'static str {
         match self {
             ExportFormat::Usda => "usda",
+            ExportFormat::Abc => "abc",
             ExportFormat::Glb => "glb",
             ExportFormat::Pc2 => "pc2",
             ExportFormat::Mdd => "mdd",
@@ -208,6 +214,10 @@ pub fn export_with_cameras(
         ExportFormat::Usda => {
             let text = usd::usda(frames, confidence, cameras, opts);
             write_atomic_with(out, |w| std::io::Write::write_all(w, text.as_bytes()))?;
+        }
+        ExportFormat::Abc => {
+            let bytes = alembic::abc(frames, opts.fps);
+            write_atomic_with(out, |w| std::io::Write::write_all(w, &bytes))?;
         }
         ExportFormat::Glb => {
             let bytes = gltf::glb(frames, opts)?;

@@ -127,3 +127,319 @@ fn glb_reads_back_with_the_gltf_crate() {
     };
     assert_eq!(times, vec![0.0, 1.0 / 24.0, 2.0 / 24.0, 3.0 / 24.0]);
 }
+
+/// The Alembic subset the exporter writes, read back by the Alembic library's own rules (its
+/// `Ogawa` groups and data, `AbcCoreOgawa`'s archive layout, object headers ending in 32 bytes of
+/// hashes, property headers' bit fields): what a reader needs the file to hold. Blender's importer
+/// reads the same files in `tools/check_blender.sh` (docs/export.md).
+mod abc_reader {
+    pub const DATA: u64 = 1 << 63;
+
+    pub struct File<'a>(pub &'a [u8]);
+
+    #[derive(Debug)]
+    pub struct Prop {
+        pub name: String,
+        pub metadata: String,
+        /// 0 compound, 1 scalar, 2 array (3: an array whose samples hold one value each).
+        pub kind: u32,
+        pub pod: u32,
+        pub extent: u32,
+        pub samples: u32,
+        pub sampling: u32,
+        pub group: u64,
+    }
+
+    impl<'a> File<'a> {
+        fn u64_at(&self, at: usize) -> u64 {
+            u64::from_le_bytes(self.0[at..at + 8].try_into().unwrap())
+        }
+        pub fn root(&self) -> u64 {
+            assert_eq!(&self.0[..5], b"Ogawa");
+            assert_eq!(self.0[5], 0xff, "not frozen");
+            assert_eq!(&self.0[6..8], &[0, 1]);
+            self.u64_at(8)
+        }
+        pub fn children(&self, group: u64) -> Vec<u64> {
+            assert_eq!(group & DATA, 0, "a data child where a group belongs");
+            if group == 0 {
+                return Vec::new();
+            }
+            let n = self.u64_at(group as usize) as usize;
+            (0..n)
+                .map(|i| self.u64_at(group as usize + 8 * (i + 1)))
+                .collect()
+        }
+        pub fn data(&self, child: u64) -> &'a [u8] {
+            assert_ne!(child & DATA, 0, "a group where data belongs");
+            let pos = (child & !DATA) as usize;
+            if pos == 0 {
+                return &[];
+            }
+            let n = self.u64_at(pos) as usize;
+            &self.0[pos + 8..pos + 8 + n]
+        }
+        /// An object's children: (name, metadata, group).
+        pub fn objects(&self, object: u64) -> Vec<(String, String, u64)> {
+            let ch = self.children(object);
+            let headers = self.data(*ch.last().unwrap());
+            assert!(headers.len() >= 32, "no hashes after the object headers");
+            let h = &headers[..headers.len() - 32];
+            let (mut at, mut out) = (0, Vec::new());
+            while at < h.len() {
+                let n = u32::from_le_bytes(h[at..at + 4].try_into().unwrap()) as usize;
+                let name = String::from_utf8(h[at + 4..at + 4 + n].to_vec()).unwrap();
+                at += 4 + n;
+                assert_eq!(h[at], 0xff, "metadata inline");
+                let m = u32::from_le_bytes(h[at + 1..at + 5].try_into().unwrap()) as usize;
+                let meta = String::from_utf8(h[at + 5..at + 5 + m].to_vec()).unwrap();
+                at += 5 + m;
+                out.push((name, meta, ch[out.len() + 1]));
+            }
+            assert_eq!(out.len() + 2, ch.len());
+            out
+        }
+        /// A compound's properties.
+        pub fn props(&self, compound: u64) -> Vec<Prop> {
+            let ch = self.children(compound);
+            let Some(last) = ch.last() else {
+                return Vec::new();
+            };
+            let h = self.data(*last);
+            let (mut at, mut out) = (0, Vec::new());
+            while at < h.len() {
+                let info = u32::from_le_bytes(h[at..at + 4].try_into().unwrap());
+                at += 4;
+                let hint = (info >> 2) & 3;
+                // A count in 1, 2 or 4 bytes, as the header's size hint says.
+                let get = |at: &mut usize| {
+                    let (v, n) = match hint {
+                        0 => (h[*at] as u32, 1),
+                        1 => (u16::from_le_bytes([h[*at], h[*at + 1]]) as u32, 2),
+                        _ => (u32::from_le_bytes(h[*at..*at + 4].try_into().unwrap()), 4),
+                    };
+                    *at += n;
+                    v
+                };
+                let kind = info & 3;
+                let (mut samples, mut sampling) = (0, 0);
+                if kind != 0 {
+                    samples = get(&mut at);
+                    if info & 0x200 != 0 {
+                        let (_first, _last) = (get(&mut at), get(&mut at));
+                    }
+                    if info & 0x100 != 0 {
+                        sampling = get(&mut at);
+                    }
+                }
+                let n = get(&mut at) as usize;
+                let name = String::from_utf8(h[at..at + n].to_vec()).unwrap();
+                at += n;
+                let meta_index = (info >> 20) & 0xff;
+                let metadata = if meta_index == 0xff {
+                    let m = get(&mut at) as usize;
+                    let s = String::from_utf8(h[at..at + m].to_vec()).unwrap();
+                    at += m;
+                    s
+                } else {
+                    assert_eq!(meta_index, 0, "no indexed metadata but the empty one");
+                    String::new()
+                };
+                out.push(Prop {
+                    name,
+                    metadata,
+                    kind,
+                    pod: (info >> 4) & 0xf,
+                    extent: (info >> 12) & 0xff,
+                    samples,
+                    sampling,
+                    group: ch[out.len()],
+                });
+            }
+            assert_eq!(out.len() + 1, ch.len());
+            out
+        }
+        /// Sample `i` of an array or scalar property: its values, after the 16-byte key.
+        pub fn sample(&self, p: &Prop, i: usize) -> &'a [u8] {
+            let ch = self.children(p.group);
+            let step = if p.kind >= 2 { 2 } else { 1 };
+            if p.kind >= 2 {
+                assert_eq!(ch[step * i + 1], DATA, "rank-1 dimensions are empty");
+            }
+            let d = self.data(ch[step * i]);
+            use sha2::Digest;
+            assert_eq!(&d[..16], &sha2::Sha256::digest(&d[16..])[..16]);
+            &d[16..]
+        }
+    }
+}
+
+fn f32s(b: &[u8]) -> Vec<f32> {
+    b.chunks(4)
+        .map(|c| f32::from_le_bytes(c.try_into().unwrap()))
+        .collect()
+}
+
+fn f64s(b: &[u8]) -> Vec<f64> {
+    b.chunks(8)
+        .map(|c| f64::from_le_bytes(c.try_into().unwrap()))
+        .collect()
+}
+
+#[test]
+fn alembic_holds_the_meshes_topology_uvs_and_times_where_readers_look() {
+    use abc_reader::File;
+    let dir = tempfile::tempdir().unwrap();
+    let fr = frames(3);
+    let out = dir.path().join("t.abc");
+    assert_eq!(ExportFormat::from_path(&out), Some(ExportFormat::Abc));
+    let s = export(&fr, &[], ExportFormat::Abc, &out, &ExportOptions::default()).unwrap();
+    assert_eq!((s.frames, s.vertices, s.triangles), (3, 6, 4));
+    let bytes = std::fs::read(&out).unwrap();
+    let f = File(&bytes);
+    let root = f.children(f.root());
+    assert_eq!(root.len(), 6);
+    assert_eq!(f.data(root[0]), &0i32.to_le_bytes());
+    assert!(i32::from_le_bytes(f.data(root[1]).try_into().unwrap()) >= 9999);
+    assert!(String::from_utf8_lossy(f.data(root[3])).contains("_ai_AlembicVersion="));
+    assert!(f.data(root[5]).is_empty());
+    // Sampling 0 (the identity: one sample a second from 0), then the frames' (3 samples,
+    // uniform, 1/24 s apart from frame 10): each its most samples, time per cycle, stored times.
+    let ts = f.data(root[4]);
+    assert_eq!(ts.len(), 24 + 24);
+    assert_eq!(f64s(&ts[4..12]), vec![1.0]);
+    assert_eq!(&ts[24..28], &3u32.to_le_bytes());
+    assert_eq!(f64s(&ts[28..36]), vec![1.0 / 24.0]);
+    assert_eq!(&ts[36..40], &1u32.to_le_bytes());
+    assert_eq!(f64s(&ts[40..48]), vec![10.0 / 24.0]);
+
+    let top = f.objects(root[2]);
+    assert_eq!(top.len(), 1);
+    assert_eq!(top[0].0, "tracked");
+    assert!(top[0].1.contains("schemaObjTitle=AbcGeom_Xform_v3:.xform"));
+    let mesh = f.objects(top[0].2);
+    assert_eq!(mesh[0].0, "mesh");
+    assert!(mesh[0]
+        .1
+        .contains("schemaObjTitle=AbcGeom_PolyMesh_v1:.geom"));
+    let props = f.props(f.children(mesh[0].2)[0]);
+    assert_eq!(props.len(), 1);
+    assert_eq!((props[0].name.as_str(), props[0].kind), (".geom", 0));
+    assert!(props[0].metadata.contains("schema=AbcGeom_PolyMesh_v1"));
+    let geom = f.props(props[0].group);
+    let by = |n: &str| geom.iter().find(|p| p.name == n).unwrap();
+
+    // Points: every frame, float32 × 3, at sampling 1.
+    let p = by("P");
+    assert_eq!(
+        (p.kind, p.pod, p.extent, p.samples, p.sampling),
+        (2, 10, 3, 3, 1)
+    );
+    assert!(p.metadata.contains("interpretation=point"));
+    for (i, (_, m)) in fr.iter().enumerate() {
+        let want: Vec<f32> = m
+            .positions
+            .iter()
+            .flat_map(|q| [q.x as f32, q.y as f32, q.z as f32])
+            .collect();
+        assert_eq!(f32s(f.sample(p, i)), want, "frame {i}");
+    }
+    // Faces: each triangle's corners reversed (Alembic winds clockwise), once.
+    let idx = by(".faceIndices");
+    assert_eq!((idx.kind, idx.pod, idx.samples), (2, 6, 1));
+    let got: Vec<i32> = f
+        .sample(idx, 0)
+        .chunks(4)
+        .map(|c| i32::from_le_bytes(c.try_into().unwrap()))
+        .collect();
+    let want: Vec<i32> = fr[0]
+        .1
+        .triangles
+        .iter()
+        .flat_map(|t| [t[2] as i32, t[1] as i32, t[0] as i32])
+        .collect();
+    assert_eq!(got, want);
+    let counts = by(".faceCounts");
+    assert_eq!(f.sample(counts, 0), &[3, 0, 0, 0].repeat(4)[..]);
+    // UVs per corner, in the same reversed order.
+    let uv = by("uv");
+    assert!(uv.metadata.contains("geoScope=fvr"));
+    let uvs = fr[0].1.uvs.as_ref().unwrap();
+    let want: Vec<f32> = fr[0]
+        .1
+        .triangles
+        .iter()
+        .flat_map(|t| [t[2], t[1], t[0]])
+        .flat_map(|v| [uvs[v as usize][0] as f32, uvs[v as usize][1] as f32])
+        .collect();
+    assert_eq!(f32s(f.sample(uv, 0)), want);
+    // Bounds per frame, as float64.
+    let b = by(".selfBnds");
+    assert_eq!((b.kind, b.pod, b.extent, b.samples), (1, 11, 6, 3));
+    assert_eq!(f64s(f.sample(b, 2)), vec![0.5, 0.0, -1.0, 1.5, 1.0, -1.0]);
+
+    // Uneven frames: each sampled at its own time (acyclic).
+    let uneven = vec![fr[0].clone(), fr[2].clone(), (15, fr[1].1.clone())];
+    export(
+        &uneven,
+        &[],
+        ExportFormat::Abc,
+        &out,
+        &ExportOptions::default(),
+    )
+    .unwrap();
+    let bytes = std::fs::read(&out).unwrap();
+    let f = File(&bytes);
+    let ts = f.data(f.children(f.root())[4]);
+    assert_eq!(f64s(&ts[28..36]), vec![f64::MAX / 32.0]);
+    assert_eq!(&ts[36..40], &3u32.to_le_bytes());
+    assert_eq!(
+        f64s(&ts[40..64]),
+        vec![10.0 / 24.0, 12.0 / 24.0, 15.0 / 24.0]
+    );
+}
+
+#[test]
+fn alembic_keeps_an_artists_quads_and_uv_seams() {
+    use abc_reader::File;
+    // Two quads folded along x = 1, with a UV seam between them (as in tests/export.rs).
+    let dir = tempfile::tempdir().unwrap();
+    let src = dir.path().join("folded.obj");
+    std::fs::write(
+        &src,
+        "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nv 1 0 0\nv 1 1 0\nv 2 0 1\nv 2 1 1\n\
+         vt 0 0\nvt 0.5 0\nvt 0.5 1\nvt 0 1\nvt 0.6 0\nvt 1 0\nvt 1 1\nvt 0.6 1\n\
+         f 1/1 2/2 3/3 4/4\nf 2/5 7/6 8/7 3/8\n",
+    )
+    .unwrap();
+    let m = crate::input::read_mesh(&src).unwrap();
+    let out = dir.path().join("f.abc");
+    export(
+        &[(0, m.clone()), (1, m)],
+        &[],
+        ExportFormat::Abc,
+        &out,
+        &ExportOptions::default(),
+    )
+    .unwrap();
+    let bytes = std::fs::read(&out).unwrap();
+    let f = File(&bytes);
+    let top = f.objects(f.children(f.root())[2]);
+    let mesh = f.objects(top[0].2);
+    let geom = f.props(f.props(f.children(mesh[0].2)[0])[0].group);
+    let by = |n: &str| geom.iter().find(|p| p.name == n).unwrap();
+    let ints = |b: &[u8]| -> Vec<i32> {
+        b.chunks(4)
+            .map(|c| i32::from_le_bytes(c.try_into().unwrap()))
+            .collect()
+    };
+    assert_eq!(ints(f.sample(by(".faceCounts"), 0)), vec![4, 4]);
+    assert_eq!(
+        ints(f.sample(by(".faceIndices"), 0)),
+        vec![3, 2, 1, 0, 2, 7, 6, 1]
+    );
+    assert_eq!(
+        f32s(f.sample(by("uv"), 0)),
+        vec![0.0, 1.0, 0.5, 1.0, 0.5, 0.0, 0.0, 0.0, 0.6, 1.0, 1.0, 1.0, 1.0, 0.0, 0.6, 0.0]
+    );
+}

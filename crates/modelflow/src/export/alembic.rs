@@ -1,0 +1,458 @@
+//! Alembic (`.abc`) in its Ogawa container, the animated-geometry file of visual effects
+//! pipelines (Maya, Houdini, Nuke, Katana, Blender, Unreal's geometry caches): one `Xform`
+//! `tracked` holding one `PolyMesh` `mesh`, its face counts and indices once, its points and
+//! bounds sampled at every frame, texture coordinates (when the mesh has them) as the `uv`
+//! face-varying parameter. Written by hand: no maintained Rust crate writes Alembic (the
+//! `alembic` crates are placeholders, `ogawa-rs` only reads), and the subset a deforming mesh
+//! needs is small.
+//!
+//! **Ogawa**: a 16-byte header (`Ogawa`, the frozen byte `0xff`, format version 1, the root
+//! group's position), then *data* (a `u64` size and the bytes) and *groups* (a `u64` count and
+//! that many `u64` child positions, a data child's with its top bit set; position 0 is an empty
+//! group, `1 << 63` empty data), each written after its children. **Alembic on Ogawa**: the root
+//! group holds the archive's version (`i32` 0), the library version it claims (`i32`), the top
+//! object, the archive's metadata, its time samplings and its indexed metadata (none here). An
+//! object is a group of its properties (a compound), its child objects, then their headers; a
+//! compound is a group of its properties, then their headers; an array property, per sample, the
+//! sample's data (a 16-byte key, then the values) and its dimensions (empty: the count follows
+//! from the size); a scalar property, the data per sample. Headers pack a property's kind, value
+//! type, extent, sample count and time sampling into bit fields (`property_header`).
+//!
+//! Conventions: Alembic's faces wind clockwise seen from the side their normal points to (Maya's
+//! and Blender's exporters reverse each face, their importers reverse it back), so every face's
+//! corners are written in reverse. Coordinates are the scene's as they are (Alembic has no up
+//! axis in the file; its users take +Y as up, and Blender's importer turns Y-up into its Z-up).
+//! Frame `f` is sampled at `f / fps` seconds (a 3D package at the same rate shows it at frame
+//! `f`, as the USD export's time codes): uniformly when the frames are evenly spaced, at each
+//! frame's own time otherwise.
+//! The samples' keys are the first 16 bytes of their data's SHA-256 (a reader only compares
+//! them); the objects' and properties' 32-byte hash fields are zero (only tools that compare two
+//! files' objects read them).
+
+use crate::base::mesh::Mesh;
+use sha2::{Digest, Sha256};
+
+/// Ogawa's marker of a data child in a group's list of positions.
+const DATA: u64 = 1 << 63;
+/// The Alembic library version the file says wrote it (1.8.5, the layout written here).
+const LIBRARY_VERSION: i32 = 10805;
+/// Alembic's plain data types (`Alembic::Util::PlainOldDataType`) used here.
+const POD_INT32: u32 = 6;
+const POD_FLOAT32: u32 = 10;
+const POD_FLOAT64: u32 = 11;
+/// Alembic's time per cycle that marks an acyclic sampling (each sample at its own time).
+const ACYCLIC: f64 = f64::MAX / 32.0;
+
+/// The Ogawa container being written, in memory (the export writes it atomically).
+struct Ogawa {
+    bytes: Vec<u8>,
+}
+
+impl Ogawa {
+    fn new() -> Self {
+        let mut bytes = Vec::new();
+        bytes.extend_from_slice(b"Ogawa");
+        // Frozen (the archive is complete when the file is), format version 1, and the root
+        // group's position, filled in by `finish`.
+        bytes.extend_from_slice(&[0xff, 0, 1]);
+        bytes.extend_from_slice(&[0; 8]);
+        Ogawa { bytes }
+    }
+
+    /// Writes one data child made of `parts` one after another; its position for a group.
+    fn data(&mut self, parts: &[&[u8]]) -> u64 {
+        let size: usize = parts.iter().map(|p| p.len()).sum();
+        if size == 0 {
+            return DATA;
+        }
+        let pos = self.bytes.len() as u64;
+        self.bytes.extend_from_slice(&(size as u64).to_le_bytes());
+        for p in parts {
+            self.bytes.extend_from_slice(p);
+        }
+        pos | DATA
+    }
+
+    /// Writes a group of `children` (positions from `data` and `group`); its position.
+    fn group(&mut self, children: &[u64]) -> u64 {
+        if children.is_empty() {
+            return 0;
+        }
+        let pos = self.bytes.len() as u64;
+        self.bytes
+            .extend_from_slice(&(children.len() as u64).to_le_bytes());
+        for c in children {
+            self.bytes.extend_from_slice(&c.to_le_bytes());
+        }
+        pos
+    }
+
+    /// The file, with `root` as its root group.
+    fn finish(mut self, root: u64) -> Vec<u8> {
+        self.bytes[8..16].copy_from_slice(&root.to_le_bytes());
+        self.bytes
+    }
+}
+
+/// A property as its parent compound lists it: the header fields of `property_header`.
+struct Header {
+    name: &'static str,
+    metadata: &'static str,
+    kind: Kind,
+}
+
+enum Kind {
+    Compound,
+    /// An array or scalar property of `pod` values `extent` at a time, `samples` samples on time
+    /// sampling `sampling`, each written (`constant`: one sample, the same at every time).
+    Values {
+        array: bool,
+        pod: u32,
+        extent: u32,
+        samples: u32,
+        sampling: u32,
+        homogenous: bool,
+    },
+}
+
+/// The bytes a compound's header list holds for `h` (Alembic's property header: its fields
+/// packed into a `u32`, then the sample count, time sampling, name and metadata in 1, 2 or 4
+/// bytes each as the largest of them needs).
+fn property_header(out: &mut Vec<u8>, h: &Header) {
+    let (samples, sampling) = match h.kind {
+        Kind::Values {
+            samples, sampling, ..
+        } => (samples, sampling),
+        Kind::Compound => (0, 0),
+    };
+    let largest = [
+        h.name.len() as u32,
+        h.metadata.len() as u32,
+        samples,
+        sampling,
+    ]
+    .into_iter()
+    .max()
+    .unwrap_or(0);
+    let hint: u32 = if largest < 256 {
+        0
+    } else if largest < 65536 {
+        1
+    } else {
+        2
+    };
+    let put = |out: &mut Vec<u8>, v: u32| match hint {
+        0 => out.push(v as u8),
+        1 => out.extend_from_slice(&(v as u16).to_le_bytes()),
+        _ => out.extend_from_slice(&v.to_le_bytes()),
+    };
+    // Metadata index 0 is the empty metadata, 0xff metadata written inline.
+    let inline = !h.metadata.is_empty();
+    let mut info: u32 = (hint << 2) | if inline { 0xff << 20 } else { 0 };
+    match h.kind {
+        Kind::Compound => out.extend_from_slice(&info.to_le_bytes()),
+        Kind::Values {
+            array,
+            pod,
+            extent,
+            samples,
+            sampling,
+            homogenous,
+        } => {
+            info |= if array { 2 } else { 1 };
+            info |= pod << 4;
+            info |= extent << 12;
+            if sampling != 0 {
+                info |= 0x100;
+            }
+            if homogenous {
+                info |= 0x400;
+            }
+            // Every sample differs from the one before (first changed at 1, last at n − 1,
+            // which the header leaves implicit), or there is one: the same at every time.
+            if samples <= 1 {
+                info |= 0x800;
+            }
+            out.extend_from_slice(&info.to_le_bytes());
+            put(out, samples);
+            if sampling != 0 {
+                put(out, sampling);
+            }
+        }
+    }
+    put(out, h.name.len() as u32);
+    out.extend_from_slice(h.name.as_bytes());
+    if inline {
+        put(out, h.metadata.len() as u32);
+        out.extend_from_slice(h.metadata.as_bytes());
+    }
+}
+
+/// A sample's data child: its key (the first 16 bytes of the values' SHA-256), then the values.
+fn sample(o: &mut Ogawa, values: &[u8]) -> u64 {
+    let key = Sha256::digest(values);
+    o.data(&[&key[..16], values])
+}
+
+/// An array property's group: each sample's data, then its (empty: rank 1) dimensions.
+fn array_property<'a>(o: &mut Ogawa, samples: impl IntoIterator<Item = &'a [u8]>) -> u64 {
+    let mut children = Vec::new();
+    for s in samples {
+        children.push(sample(o, s));
+        children.push(DATA);
+    }
+    o.group(&children)
+}
+
+/// A compound property's group: its properties' groups, then their headers.
+fn compound(o: &mut Ogawa, props: &[(u64, Header)]) -> u64 {
+    let mut headers = Vec::new();
+    for (_, h) in props {
+        property_header(&mut headers, h);
+    }
+    let mut children: Vec<u64> = props.iter().map(|(g, _)| *g).collect();
+    children.push(o.data(&[&headers]));
+    o.group(&children)
+}
+
+/// An object's group: its properties, its children (name, metadata, group), then their headers
+/// and the (zero) hashes of its properties and children.
+fn object(o: &mut Ogawa, props: u64, children: &[(&str, &str, u64)]) -> u64 {
+    let mut headers = Vec::new();
+    for (name, metadata, _) in children {
+        headers.extend_from_slice(&(name.len() as u32).to_le_bytes());
+        headers.extend_from_slice(name.as_bytes());
+        headers.push(0xff);
+        headers.extend_from_slice(&(metadata.len() as u32).to_le_bytes());
+        headers.extend_from_slice(metadata.as_bytes());
+    }
+    headers.extend_from_slice(&[0; 32]);
+    let mut list = vec![props];
+    list.extend(children.iter().map(|c| c.2));
+    list.push(o.data(&[&headers]));
+    o.group(&list)
+}
+
+fn f32_bytes(values: impl IntoIterator<Item = f32>) -> Vec<u8> {
+    values.into_iter().flat_map(f32::to_le_bytes).collect()
+}
+
+fn i32_bytes(values: impl IntoIterator<Item = i32>) -> Vec<u8> {
+    values.into_iter().flat_map(i32::to_le_bytes).collect()
+}
+
+/// The Alembic file of `frames` (frame number and mesh, ascending, one topology), frame `f` at
+/// `f / fps` seconds.
+pub(crate) fn abc(frames: &[(u32, Mesh)], fps: f64) -> Vec<u8> {
+    let first = &frames[0].1;
+    let n = frames.len() as u32;
+    // The input's polygons where it had them, else the triangles; each face's corners reversed
+    // (Alembic winds clockwise).
+    let (counts, corners) = first.face_corners();
+    let mut reversed = Vec::with_capacity(corners.len());
+    let mut at = 0usize;
+    for &c in &counts {
+        let face = &corners[at..at + c as usize];
+        reversed.extend(face.iter().rev().copied());
+        at += c as usize;
+    }
+    let vertex = |&(t, k): &(u32, u8)| first.triangles[t as usize][k as usize];
+
+    let mut o = Ogawa::new();
+    // The mesh's properties, in the `.geom` compound.
+    let points: Vec<Vec<u8>> = frames
+        .iter()
+        .map(|(_, m)| {
+            f32_bytes(
+                m.positions
+                    .iter()
+                    .flat_map(|p| [p.x as f32, p.y as f32, p.z as f32]),
+            )
+        })
+        .collect();
+    let p = array_property(&mut o, points.iter().map(Vec::as_slice));
+    let indices = i32_bytes(reversed.iter().map(|c| vertex(c) as i32));
+    let face_indices = array_property(&mut o, [indices.as_slice()]);
+    let face_counts_bytes = i32_bytes(counts.iter().map(|&c| c as i32));
+    let face_counts = array_property(&mut o, [face_counts_bytes.as_slice()]);
+    let bounds: Vec<Vec<u8>> = frames
+        .iter()
+        .map(|(_, m)| {
+            let (lo, hi) = super::usd::bounds(m);
+            lo.iter()
+                .chain(&hi)
+                .flat_map(|&v| (v as f64).to_le_bytes())
+                .collect()
+        })
+        .collect();
+    let mut bounds_children = Vec::new();
+    for b in &bounds {
+        bounds_children.push(sample(&mut o, b));
+    }
+    let self_bounds = o.group(&bounds_children);
+    let values = |array, pod, extent, samples, homogenous| Kind::Values {
+        array,
+        pod,
+        extent,
+        samples,
+        sampling: 1,
+        homogenous,
+    };
+    let mut geom = vec![
+        (
+            self_bounds,
+            Header {
+                name: ".selfBnds",
+                metadata: "interpretation=box",
+                kind: values(false, POD_FLOAT64, 6, n, true),
+            },
+        ),
+        (
+            p,
+            Header {
+                name: "P",
+                metadata: "geoScope=vtx;interpretation=point",
+                kind: values(true, POD_FLOAT32, 3, n, true),
+            },
+        ),
+        (
+            face_indices,
+            Header {
+                name: ".faceIndices",
+                metadata: "",
+                kind: values(true, POD_INT32, 1, 1, true),
+            },
+        ),
+        (
+            face_counts,
+            Header {
+                name: ".faceCounts",
+                metadata: "",
+                kind: values(true, POD_INT32, 1, 1, true),
+            },
+        ),
+    ];
+    // Texture coordinates, one per face corner (in the reversed order).
+    let uv: Option<Vec<f32>> = if let Some(t) = &first.corner_uvs {
+        Some(
+            reversed
+                .iter()
+                .flat_map(|&(tri, k)| {
+                    let uv = t.values[t.index[tri as usize][k as usize] as usize];
+                    [uv[0] as f32, uv[1] as f32]
+                })
+                .collect(),
+        )
+    } else {
+        first
+            .uvs
+            .as_ref()
+            .filter(|u| u.len() == first.positions.len())
+            .map(|uvs| {
+                reversed
+                    .iter()
+                    .flat_map(|c| {
+                        let uv = uvs[vertex(c) as usize];
+                        [uv[0] as f32, uv[1] as f32]
+                    })
+                    .collect()
+            })
+    };
+    if let Some(uv) = uv {
+        let bytes = f32_bytes(uv);
+        let g = array_property(&mut o, [bytes.as_slice()]);
+        geom.push((
+            g,
+            Header {
+                name: "uv",
+                metadata: "geoScope=fvr;interpretation=vector;isGeomParam=true;podExtent=2;\
+                           podName=float32_t",
+                kind: values(true, POD_FLOAT32, 2, 1, true),
+            },
+        ));
+    }
+    let geom = compound(&mut o, &geom);
+    let mesh_props = compound(
+        &mut o,
+        &[(
+            geom,
+            Header {
+                name: ".geom",
+                metadata: "schema=AbcGeom_PolyMesh_v1;schemaBaseType=AbcGeom_GeomBase_v1",
+                kind: Kind::Compound,
+            },
+        )],
+    );
+    let mesh = object(&mut o, mesh_props, &[]);
+    // The transform above it: the identity, constant (its `.xform` compound holds no samples).
+    let xform = compound(&mut o, &[]);
+    let xform_props = compound(
+        &mut o,
+        &[(
+            xform,
+            Header {
+                name: ".xform",
+                metadata: "schema=AbcGeom_Xform_v3",
+                kind: Kind::Compound,
+            },
+        )],
+    );
+    let tracked = object(
+        &mut o,
+        xform_props,
+        &[(
+            "mesh",
+            "schema=AbcGeom_PolyMesh_v1;schemaBaseType=AbcGeom_GeomBase_v1;\
+             schemaObjTitle=AbcGeom_PolyMesh_v1:.geom",
+            mesh,
+        )],
+    );
+    let top_props = compound(&mut o, &[]);
+    let top = object(
+        &mut o,
+        top_props,
+        &[(
+            "tracked",
+            "schema=AbcGeom_Xform_v3;schemaObjTitle=AbcGeom_Xform_v3:.xform",
+            tracked,
+        )],
+    );
+
+    // The archive: versions, top object, metadata, time samplings, indexed metadata (none).
+    let version = o.data(&[&0i32.to_le_bytes()]);
+    let library = o.data(&[&LIBRARY_VERSION.to_le_bytes()]);
+    let metadata = format!(
+        "_ai_AlembicVersion=Alembic 1.8.5 (written by modelflow {});_ai_Application=modelflow {};\
+         _ai_Description=a tracked mesh, {} frames at {} per second",
+        env!("CARGO_PKG_VERSION"),
+        env!("CARGO_PKG_VERSION"),
+        n,
+        fps
+    );
+    let metadata = o.data(&[metadata.as_bytes()]);
+    let mut samplings = Vec::new();
+    // Sampling 0, the identity every archive has (one sample a second from 0; unused here).
+    samplings.extend_from_slice(&0u32.to_le_bytes());
+    samplings.extend_from_slice(&1.0f64.to_le_bytes());
+    samplings.extend_from_slice(&1u32.to_le_bytes());
+    samplings.extend_from_slice(&0.0f64.to_le_bytes());
+    // Sampling 1, the frames'.
+    let step = frames.get(1).map_or(1, |f| f.0 - frames[0].0);
+    let even = frames.windows(2).all(|w| w[1].0 - w[0].0 == step);
+    samplings.extend_from_slice(&n.to_le_bytes());
+    if even {
+        samplings.extend_from_slice(&(step as f64 / fps).to_le_bytes());
+        samplings.extend_from_slice(&1u32.to_le_bytes());
+        samplings.extend_from_slice(&(frames[0].0 as f64 / fps).to_le_bytes());
+    } else {
+        samplings.extend_from_slice(&ACYCLIC.to_le_bytes());
+        samplings.extend_from_slice(&n.to_le_bytes());
+        for (f, _) in frames {
+            samplings.extend_from_slice(&(*f as f64 / fps).to_le_bytes());
+        }
+    }
+    let samplings = o.data(&[&samplings]);
+    let indexed = o.data(&[]);
+    let root = o.group(&[version, library, top, metadata, samplings, indexed]);
+    o.finish(root)
+}
