@@ -2,7 +2,8 @@
 checks the vertex positions Blender evaluates at the first, middle and last frame against the run
 folder's OBJs (within 1e-6 of the run's largest coordinate; the files hold 32-bit floats); for
 Alembic also the faces (each the OBJ's, corner for corner: Alembic winds them the other way and the
-importer turns them back) and, where the OBJ has them, the texture coordinates per corner.
+importer turns them back) and, where the OBJ has them, the texture coordinates and normals per
+corner.
 
     python tools/check_blender.py RUN_DIR STEM      # reads STEM.abc, STEM.glb, STEM.pc2, STEM.mdd, STEM.obj
 
@@ -103,6 +104,18 @@ def check_abc(run, stem, fps, frames, scale):
         want = [(x, -z, y) for (x, y, z) in run[f]["v"]]
         w, ok = close(evaluated(obj, f), want, scale)
         out.append((f, w, ok))
+        r = run[f]
+        if r["vn"] and all(n is not None for n in r["fn"]):
+            # The OBJ's normals per corner, as Blender's custom normals (which it stores to
+            # about 1e-4: relative to each face's own normal, in 16-bit integers).
+            bpy.context.scene.frame_set(f)
+            ev = obj.evaluated_get(bpy.context.evaluated_depsgraph_get())
+            m = ev.to_mesh()
+            got = [tuple(c.vector) for c in m.corner_normals]
+            ev.to_mesh_clear()
+            want = [(lambda n: (n[0], -n[2], n[1]))(r["vn"][i]) for i in r["fn"]]
+            w, ok = close(got, want, 1.0, rel=1e-3)
+            out.append((f"{f} normals", w, ok))
     return out
 
 

@@ -2,7 +2,8 @@
 //! pipelines (Maya, Houdini, Nuke, Katana, Blender, Unreal's geometry caches): one `Xform`
 //! `tracked` holding one `PolyMesh` `mesh`, its face counts and indices once, its points and
 //! bounds sampled at every frame, texture coordinates (when the mesh has them) as the `uv`
-//! face-varying parameter. Written by hand: no maintained Rust crate writes Alembic (the
+//! face-varying parameter, the input's normals (when it had them) as `N`, face-varying, at every
+//! frame. Written by hand: no maintained Rust crate writes Alembic (the
 //! `alembic` crates are placeholders, `ogawa-rs` only reads), and the subset a deforming mesh
 //! needs is small.
 //!
@@ -368,6 +369,33 @@ pub(crate) fn abc(frames: &[(u32, Mesh)], fps: f64) -> Vec<u8> {
                 metadata: "geoScope=fvr;interpretation=vector;isGeomParam=true;podExtent=2;\
                            podName=float32_t",
                 kind: values(true, POD_FLOAT32, 2, 1, true),
+            },
+        ));
+    }
+    // The input's normals (an artist's hard edges and custom normals), per face corner, turned
+    // with the surface at every frame (`Mesh::current_normals`).
+    if let Some(cn) = &first.corner_normals {
+        let per_frame: Vec<Vec<u8>> = frames
+            .iter()
+            .map(|(_, m)| {
+                let ns = m.current_normals().unwrap_or_default();
+                f32_bytes(reversed.iter().flat_map(|&(tri, k)| {
+                    let n = ns
+                        .get(cn.table.index[tri as usize][k as usize] as usize)
+                        .copied()
+                        .unwrap_or_default();
+                    [n[0] as f32, n[1] as f32, n[2] as f32]
+                }))
+            })
+            .collect();
+        let g = array_property(&mut o, per_frame.iter().map(Vec::as_slice));
+        geom.push((
+            g,
+            Header {
+                name: "N",
+                metadata: "geoScope=fvr;interpretation=normal;isGeomParam=true;podExtent=3;\
+                           podName=float32_t",
+                kind: values(true, POD_FLOAT32, 3, n, true),
             },
         ));
     }

@@ -402,14 +402,16 @@ fn alembic_holds_the_meshes_topology_uvs_and_times_where_readers_look() {
 #[test]
 fn alembic_keeps_an_artists_quads_and_uv_seams() {
     use abc_reader::File;
-    // Two quads folded along x = 1, with a UV seam between them (as in tests/export.rs).
+    // Two quads folded along x = 1, with a UV seam and a hard edge between them (as in
+    // tests/export.rs).
     let dir = tempfile::tempdir().unwrap();
     let src = dir.path().join("folded.obj");
     std::fs::write(
         &src,
         "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nv 1 0 0\nv 1 1 0\nv 2 0 1\nv 2 1 1\n\
          vt 0 0\nvt 0.5 0\nvt 0.5 1\nvt 0 1\nvt 0.6 0\nvt 1 0\nvt 1 1\nvt 0.6 1\n\
-         f 1/1 2/2 3/3 4/4\nf 2/5 7/6 8/7 3/8\n",
+         vn 0 0 1\nvn -0.6 0 0.8\n\
+         f 1/1/1 2/2/1 3/3/1 4/4/1\nf 2/5/2 7/6/2 8/7/2 3/8/2\n",
     )
     .unwrap();
     let m = crate::input::read_mesh(&src).unwrap();
@@ -442,4 +444,11 @@ fn alembic_keeps_an_artists_quads_and_uv_seams() {
         f32s(f.sample(by("uv"), 0)),
         vec![0.0, 1.0, 0.5, 1.0, 0.5, 0.0, 0.0, 0.0, 0.6, 1.0, 1.0, 1.0, 1.0, 0.0, 0.6, 0.0]
     );
+    // The normals per corner at both frames: the first quad's, then the second's.
+    let n = by("N");
+    assert_eq!((n.samples, n.extent), (2, 3));
+    assert!(n.metadata.contains("interpretation=normal"));
+    let mut want = [0.0, 0.0, 1.0].repeat(4);
+    want.extend([-0.6, 0.0, 0.8].repeat(4));
+    assert_eq!(f32s(f.sample(n, 1)), want);
 }
