@@ -484,7 +484,8 @@ fn frames_to_check<'py>(
 
 /// Writes a run folder as one animated file for a 3D package; the format comes from `out`'s
 /// extension (.usda, .abc, .glb, .pc2, .mdd). Returns the files written. A USD export whose run's
-/// scene file cannot be read holds the mesh without the cameras and warns why (`UserWarning`).
+/// scene file cannot be read holds the mesh without the cameras and warns why (`UserWarning`); so
+/// does a point cache whose mesh has vertices no face uses (Blender's OBJ importer drops them).
 #[pyfunction]
 #[pyo3(signature = (run, out, fps=24.0))]
 fn export(py: Python<'_>, run: PathBuf, out: PathBuf, fps: f64) -> PyResult<Vec<PathBuf>> {
@@ -499,11 +500,8 @@ fn export(py: Python<'_>, run: PathBuf, out: PathBuf, fps: f64) -> PyResult<Vec<
         ..Default::default()
     };
     let summary = mf::export::export_run(&run, format, &out, &opts).map_err(err)?;
-    if let Some(why) = &summary.cameras_left_out {
-        let msg = std::ffi::CString::new(format!(
-            "the USD holds the mesh but not the scene's cameras: {why}"
-        ))
-        .unwrap_or_default();
+    for w in summary.warnings() {
+        let msg = std::ffi::CString::new(w).unwrap_or_default();
         PyErr::warn(
             py,
             &py.get_type::<pyo3::exceptions::PyUserWarning>(),

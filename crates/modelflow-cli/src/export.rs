@@ -68,8 +68,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             n => format!(", with the scene's {n} cameras"),
         }
     );
-    if let Some(why) = &s.cameras_left_out {
-        eprintln!("warning: the USD holds the mesh but not the scene's cameras: {why}");
+    for w in s.warnings() {
+        eprintln!("warning: {w}");
     }
     for f in &s.files {
         println!("{}", f.display());

@@ -233,6 +233,13 @@ fn point_caches_come_with_the_first_frame_as_obj_and_glb_reads_back() {
         let out = dir.path().join(name);
         let s = export_run(&run, format, &out, &ExportOptions::default()).unwrap();
         assert_eq!(s.files[0], out);
+        // Vertices 5 and 6 are in no face: a point cache's OBJ loses them in Blender, said.
+        assert_eq!(s.loose_vertices, Some((2, 4)));
+        let said = s
+            .warnings()
+            .iter()
+            .any(|w| w.starts_with("2 of the 8 vertices are in no face (the first: vertex 5"));
+        assert_eq!(said, format != ExportFormat::Glb, "{:?}", s.warnings());
         if format != ExportFormat::Glb {
             // The OBJ beside the cache is the run's first frame, seams and normals included.
             let obj = read_mesh(&s.files[1]).unwrap();

@@ -129,8 +129,42 @@ pub struct ExportSummary {
     /// could not be read or has a camera that does not check (the message names the file and
     /// the field). `None` when the cameras were written, and for the other formats.
     pub cameras_left_out: Option<String>,
+    /// The vertices no face uses (an artist's stray points), and the first of them (0-based).
+    /// USD, Alembic and the point caches keep them by index (glTF, which draws corners, has no
+    /// use for them), but Blender's OBJ importer leaves them out of the OBJ written beside a
+    /// point cache, which then no longer matches it ([`ExportSummary::warnings`]).
+    pub loose_vertices: Option<(usize, usize)>,
+    /// The format written.
+    pub format: ExportFormat,
     /// The files written, the animated file first.
     pub files: Vec<PathBuf>,
+}
+
+impl ExportSummary {
+    /// What a user should know about the files written, one sentence each: the USD without
+    /// its cameras, a point cache whose OBJ has vertices that no face uses.
+    pub fn warnings(&self) -> Vec<String> {
+        let mut out = Vec::new();
+        if let Some(why) = &self.cameras_left_out {
+            out.push(format!(
+                "the USD holds the mesh but not the scene's cameras: {why}"
+            ));
+        }
+        if let (Some((n, first)), ExportFormat::Pc2 | ExportFormat::Mdd) =
+            (self.loose_vertices, self.format)
+        {
+            out.push(format!(
+                "{n} of the {} vertices are in no face (the first: vertex {}, 1-based as in the \
+                 OBJ): Blender's OBJ importer leaves them out, and its Mesh Cache modifier then \
+                 finds fewer points than the {} cache holds; the Alembic and USD exports keep \
+                 them by index",
+                self.vertices,
+                first + 1,
+                self.format.extension().to_uppercase()
+            ));
+        }
+        out
+    }
 }
 
 /// Writes `frames` (frame number and mesh, ascending, all with the first one's triangles) as one
@@ -251,8 +285,17 @@ pub fn export_with_cameras(
             files.push(obj);
         }
     }
+    let mut used = vec![false; first.positions.len()];
+    for t in &first.triangles {
+        for &v in t {
+            used[v as usize] = true;
+        }
+    }
+    let loose = used.iter().filter(|u| !**u).count();
     Ok(ExportSummary {
         cameras_left_out: None,
+        loose_vertices: (loose > 0).then(|| (loose, used.iter().position(|u| !*u).unwrap_or(0))),
+        format,
         frames: frames.len(),
         vertices: first.positions.len(),
         triangles: first.triangles.len(),
