@@ -105,7 +105,8 @@ struct Header {
 enum Kind {
     Compound,
     /// An array or scalar property of `pod` values `extent` at a time, `samples` samples on time
-    /// sampling `sampling`, each written (`constant`: one sample, the same at every time).
+    /// sampling `sampling`, every one written (one sample: the same at every time, which the
+    /// header marks constant); `homogenous`: every sample holds as many values.
     Values {
         array: bool,
         pod: u32,

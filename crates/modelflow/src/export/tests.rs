@@ -274,6 +274,19 @@ mod abc_reader {
     }
 }
 
+/// `frames` exported as Alembic to `out`, and the file's bytes.
+fn abc_bytes(frames: &[(u32, Mesh)], out: &std::path::Path) -> Vec<u8> {
+    export(
+        frames,
+        &[],
+        ExportFormat::Abc,
+        out,
+        &ExportOptions::default(),
+    )
+    .unwrap();
+    std::fs::read(out).unwrap()
+}
+
 fn f32s(b: &[u8]) -> Vec<f32> {
     b.chunks(4)
         .map(|c| f32::from_le_bytes(c.try_into().unwrap()))
@@ -380,15 +393,7 @@ fn alembic_holds_the_meshes_topology_uvs_and_times_where_readers_look() {
 
     // Uneven frames: each sampled at its own time (acyclic).
     let uneven = vec![fr[0].clone(), fr[2].clone(), (15, fr[1].1.clone())];
-    export(
-        &uneven,
-        &[],
-        ExportFormat::Abc,
-        &out,
-        &ExportOptions::default(),
-    )
-    .unwrap();
-    let bytes = std::fs::read(&out).unwrap();
+    let bytes = abc_bytes(&uneven, &out);
     let f = File(&bytes);
     let ts = f.data(f.children(f.root())[4]);
     assert_eq!(f64s(&ts[28..36]), vec![f64::MAX / 32.0]);
@@ -415,16 +420,7 @@ fn alembic_keeps_an_artists_quads_and_uv_seams() {
     )
     .unwrap();
     let m = crate::input::read_mesh(&src).unwrap();
-    let out = dir.path().join("f.abc");
-    export(
-        &[(0, m.clone()), (1, m)],
-        &[],
-        ExportFormat::Abc,
-        &out,
-        &ExportOptions::default(),
-    )
-    .unwrap();
-    let bytes = std::fs::read(&out).unwrap();
+    let bytes = abc_bytes(&[(0, m.clone()), (1, m)], &dir.path().join("f.abc"));
     let f = File(&bytes);
     let top = f.objects(f.children(f.root())[2]);
     let mesh = f.objects(top[0].2);
