@@ -9,7 +9,8 @@ use std::path::PathBuf;
 pub enum Format {
     /// USD text: one Mesh prim, points as time samples, UVs and normals as primvars.
     Usda,
-    /// Alembic (Ogawa): one PolyMesh under an Xform, points sampled at every frame, UVs.
+    /// Alembic (Ogawa): one PolyMesh under an Xform, points sampled at every frame, UVs and
+    /// normals per face corner.
     Abc,
     /// Binary glTF 2.0: the first frame's mesh, one morph target per frame, an animation.
     Glb,

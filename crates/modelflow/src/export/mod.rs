@@ -1,10 +1,10 @@
 //! Results out, for the users' 3D packages: a tracked run (one OBJ per frame, as
 //! `run::read_run` reads it) becomes one animated file, USD (`.usda`), Alembic (`.abc`), glTF 2.0
 //! (`.glb`, morph targets), or a PC2 / MDD point cache with the first frame's mesh as OBJ beside
-//! it. Topology,
-//! texture coordinates and normals come from the run's first frame, positions from every frame.
-//! The file formats are written by hand (no maintained Rust crate writes USD, Alembic or point caches;
-//! glTF's JSON is small enough to build with `serde_json`), each atomically. USD also carries
+//! it. Topology, texture coordinates and normals come from the run's first frame, positions from
+//! every frame. The file formats are written by hand (no maintained Rust crate writes USD,
+//! Alembic or point caches; glTF's JSON is small enough to build with `serde_json`), each
+//! atomically. USD also carries
 //! the scene's cameras ([`ExportCamera`]: their projections, as pinhole cameras), so the mesh
 //! can be looked at through them over the footage. This module knows nothing of images or
 //! tracking.
