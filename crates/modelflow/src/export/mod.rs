@@ -4,10 +4,9 @@
 //! it. Topology, texture coordinates and normals come from the run's first frame, positions from
 //! every frame. The file formats are written by hand (no maintained Rust crate writes USD,
 //! Alembic or point caches; glTF's JSON is small enough to build with `serde_json`), each
-//! atomically. USD also carries
-//! the scene's cameras ([`ExportCamera`]: their projections, as pinhole cameras), so the mesh
-//! can be looked at through them over the footage. This module knows nothing of images or
-//! tracking.
+//! atomically. USD also carries the scene's cameras ([`ExportCamera`]: their projections, as
+//! pinhole cameras), so the mesh can be looked at through them over the footage. This module
+//! knows nothing of images or tracking.
 
 mod alembic;
 mod cache;
