@@ -2,10 +2,11 @@
 checks the vertex positions Blender evaluates at the first, middle and last frame against the run
 folder's OBJs (within 1e-6 of the run's largest coordinate; the files hold 32-bit floats); for
 Alembic also the faces (each the OBJ's, corner for corner: Alembic winds them the other way and the
-importer turns them back) and, where the OBJ has them, the texture coordinates and normals per
-corner.
+importer turns them back), where the OBJ has them the texture coordinates and normals per
+corner, and, where the run's run.json names a scene, its cameras (each must project the first
+frame's vertices where the scene's K, R, t do, within 1e-3 px).
 
-    python tools/check_blender.py RUN_DIR STEM      # reads STEM.abc, STEM.glb, STEM.pc2, STEM.mdd, STEM.obj
+    python tools/check_blender.py RUN_DIR STEM [abc|glb|pc2|mdd ...] [FPS]   # reads STEM.abc, .glb, .pc2, .mdd, .obj
 
 The Alembic and glTF importers turn +Y up into Blender's +Z up: (x, y, z) -> (x, -z, y); the OBJ is
 imported with forward Y, up Z so that its coordinates stay as they are. `tools/check_blender.sh`
@@ -17,6 +18,7 @@ import sys
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 import bpy  # noqa: E402
+from mathutils import Vector  # noqa: E402
 from objread import close, read_run, scale_of  # noqa: E402
 
 
@@ -116,6 +118,48 @@ def check_abc(run, stem, fps, frames, scale):
             want = [(lambda n: (n[0], -n[2], n[1]))(r["vn"][i]) for i in r["fn"]]
             w, ok = close(got, want, 1.0, rel=1e-3)
             out.append((f"{f} normals", w, ok))
+    return out + check_abc_cameras(run, frames)
+
+
+def check_abc_cameras(run, frames):
+    """The scene's cameras (from the run's run.json), as Blender imported them from the Alembic
+    file: each must project the first frame's vertices where the scene's K, R, t do (OpenCV's
+    pinhole, pixel centres at integer coordinates), with the render size set to the camera's
+    image size and the pixel aspect to fx / fy (Alembic carries neither)."""
+    import json
+    from bpy_extras.object_utils import world_to_camera_view
+    path = os.path.join(RUN_DIR, "run.json")
+    if not os.path.isfile(path):
+        return []
+    scene_file = json.load(open(path))["scene"]["path"]
+    scene = json.load(open(scene_file))
+    objs = {o.name: o for o in bpy.context.scene.objects if o.type == "CAMERA"}
+    out = []
+    render = bpy.context.scene.render
+    for c in scene["cameras"]:
+        if "K" not in c or not (("R" in c and "t" in c) or "poses" in c):
+            continue
+        cam = objs.get(c["name"])
+        if cam is None:
+            out.append((f"camera {c['name']}", "not imported", False))
+            continue
+        K, W, H = c["K"], c["width"], c["height"]
+        render.resolution_x, render.resolution_y, render.resolution_percentage = W, H, 100
+        render.pixel_aspect_x = max(1.0, K[1][1] / K[0][0])
+        render.pixel_aspect_y = max(1.0, K[0][0] / K[1][1])
+        poses = {p["frame"]: (p["R"], p["t"]) for p in c.get("poses", [])}
+        # A camera that moves: at the first, middle and last frame, each with its own pose.
+        for f in sorted({frames[0], frames[len(frames) // 2], frames[-1]}) if poses else [frames[0]]:
+            R, t = poses[f] if poses else (c["R"], c["t"])
+            bpy.context.scene.frame_set(f)
+            worst = 0.0
+            for X in run[f]["v"]:
+                xc = [sum(R[i][j] * X[j] for j in range(3)) + t[i] for i in range(3)]
+                u = (K[0][0] * xc[0] + K[0][1] * xc[1]) / xc[2] + K[0][2]
+                v = K[1][1] * xc[1] / xc[2] + K[1][2]
+                n = world_to_camera_view(bpy.context.scene, cam, Vector((X[0], -X[2], X[1])))
+                worst = max(worst, abs(n.x * W - 0.5 - u), abs((1 - n.y) * H - 0.5 - v))
+            out.append((f"{f} camera {c['name']} (px)", worst, worst < 1e-3))
     return out
 
 
@@ -135,18 +179,27 @@ def _nearest(points, targets):
     return idx
 
 
+RUN_DIR = "."
+
+
 def main():
+    global RUN_DIR
     run_dir, stem = sys.argv[1], sys.argv[2]
-    fps = float(sys.argv[3]) if len(sys.argv) > 3 else 24.0
+    RUN_DIR = run_dir
+    # The rest: formats to check (abc, glb, pc2, mdd; default all) and the frame rate.
+    rest = sys.argv[3:]
+    only = [a for a in rest if a in ("abc", "glb", "pc2", "mdd")] or ["abc", "glb", "pc2", "mdd"]
+    fps = next((float(a) for a in rest if a not in only), 24.0)
     run = read_run(run_dir)
     frames = list(run)
     scale = scale_of(run[frames[0]]["v"])
-    results = {
-        "abc": check_abc(run, stem, fps, frames, scale),
-        "glb": check_glb(run, stem, fps, frames, scale),
-        "pc2": check_cache(run, stem, "pc2", fps, frames, scale),
-        "mdd": check_cache(run, stem, "mdd", fps, frames, scale),
+    checks = {
+        "abc": lambda: check_abc(run, stem, fps, frames, scale),
+        "glb": lambda: check_glb(run, stem, fps, frames, scale),
+        "pc2": lambda: check_cache(run, stem, "pc2", fps, frames, scale),
+        "mdd": lambda: check_cache(run, stem, "mdd", fps, frames, scale),
     }
+    results = {name: checks[name]() for name in only}
     bad = False
     for name, rows in results.items():
         for f, w, ok in rows:

@@ -483,9 +483,10 @@ fn frames_to_check<'py>(
 }
 
 /// Writes a run folder as one animated file for a 3D package; the format comes from `out`'s
-/// extension (.usda, .abc, .glb, .pc2, .mdd). Returns the files written. A USD export whose run's
-/// scene file cannot be read holds the mesh without the cameras and warns why (`UserWarning`); so
-/// does a point cache whose mesh has vertices no face uses (Blender's OBJ importer drops them).
+/// extension (.usda, .abc, .glb, .pc2, .mdd). Returns the files written. USD and Alembic carry the
+/// scene's cameras; when the run's scene file cannot be read, they hold the mesh alone and warn
+/// why (`UserWarning`); so does a point cache whose mesh has vertices no face uses (Blender's
+/// OBJ importer drops them).
 #[pyfunction]
 #[pyo3(signature = (run, out, fps=24.0))]
 fn export(py: Python<'_>, run: PathBuf, out: PathBuf, fps: f64) -> PyResult<Vec<PathBuf>> {

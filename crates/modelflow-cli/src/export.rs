@@ -7,10 +7,11 @@ use std::path::PathBuf;
 
 #[derive(clap::ValueEnum, Clone, Copy, Debug)]
 pub enum Format {
-    /// USD text: one Mesh prim, points as time samples, UVs and normals as primvars.
+    /// USD text: one Mesh prim, points as time samples, UVs and normals as primvars, the
+    /// scene's cameras.
     Usda,
     /// Alembic (Ogawa): one PolyMesh under an Xform, points sampled at every frame, UVs and
-    /// normals per face corner.
+    /// normals per face corner, the scene's cameras.
     Abc,
     /// Binary glTF 2.0: the first frame's mesh, one morph target per frame, an animation.
     Glb,

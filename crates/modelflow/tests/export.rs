@@ -185,6 +185,12 @@ fn usd_export_carries_the_scenes_cameras_as_pixar_usd_projects_them() {
     assert_eq!(text.matches("def Camera \"").count(), 4);
     check_usd(&run, &usd, &[]);
     assert_eq!(s.cameras_left_out, None);
+    // Alembic carries the same cameras (their projection is checked in the library's
+    // `export::tests::alembic_cameras_*` and by Blender in tools/check_blender.sh).
+    let abc = dir.path().join("board.abc");
+    let s = export_run(&run, ExportFormat::Abc, &abc, &ExportOptions::default()).unwrap();
+    assert_eq!((s.cameras, s.cameras_left_out.clone()), (4, None));
+    assert!(s.warnings().is_empty());
     // The footage archived, the scene file kept: the cameras come from the scene file alone.
     let archived = dir.path().join("archived");
     std::fs::create_dir_all(&archived).unwrap();
@@ -212,6 +218,14 @@ fn usd_export_carries_the_scenes_cameras_as_pixar_usd_projects_them() {
     let s = export_run(&run, ExportFormat::Usda, &usd, &ExportOptions::default()).unwrap();
     assert_eq!(s.cameras, 0);
     assert!(s.cameras_left_out.unwrap().contains("run.json"));
+    let s = export_run(&run, ExportFormat::Abc, &abc, &ExportOptions::default()).unwrap();
+    assert_eq!(s.cameras, 0);
+    let said = s.warnings().join("\n");
+    assert!(
+        said.contains("the Alembic file holds the mesh but not the scene's cameras")
+            && said.contains("run.json"),
+        "{said}"
+    );
     assert!(!std::fs::read_to_string(&usd)
         .unwrap()
         .contains("def Camera"));

@@ -3,7 +3,8 @@
 //! `tracked` holding one `PolyMesh` `mesh`, its face counts and indices once, its points and
 //! bounds sampled at every frame, texture coordinates (when the mesh has them) as the `uv`
 //! face-varying parameter, the input's normals (when it had them) as `N`, face-varying, at every
-//! frame. Written by hand: no maintained Rust crate writes Alembic (the
+//! frame; and the scene's cameras (when known) as an `Xform` `cameras` holding, per camera, an
+//! `Xform` (camera-to-world) over a `Camera` (film back: the USD export's numbers). Written by hand: no maintained Rust crate writes Alembic (the
 //! `alembic` crates are placeholders, `ogawa-rs` only reads), and the subset a deforming mesh
 //! needs is small.
 //!
@@ -30,6 +31,7 @@
 //! them); the objects' and properties' 32-byte hash fields are zero (only tools that compare two
 //! files' objects read them).
 
+use super::ExportCamera;
 use crate::base::mesh::Mesh;
 use sha2::{Digest, Sha256};
 
@@ -38,9 +40,13 @@ const DATA: u64 = 1 << 63;
 /// The Alembic library version the file says wrote it (1.8.5, the layout written here).
 const LIBRARY_VERSION: i32 = 10805;
 /// Alembic's plain data types (`Alembic::Util::PlainOldDataType`) used here.
+const POD_BOOL: u32 = 0;
+const POD_UINT8: u32 = 1;
 const POD_INT32: u32 = 6;
 const POD_FLOAT32: u32 = 10;
 const POD_FLOAT64: u32 = 11;
+/// An `Xform` object's metadata, as its parent lists it.
+const XFORM: &str = "schema=AbcGeom_Xform_v3;schemaObjTitle=AbcGeom_Xform_v3:.xform";
 /// Alembic's time per cycle that marks an acyclic sampling (each sample at its own time).
 const ACYCLIC: f64 = f64::MAX / 32.0;
 
@@ -206,6 +212,12 @@ fn array_property<'a>(o: &mut Ogawa, samples: impl IntoIterator<Item = &'a [u8]>
     o.group(&children)
 }
 
+/// A scalar property's group: each sample's data.
+fn scalar_property<'a>(o: &mut Ogawa, samples: impl IntoIterator<Item = &'a [u8]>) -> u64 {
+    let children: Vec<u64> = samples.into_iter().map(|s| sample(o, s)).collect();
+    o.group(&children)
+}
+
 /// A compound property's group: its properties' groups, then their headers.
 fn compound(o: &mut Ogawa, props: &[(u64, Header)]) -> u64 {
     let mut headers = Vec::new();
@@ -244,8 +256,8 @@ fn i32_bytes(values: impl IntoIterator<Item = i32>) -> Vec<u8> {
 }
 
 /// The Alembic file of `frames` (frame number and mesh, ascending, one topology), frame `f` at
-/// `f / fps` seconds.
-pub(crate) fn abc(frames: &[(u32, Mesh)], fps: f64) -> Vec<u8> {
+/// `f / fps` seconds, with `cameras` (when there are any) under `/cameras`.
+pub(crate) fn abc(frames: &[(u32, Mesh)], cameras: &[ExportCamera], fps: f64) -> Vec<u8> {
     let first = &frames[0].1;
     let n = frames.len() as u32;
     // The input's polygons where it had them, else the triangles; each face's corners reversed
@@ -287,11 +299,7 @@ pub(crate) fn abc(frames: &[(u32, Mesh)], fps: f64) -> Vec<u8> {
                 .collect()
         })
         .collect();
-    let mut bounds_children = Vec::new();
-    for b in &bounds {
-        bounds_children.push(sample(&mut o, b));
-    }
-    let self_bounds = o.group(&bounds_children);
+    let self_bounds = scalar_property(&mut o, bounds.iter().map(Vec::as_slice));
     let values = |array, pod, extent, samples, homogenous| Kind::Values {
         array,
         pod,
@@ -436,16 +444,13 @@ pub(crate) fn abc(frames: &[(u32, Mesh)], fps: f64) -> Vec<u8> {
             mesh,
         )],
     );
+    let mut top_children = vec![("tracked", XFORM, tracked)];
+    if !cameras.is_empty() {
+        let group = camera_objects(&mut o, frames, cameras);
+        top_children.push(("cameras", XFORM, group));
+    }
     let top_props = compound(&mut o, &[]);
-    let top = object(
-        &mut o,
-        top_props,
-        &[(
-            "tracked",
-            "schema=AbcGeom_Xform_v3;schemaObjTitle=AbcGeom_Xform_v3:.xform",
-            tracked,
-        )],
-    );
+    let top = object(&mut o, top_props, &top_children);
 
     // The archive: versions, top object, metadata, time samplings, indexed metadata (none).
     let version = o.data(&[&0i32.to_le_bytes()]);
@@ -484,4 +489,197 @@ pub(crate) fn abc(frames: &[(u32, Mesh)], fps: f64) -> Vec<u8> {
     let indexed = o.data(&[]);
     let root = o.group(&[version, library, top, metadata, samplings, indexed]);
     o.finish(root)
+}
+
+/// The `cameras` object: an identity `Xform` holding, for each camera, an `Xform` named as the USD
+/// export names it (its camera-to-world matrix, one matrix operation) and under it a `Camera`
+/// `<name>Shape` (its film back). Both are sampled at every frame for a camera that moves (its
+/// view at each frame: the last at or before it), once for one that does not.
+fn camera_objects(o: &mut Ogawa, frames: &[(u32, Mesh)], cameras: &[ExportCamera]) -> u64 {
+    let first = &frames[0].1;
+    let mut names: Vec<String> = Vec::new();
+    let mut built = Vec::new();
+    for cam in cameras {
+        let name = super::usd::usd_name(&cam.name, &names);
+        names.push(name.clone());
+        let views: Vec<&crate::base::Projection> = if cam.views.len() <= 1 {
+            cam.views.iter().map(|(_, p)| p).collect()
+        } else {
+            frames
+                .iter()
+                .map(|(f, _)| {
+                    let at = cam.views.partition_point(|(g, _)| g <= f).max(1) - 1;
+                    &cam.views[at].1
+                })
+                .collect()
+        };
+        let values: Vec<super::usd::CameraValues> = views
+            .iter()
+            .map(|p| super::usd::CameraValues::of(p, cam.width, cam.height, first))
+            .collect();
+        let n = values.len() as u32;
+        // The film back (`Alembic::AbcGeom::CameraSample`'s 16 core values): focal length in
+        // mm, apertures and their offsets in cm, no squeeze or overscan, Alembic's defaults for
+        // the f-stop (5.6), focus distance (5) and shutter (open 0, close 1/48 s), the clipping
+        // range.
+        let core: Vec<Vec<u8>> = values
+            .iter()
+            .map(|v| {
+                [
+                    v.focal,
+                    v.aperture[0] / 10.0,
+                    v.offset[0] / 10.0,
+                    v.aperture[1] / 10.0,
+                    v.offset[1] / 10.0,
+                    1.0,
+                    0.0,
+                    0.0,
+                    0.0,
+                    0.0,
+                    5.6,
+                    5.0,
+                    0.0,
+                    1.0 / 48.0,
+                    v.clipping[0],
+                    v.clipping[1],
+                ]
+                .iter()
+                .flat_map(|x| x.to_le_bytes())
+                .collect()
+            })
+            .collect();
+        let core = scalar_property(o, core.iter().map(Vec::as_slice));
+        let geom = compound(
+            o,
+            &[(
+                core,
+                Header {
+                    name: ".core",
+                    metadata: "",
+                    kind: Kind::Values {
+                        array: false,
+                        pod: POD_FLOAT64,
+                        extent: 16,
+                        samples: n,
+                        sampling: 1,
+                        homogenous: true,
+                    },
+                },
+            )],
+        );
+        let shape_props = compound(
+            o,
+            &[(
+                geom,
+                Header {
+                    name: ".geom",
+                    metadata: "schema=AbcGeom_Camera_v1",
+                    kind: Kind::Compound,
+                },
+            )],
+        );
+        let shape = object(o, shape_props, &[]);
+        // The transform: `.inherits` (whose samples give the schema its sample count), one
+        // matrix operation (`.ops`: type 3 in the high nibble), its 16 channels (`.vals`, the
+        // matrix row by row), and `isNotConstantIdentity`, whose presence says what it says.
+        let inherits: Vec<&[u8]> = vec![&[1u8][..]; n as usize];
+        let inherits = scalar_property(o, inherits);
+        let ops = scalar_property(o, [&[0x30u8][..]]);
+        let vals: Vec<Vec<u8>> = values
+            .iter()
+            .map(|v| {
+                v.transform
+                    .iter()
+                    .flatten()
+                    .flat_map(|x| x.to_le_bytes())
+                    .collect()
+            })
+            .collect();
+        let vals = scalar_property(o, vals.iter().map(Vec::as_slice));
+        let not_identity = scalar_property(o, [&[1u8][..]]);
+        let scalar = |pod, extent, samples, sampling| Kind::Values {
+            array: false,
+            pod,
+            extent,
+            samples,
+            sampling,
+            homogenous: true,
+        };
+        let xform = compound(
+            o,
+            &[
+                (
+                    inherits,
+                    Header {
+                        name: ".inherits",
+                        metadata: "",
+                        kind: scalar(POD_BOOL, 1, n, 1),
+                    },
+                ),
+                (
+                    ops,
+                    Header {
+                        name: ".ops",
+                        metadata: "",
+                        kind: scalar(POD_UINT8, 1, 1, 1),
+                    },
+                ),
+                (
+                    vals,
+                    Header {
+                        name: ".vals",
+                        metadata: "",
+                        kind: scalar(POD_FLOAT64, 16, n, 1),
+                    },
+                ),
+                (
+                    not_identity,
+                    Header {
+                        name: "isNotConstantIdentity",
+                        metadata: "",
+                        kind: scalar(POD_BOOL, 1, 1, 0),
+                    },
+                ),
+            ],
+        );
+        let xform_props = compound(
+            o,
+            &[(
+                xform,
+                Header {
+                    name: ".xform",
+                    metadata: "schema=AbcGeom_Xform_v3",
+                    kind: Kind::Compound,
+                },
+            )],
+        );
+        built.push((name, xform_props, shape));
+    }
+    let mut objects = Vec::new();
+    for (name, xform_props, shape) in &built {
+        let shape_name = format!("{name}Shape");
+        let g = object(
+            o,
+            *xform_props,
+            &[(
+                shape_name.as_str(),
+                "schema=AbcGeom_Camera_v1;schemaObjTitle=AbcGeom_Camera_v1:.geom",
+                *shape,
+            )],
+        );
+        objects.push((name.as_str(), XFORM, g));
+    }
+    let identity = compound(o, &[]);
+    let props = compound(
+        o,
+        &[(
+            identity,
+            Header {
+                name: ".xform",
+                metadata: "schema=AbcGeom_Xform_v3",
+                kind: Kind::Compound,
+            },
+        )],
+    );
+    object(o, props, &objects)
 }

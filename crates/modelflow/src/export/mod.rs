@@ -4,8 +4,8 @@
 //! it. Topology, texture coordinates and normals come from the run's first frame, positions from
 //! every frame. The file formats are written by hand (no maintained Rust crate writes USD,
 //! Alembic or point caches; glTF's JSON is small enough to build with `serde_json`), each
-//! atomically. USD also carries the scene's cameras ([`ExportCamera`]: their projections, as
-//! pinhole cameras), so the mesh can be looked at through them over the footage. This module
+//! atomically. USD and Alembic also carry the scene's cameras ([`ExportCamera`]: their
+//! projections, as pinhole cameras), so the mesh can be looked at through them over the footage. This module
 //! knows nothing of images or tracking.
 
 mod alembic;
@@ -81,7 +81,7 @@ impl Default for ExportOptions {
     }
 }
 
-/// A camera written into the USD export beside the mesh: its name, image size and projection
+/// A camera written into the USD and Alembic exports beside the mesh: its name, image size and projection
 /// (`P = K·[R | t]`, pixel centres at integer coordinates; the pinhole camera of the frames as
 /// the tracker sees them, lens distortion removed). `views`: one projection for a camera that
 /// does not move, else one per frame written.
@@ -122,9 +122,9 @@ pub struct ExportSummary {
     pub frames: usize,
     pub vertices: usize,
     pub triangles: usize,
-    /// Cameras written (USD only, when the run's scene could be read).
+    /// Cameras written (USD and Alembic only, when the run's scene could be read).
     pub cameras: usize,
-    /// Why a USD export of a run holds no cameras: the run names no scene, or its scene file
+    /// Why a USD or Alembic export of a run holds no cameras: the run names no scene, or its scene file
     /// could not be read or has a camera that does not check (the message names the file and
     /// the field). `None` when the cameras were written, and for the other formats.
     pub cameras_left_out: Option<String>,
@@ -140,13 +140,18 @@ pub struct ExportSummary {
 }
 
 impl ExportSummary {
-    /// What a user should know about the files written, one sentence each: the USD without
-    /// its cameras, a point cache whose OBJ has vertices that no face uses.
+    /// What a user should know about the files written, one sentence each: a USD or Alembic
+    /// file without its cameras, a point cache whose OBJ has vertices that no face uses.
     pub fn warnings(&self) -> Vec<String> {
         let mut out = Vec::new();
         if let Some(why) = &self.cameras_left_out {
+            let file = if self.format == ExportFormat::Abc {
+                "Alembic file"
+            } else {
+                "USD"
+            };
             out.push(format!(
-                "the USD holds the mesh but not the scene's cameras: {why}"
+                "the {file} holds the mesh but not the scene's cameras: {why}"
             ));
         }
         if let (Some((n, first)), ExportFormat::Pc2 | ExportFormat::Mdd) =
@@ -181,8 +186,8 @@ pub fn export(
     export_with_cameras(frames, confidence, &[], format, out, opts)
 }
 
-/// [`export`], with `cameras` written into USD beside the mesh (the other formats hold no
-/// cameras and ignore them).
+/// [`export`], with `cameras` written into USD and Alembic beside the mesh (the other formats
+/// hold no cameras and ignore them).
 pub fn export_with_cameras(
     frames: &[(u32, Mesh)],
     confidence: &[(u32, Vec<VertexConfidence>)],
@@ -249,7 +254,7 @@ pub fn export_with_cameras(
             write_atomic_with(out, |w| std::io::Write::write_all(w, text.as_bytes()))?;
         }
         ExportFormat::Abc => {
-            let bytes = alembic::abc(frames, opts.fps);
+            let bytes = alembic::abc(frames, cameras, opts.fps);
             write_atomic_with(out, |w| std::io::Write::write_all(w, &bytes))?;
         }
         ExportFormat::Glb => {
@@ -298,7 +303,7 @@ pub fn export_with_cameras(
         frames: frames.len(),
         vertices: first.positions.len(),
         triangles: first.triangles.len(),
-        cameras: if format == ExportFormat::Usda {
+        cameras: if matches!(format, ExportFormat::Usda | ExportFormat::Abc) {
             cameras.len()
         } else {
             0
@@ -309,7 +314,7 @@ pub fn export_with_cameras(
 
 /// Reads a run folder ([`crate::read_run`]) and its confidence files, and [`export`]s it. Without `opts.units`, the unit is
 /// taken from the scene file named in the folder's `run.json`, when both can be read; USD
-/// also gets that scene's cameras when it loads ([`ExportCamera`]).
+/// and Alembic also get that scene's cameras when it loads ([`ExportCamera`]).
 pub fn export_run(
     run: &Path,
     format: ExportFormat,
@@ -335,9 +340,11 @@ pub fn export_run(
             confidence.push((*f, crate::run::read_confidence(&p)?));
         }
     }
-    // The scene's cameras, for USD: from the scene file alone (the footage may be archived).
-    let (cameras, left_out) = match (format, &scene) {
-        (ExportFormat::Usda, Ok((file, path))) => match file.cameras_of(path) {
+    // The scene's cameras, for USD and Alembic: from the scene file alone (the footage may be
+    // archived).
+    let with_cameras = matches!(format, ExportFormat::Usda | ExportFormat::Abc);
+    let (cameras, left_out) = match (with_cameras, &scene) {
+        (true, Ok((file, path))) => match file.cameras_of(path) {
             Ok(cams) => (
                 cams.iter()
                     .map(|c| ExportCamera::of(c, frames.iter().map(|(f, _)| *f)))
@@ -346,7 +353,7 @@ pub fn export_run(
             ),
             Err(e) => (Vec::new(), Some(e.to_string())),
         },
-        (ExportFormat::Usda, Err(why)) => (Vec::new(), Some(why.clone())),
+        (true, Err(why)) => (Vec::new(), Some(why.clone())),
         _ => (Vec::new(), None),
     };
     let summary = export_with_cameras(

@@ -405,6 +405,127 @@ fn alembic_holds_the_meshes_topology_uvs_and_times_where_readers_look() {
 }
 
 #[test]
+fn alembic_cameras_project_as_the_scenes_through_alembics_screen_window() {
+    // Two cameras: one still, with its principal point off centre and fx ≠ fy (a webcam's K);
+    // one that moves, given at frames 10 and 12 only. Read back by Alembic's rules, each
+    // camera's `Xform` (one matrix op) and `Camera` film back must put a point where K·[R | t]
+    // does, through the screen window of `CameraSample::getScreenWindow` (offsets over half the
+    // horizontal aperture, the vertical extent aperture over horizontal); the moving camera at
+    // frame 11 and 13 holds its view of frame 10 and 12.
+    use crate::base::{look_at, Projection};
+    use abc_reader::File;
+    use nalgebra::{Matrix3, Vector3};
+    let fr = frames(4);
+    let k = Matrix3::new(903.5, 0.0, 618.3, 0.0, 907.9, 394.2, 0.0, 0.0, 1.0);
+    let pose = |eye: [f64; 3]| {
+        let (r, t) = look_at(
+            &Point3::from(eye),
+            &Point3::new(1.0, 0.5, -0.5),
+            &Vector3::new(0.0, 1.0, 0.0),
+        );
+        Projection::from_krt(&k, &r, &t).unwrap()
+    };
+    let cameras = [
+        ExportCamera {
+            name: "web cam".into(),
+            width: 1280,
+            height: 720,
+            views: vec![(10, pose([0.3, -2.0, 4.0]))],
+        },
+        ExportCamera {
+            name: "web cam".into(),
+            width: 1280,
+            height: 720,
+            views: vec![(10, pose([3.0, 1.0, 3.0])), (12, pose([2.0, 2.5, 3.5]))],
+        },
+    ];
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("c.abc");
+    let s = export_with_cameras(
+        &fr,
+        &[],
+        &cameras,
+        ExportFormat::Abc,
+        &out,
+        &ExportOptions::default(),
+    )
+    .unwrap();
+    assert_eq!(s.cameras, 2);
+    let bytes = std::fs::read(&out).unwrap();
+    let f = File(&bytes);
+    let root = f.children(f.root());
+    let top = f.objects(root[2]);
+    let names: Vec<&str> = top.iter().map(|o| o.0.as_str()).collect();
+    assert_eq!(names, ["tracked", "cameras"]);
+    let cams = f.objects(top[1].2);
+    let names: Vec<&str> = cams.iter().map(|o| o.0.as_str()).collect();
+    assert_eq!(names, ["web_cam", "web_cam_1"], "USD's names");
+    let point = Point3::new(0.7, 0.2, -0.9);
+    for (c, (name, meta, group)) in cams.iter().enumerate() {
+        assert!(meta.contains("schema=AbcGeom_Xform_v3"));
+        let shape = f.objects(*group);
+        assert_eq!(shape.len(), 1);
+        assert_eq!(shape[0].0, format!("{name}Shape"));
+        assert!(shape[0].1.contains("schema=AbcGeom_Camera_v1"));
+        let xform = f.props(f.children(*group)[0]);
+        assert_eq!(xform[0].name, ".xform");
+        let xp = f.props(xform[0].group);
+        let by = |n: &str| xp.iter().find(|p| p.name == n).unwrap();
+        assert_eq!(f.sample(by(".ops"), 0), &[0x30]);
+        assert_eq!(
+            (by(".vals").kind, by(".vals").pod, by(".vals").extent),
+            (1, 11, 16)
+        );
+        assert_eq!(f.sample(by("isNotConstantIdentity"), 0), &[1]);
+        let geom = f.props(f.children(shape[0].2)[0]);
+        assert_eq!(geom[0].name, ".geom");
+        let core = &f.props(geom[0].group)[0];
+        assert_eq!(
+            (core.name.as_str(), core.kind, core.extent),
+            (".core", 1, 16)
+        );
+        let n = if c == 0 { 1 } else { 4 };
+        assert_eq!(
+            (by(".vals").samples, core.samples, by(".inherits").samples),
+            (n, n, n)
+        );
+        for i in 0..n as usize {
+            let frame = 10 + i as u32;
+            let view = if c == 0 {
+                &cameras[0].views[0].1
+            } else if frame < 12 {
+                &cameras[1].views[0].1
+            } else {
+                &cameras[1].views[1].1
+            };
+            let m = f64s(f.sample(by(".vals"), i));
+            let v = f64s(f.sample(core, i));
+            // World to camera: the matrix is camera-to-world with the translation in its last
+            // row, the camera looking down −Z with +Y up.
+            let d = [point.x - m[12], point.y - m[13], point.z - m[14]];
+            let axis = |r: usize| d[0] * m[4 * r] + d[1] * m[4 * r + 1] + d[2] * m[4 * r + 2];
+            let (x, y, z) = (axis(0), axis(1), axis(2));
+            let (focal, hap, hoff, vap, voff) = (v[0], v[1], v[2], v[3], v[4]);
+            assert_eq!(v[5], 1.0, "no squeeze");
+            // The screen window (Alembic's), then pixels: its edges are the image's.
+            let sx = 2.0 * focal * (x / -z) / (hap * 10.0);
+            let sy = 2.0 * focal * (y / -z) / (hap * 10.0);
+            let (off_x, off_y, aper_y) = (2.0 * hoff / hap, 2.0 * voff / hap, vap / hap);
+            let u = (sx - (off_x - 1.0)) / 2.0 * 1280.0 - 0.5;
+            let w = (aper_y + off_y - sy) / (2.0 * aper_y) * 720.0 - 0.5;
+            let want = view.project(&point).unwrap();
+            assert!(
+                (u - want.x).abs() < 1e-9 && (w - want.y).abs() < 1e-9,
+                "camera {c} frame {frame}: ({u}, {w}) against ({}, {})",
+                want.x,
+                want.y
+            );
+            assert!(v[14] > 0.0 && v[15] > v[14], "a clipping range");
+        }
+    }
+}
+
+#[test]
 fn alembic_keeps_an_artists_quads_and_uv_seams() {
     use abc_reader::File;
     // Two quads folded along x = 1, with a UV seam and a hard edge between them (as in

@@ -233,18 +233,23 @@ fn cameras_usda(o: &mut String, cameras: &[ExportCamera], first: &Mesh) {
 /// A camera attribute: its USD type, name, and value at one frame.
 type CameraField = (&'static str, &'static str, fn(&CameraValues) -> String);
 
-/// A camera's USD numbers at one frame.
-struct CameraValues {
-    focal: f64,
-    aperture: [f64; 2],
-    offset: [f64; 2],
-    clipping: [f64; 2],
-    /// Camera-to-world, USD's row-vector convention (translation in the last row).
-    transform: [[f64; 4]; 4],
+/// A camera's USD numbers at one frame (also the Alembic export's: the same film back in
+/// centimetres, the same matrix).
+pub(super) struct CameraValues {
+    /// Focal length, horizontal and vertical aperture, and their offsets, in mm (`APERTURE`
+    /// across the image's width).
+    pub(super) focal: f64,
+    pub(super) aperture: [f64; 2],
+    pub(super) offset: [f64; 2],
+    /// Near and far clipping distances, in the scene's units.
+    pub(super) clipping: [f64; 2],
+    /// Camera-to-world, USD's (and Alembic's) row-vector convention (translation in the last
+    /// row), the camera looking down its −Z with +Y up.
+    pub(super) transform: [[f64; 4]; 4],
 }
 
 impl CameraValues {
-    fn of(p: &Projection, width: u32, height: u32, first: &Mesh) -> Self {
+    pub(super) fn of(p: &Projection, width: u32, height: u32, first: &Mesh) -> Self {
         let (k, r, _) = p.krt();
         let (w, h) = (width as f64, height as f64);
         let (fx, fy, cx, cy) = (k[(0, 0)], k[(1, 1)], k[(0, 2)], k[(1, 2)]);
@@ -306,8 +311,8 @@ impl CameraValues {
 }
 
 /// A valid USD prim name for `name` (letters, digits and `_`, not starting with a digit), not
-/// among `taken`.
-fn usd_name(name: &str, taken: &[String]) -> String {
+/// among `taken` (the Alembic export names its cameras' objects the same way).
+pub(super) fn usd_name(name: &str, taken: &[String]) -> String {
     let mut n: String = name
         .chars()
         .map(|c| {
