@@ -27,13 +27,16 @@
 //! Frame `f` is sampled at `f / fps` seconds (a 3D package at the same rate shows it at frame
 //! `f`, as the USD export's time codes): uniformly when the frames are evenly spaced, at each
 //! frame's own time otherwise.
-//! The samples' keys are the first 16 bytes of their data's SHA-256 (a reader only compares
-//! them); the objects' and properties' 32-byte hash fields are zero (only tools that compare two
-//! files' objects read them).
+//! The samples' keys are the first 16 bytes of their data's SHA-256, and each object's two
+//! hashes (of its properties, of its children) are made the same way from the digests of what
+//! they hold, where Alembic's writer uses SpookyHash: readers only compare them (a sample seen
+//! before; two objects alike, which instancing readers draw once), so equal content gets equal
+//! hashes and different content different ones.
 
 use super::ExportCamera;
 use crate::base::mesh::Mesh;
 use sha2::{Digest, Sha256};
+use std::collections::HashMap;
 
 /// Ogawa's marker of a data child in a group's list of positions.
 const DATA: u64 = 1 << 63;
@@ -50,9 +53,12 @@ const XFORM: &str = "schema=AbcGeom_Xform_v3;schemaObjTitle=AbcGeom_Xform_v3:.xf
 /// Alembic's time per cycle that marks an acyclic sampling (each sample at its own time).
 const ACYCLIC: f64 = f64::MAX / 32.0;
 
-/// The Ogawa container being written, in memory (the export writes it atomically).
+/// The Ogawa container being written, in memory (the export writes it atomically), with a
+/// digest of every data and group written: of a data's bytes, of a group's children's digests
+/// (so equal content has equal digests wherever it lies; the objects' hashes are made of them).
 struct Ogawa {
     bytes: Vec<u8>,
+    digests: HashMap<u64, [u8; 16]>,
 }
 
 impl Ogawa {
@@ -63,7 +69,15 @@ impl Ogawa {
         // group's position, filled in by `finish`.
         bytes.extend_from_slice(&[0xff, 0, 1]);
         bytes.extend_from_slice(&[0; 8]);
-        Ogawa { bytes }
+        Ogawa {
+            bytes,
+            digests: HashMap::new(),
+        }
+    }
+
+    /// The digest of what was written at `child` (zeros for the empty group and data).
+    fn digest(&self, child: u64) -> [u8; 16] {
+        self.digests.get(&child).copied().unwrap_or_default()
     }
 
     /// Writes one data child made of `parts` one after another; its position for a group.
@@ -74,9 +88,12 @@ impl Ogawa {
         }
         let pos = self.bytes.len() as u64;
         self.bytes.extend_from_slice(&(size as u64).to_le_bytes());
+        let mut hash = Sha256::new();
         for p in parts {
             self.bytes.extend_from_slice(p);
+            hash.update(p);
         }
+        self.digests.insert(pos | DATA, first16(&hash.finalize()));
         pos | DATA
     }
 
@@ -88,9 +105,12 @@ impl Ogawa {
         let pos = self.bytes.len() as u64;
         self.bytes
             .extend_from_slice(&(children.len() as u64).to_le_bytes());
+        let mut hash = Sha256::new();
         for c in children {
             self.bytes.extend_from_slice(&c.to_le_bytes());
+            hash.update(self.digest(*c));
         }
+        self.digests.insert(pos, first16(&hash.finalize()));
         pos
     }
 
@@ -240,11 +260,28 @@ fn object(o: &mut Ogawa, props: u64, children: &[(&str, &str, u64)]) -> u64 {
         headers.extend_from_slice(&(metadata.len() as u32).to_le_bytes());
         headers.extend_from_slice(metadata.as_bytes());
     }
-    headers.extend_from_slice(&[0; 32]);
+    // The hash of the object's properties, then of its children (zeros when it has none), as
+    // Alembic's writer places them; readers only compare them (whether two objects are alike).
+    headers.extend_from_slice(&o.digest(props));
+    if children.is_empty() {
+        headers.extend_from_slice(&[0; 16]);
+    } else {
+        let mut hash = Sha256::new();
+        for c in children {
+            hash.update(o.digest(c.2));
+        }
+        headers.extend_from_slice(&first16(&hash.finalize()));
+    }
     let mut list = vec![props];
     list.extend(children.iter().map(|c| c.2));
     list.push(o.data(&[&headers]));
     o.group(&list)
+}
+
+fn first16(digest: &[u8]) -> [u8; 16] {
+    let mut out = [0; 16];
+    out.copy_from_slice(&digest[..16]);
+    out
 }
 
 fn f32_bytes(values: impl IntoIterator<Item = f32>) -> Vec<u8> {

@@ -199,6 +199,17 @@ mod abc_reader {
             assert_eq!(out.len() + 2, ch.len());
             out
         }
+        /// An object's own two hashes (of its properties, of its children), after its
+        /// children's headers.
+        pub fn hashes(&self, object: u64) -> ([u8; 16], [u8; 16]) {
+            let ch = self.children(object);
+            let h = self.data(*ch.last().unwrap());
+            let at = h.len() - 32;
+            (
+                h[at..at + 16].try_into().unwrap(),
+                h[at + 16..].try_into().unwrap(),
+            )
+        }
         /// A compound's properties.
         pub fn props(&self, compound: u64) -> Vec<Prop> {
             let ch = self.children(compound);
@@ -411,7 +422,8 @@ fn alembic_cameras_project_as_the_scenes_through_alembics_screen_window() {
     // camera's `Xform` (one matrix op) and `Camera` film back must put a point where K·[R | t]
     // does, through the screen window of `CameraSample::getScreenWindow` (offsets over half the
     // horizontal aperture, the vertical extent aperture over horizontal); the moving camera at
-    // frame 11 and 13 holds its view of frame 10 and 12.
+    // frame 11 and 13 holds its view of frame 10 and 12. A third camera, the first's copy,
+    // gets the first's hashes.
     use crate::base::{look_at, Projection};
     use abc_reader::File;
     use nalgebra::{Matrix3, Vector3};
@@ -438,6 +450,12 @@ fn alembic_cameras_project_as_the_scenes_through_alembics_screen_window() {
             height: 720,
             views: vec![(10, pose([3.0, 1.0, 3.0])), (12, pose([2.0, 2.5, 3.5]))],
         },
+        ExportCamera {
+            name: "copy".into(),
+            width: 1280,
+            height: 720,
+            views: vec![(10, pose([0.3, -2.0, 4.0]))],
+        },
     ];
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("c.abc");
@@ -450,7 +468,7 @@ fn alembic_cameras_project_as_the_scenes_through_alembics_screen_window() {
         &ExportOptions::default(),
     )
     .unwrap();
-    assert_eq!(s.cameras, 2);
+    assert_eq!(s.cameras, 3);
     let bytes = std::fs::read(&out).unwrap();
     let f = File(&bytes);
     let root = f.children(f.root());
@@ -459,9 +477,20 @@ fn alembic_cameras_project_as_the_scenes_through_alembics_screen_window() {
     assert_eq!(names, ["tracked", "cameras"]);
     let cams = f.objects(top[1].2);
     let names: Vec<&str> = cams.iter().map(|o| o.0.as_str()).collect();
-    assert_eq!(names, ["web_cam", "web_cam_1"], "USD's names");
+    assert_eq!(names, ["web_cam", "web_cam_1", "copy"], "USD's names");
+    // The objects' hashes, which instancing readers compare: the same camera twice hashes
+    // alike, different ones do not, an object with no children has a zero children hash.
+    let h: Vec<_> = cams.iter().map(|c| f.hashes(c.2)).collect();
+    assert_eq!(h[0], h[2]);
+    assert_ne!(h[0].0, h[1].0);
+    assert_ne!(h[0].1, h[1].1);
+    assert_ne!(h[0].0, [0; 16]);
+    let shape = f.objects(cams[1].2)[0].2;
+    assert_eq!(f.hashes(shape).1, [0; 16]);
+    assert_ne!(f.hashes(shape).0, [0; 16]);
+    assert_ne!(f.hashes(top[0].2), f.hashes(top[1].2));
     let point = Point3::new(0.7, 0.2, -0.9);
-    for (c, (name, meta, group)) in cams.iter().enumerate() {
+    for (c, (name, meta, group)) in cams.iter().enumerate().take(2) {
         assert!(meta.contains("schema=AbcGeom_Xform_v3"));
         let shape = f.objects(*group);
         assert_eq!(shape.len(), 1);
