@@ -3,7 +3,8 @@
 //! `tracked` holding one `PolyMesh` `mesh`, its face counts and indices once, its points and
 //! bounds sampled at every frame, texture coordinates (when the mesh has them) as the `uv`
 //! face-varying parameter, the input's normals (when it had them) as `N`, face-varying, at every
-//! frame; and the scene's cameras (when known) as an `Xform` `cameras` holding, per camera, an
+//! frame, the per-vertex confidence (when the run has it) as vertex parameters at the solved
+//! frames; and the scene's cameras (when known) as an `Xform` `cameras` holding, per camera, an
 //! `Xform` (camera-to-world) over a `Camera` (film back: the USD export's numbers). Written by hand: no maintained Rust crate writes Alembic (the
 //! `alembic` crates are placeholders, `ogawa-rs` only reads), and the subset a deforming mesh
 //! needs is small.
@@ -35,6 +36,7 @@
 
 use super::ExportCamera;
 use crate::base::mesh::Mesh;
+use crate::tracker::VertexConfidence;
 use sha2::{Digest, Sha256};
 use std::collections::HashMap;
 
@@ -278,6 +280,26 @@ fn object(o: &mut Ogawa, props: u64, children: &[(&str, &str, u64)]) -> u64 {
     o.group(&list)
 }
 
+/// Appends the time sampling of `frames` (ascending), frame `f` at `f / fps` seconds, as the
+/// archive's list holds it: its most samples, time per cycle, then its stored times (uniform when
+/// the frames are evenly spaced: one; acyclic otherwise: each frame's).
+fn time_sampling(out: &mut Vec<u8>, frames: &[u32], fps: f64) {
+    let n = frames.len() as u32;
+    let step = frames.get(1).map_or(1, |f| f - frames[0]);
+    out.extend_from_slice(&n.to_le_bytes());
+    if frames.windows(2).all(|w| w[1] - w[0] == step) {
+        out.extend_from_slice(&(step as f64 / fps).to_le_bytes());
+        out.extend_from_slice(&1u32.to_le_bytes());
+        out.extend_from_slice(&(frames[0] as f64 / fps).to_le_bytes());
+    } else {
+        out.extend_from_slice(&ACYCLIC.to_le_bytes());
+        out.extend_from_slice(&n.to_le_bytes());
+        for f in frames {
+            out.extend_from_slice(&(*f as f64 / fps).to_le_bytes());
+        }
+    }
+}
+
 fn first16(digest: &[u8]) -> [u8; 16] {
     let mut out = [0; 16];
     out.copy_from_slice(&digest[..16]);
@@ -293,8 +315,14 @@ fn i32_bytes(values: impl IntoIterator<Item = i32>) -> Vec<u8> {
 }
 
 /// The Alembic file of `frames` (frame number and mesh, ascending, one topology), frame `f` at
-/// `f / fps` seconds, with `cameras` (when there are any) under `/cameras`.
-pub(crate) fn abc(frames: &[(u32, Mesh)], cameras: &[ExportCamera], fps: f64) -> Vec<u8> {
+/// `f / fps` seconds, with the per-vertex `confidence` of the frames that have it (may be
+/// empty) as parameters of the mesh and `cameras` (when there are any) under `/cameras`.
+pub(crate) fn abc(
+    frames: &[(u32, Mesh)],
+    confidence: &[(u32, Vec<VertexConfidence>)],
+    cameras: &[ExportCamera],
+    fps: f64,
+) -> Vec<u8> {
     let first = &frames[0].1;
     let n = frames.len() as u32;
     // The input's polygons where it had them, else the triangles; each face's corners reversed
@@ -445,6 +473,51 @@ pub(crate) fn abc(frames: &[(u32, Mesh)], cameras: &[ExportCamera], fps: f64) ->
             },
         ));
     }
+    // The confidence, per vertex at the frames that have it (the solved ones: sampling 1 when
+    // they are the mesh's frames, else sampling 2, theirs), in `.arbGeomParams`, where readers
+    // find a mesh's other attributes (Houdini's point attributes, Blender's attributes).
+    let conf_frames: Vec<u32> = confidence.iter().map(|(f, _)| *f).collect();
+    let mesh_frames: Vec<u32> = frames.iter().map(|(f, _)| *f).collect();
+    let conf_sampling = if conf_frames == mesh_frames { 1 } else { 2 };
+    if !confidence.is_empty() {
+        let fields: [(&'static str, super::usd::ConfidenceField); 3] = [
+            ("information", |c| c.information),
+            ("residual", |c| c.residual),
+            ("sigma", |c| c.sigma()),
+        ];
+        let mut params = Vec::new();
+        for (name, value) in fields {
+            let per_frame: Vec<Vec<u8>> = confidence
+                .iter()
+                .map(|(_, c)| f32_bytes(c.iter().map(|v| value(v) as f32)))
+                .collect();
+            let g = array_property(&mut o, per_frame.iter().map(Vec::as_slice));
+            params.push((
+                g,
+                Header {
+                    name,
+                    metadata: "geoScope=vtx;isGeomParam=true;podExtent=1;podName=float32_t",
+                    kind: Kind::Values {
+                        array: true,
+                        pod: POD_FLOAT32,
+                        extent: 1,
+                        samples: confidence.len() as u32,
+                        sampling: conf_sampling,
+                        homogenous: true,
+                    },
+                },
+            ));
+        }
+        let g = compound(&mut o, &params);
+        geom.push((
+            g,
+            Header {
+                name: ".arbGeomParams",
+                metadata: "",
+                kind: Kind::Compound,
+            },
+        ));
+    }
     let geom = compound(&mut o, &geom);
     let mesh_props = compound(
         &mut o,
@@ -507,20 +580,10 @@ pub(crate) fn abc(frames: &[(u32, Mesh)], cameras: &[ExportCamera], fps: f64) ->
     samplings.extend_from_slice(&1.0f64.to_le_bytes());
     samplings.extend_from_slice(&1u32.to_le_bytes());
     samplings.extend_from_slice(&0.0f64.to_le_bytes());
-    // Sampling 1, the frames'.
-    let step = frames.get(1).map_or(1, |f| f.0 - frames[0].0);
-    let even = frames.windows(2).all(|w| w[1].0 - w[0].0 == step);
-    samplings.extend_from_slice(&n.to_le_bytes());
-    if even {
-        samplings.extend_from_slice(&(step as f64 / fps).to_le_bytes());
-        samplings.extend_from_slice(&1u32.to_le_bytes());
-        samplings.extend_from_slice(&(frames[0].0 as f64 / fps).to_le_bytes());
-    } else {
-        samplings.extend_from_slice(&ACYCLIC.to_le_bytes());
-        samplings.extend_from_slice(&n.to_le_bytes());
-        for (f, _) in frames {
-            samplings.extend_from_slice(&(*f as f64 / fps).to_le_bytes());
-        }
+    // Sampling 1, the frames'; sampling 2, the confidence's where its frames are others.
+    time_sampling(&mut samplings, &mesh_frames, fps);
+    if conf_sampling == 2 && !conf_frames.is_empty() {
+        time_sampling(&mut samplings, &conf_frames, fps);
     }
     let samplings = o.data(&[&samplings]);
     let indexed = o.data(&[]);

@@ -174,8 +174,9 @@ impl ExportSummary {
 /// Writes `frames` (frame number and mesh, ascending, all with the first one's triangles) as one
 /// animated file `out` in `format`. PC2 and MDD also write the first frame's mesh as OBJ beside
 /// `out` (same name, `.obj`), which is what the point cache deforms. `confidence` (frame and
-/// per-vertex confidence, as `track` writes it beside each solved frame; may be empty) goes into
-/// USD as the `information`, `residual` and `sigma` primvars.
+/// per-vertex confidence, as `track` writes it beside each solved frame, frames ascending; may be
+/// empty) goes into USD as the `information`, `residual` and `sigma` primvars, and into Alembic as
+/// vertex parameters of those names.
 pub fn export(
     frames: &[(u32, Mesh)],
     confidence: &[(u32, Vec<VertexConfidence>)],
@@ -254,7 +255,7 @@ pub fn export_with_cameras(
             write_atomic_with(out, |w| std::io::Write::write_all(w, text.as_bytes()))?;
         }
         ExportFormat::Abc => {
-            let bytes = alembic::abc(frames, cameras, opts.fps);
+            let bytes = alembic::abc(frames, confidence, cameras, opts.fps);
             write_atomic_with(out, |w| std::io::Write::write_all(w, &bytes))?;
         }
         ExportFormat::Glb => {

@@ -555,6 +555,94 @@ fn alembic_cameras_project_as_the_scenes_through_alembics_screen_window() {
 }
 
 #[test]
+fn alembic_carries_the_confidence_as_vertex_parameters_at_the_solved_frames() {
+    // `track` writes a confidence file beside every solved frame, not beside the first: the
+    // three numbers go into the mesh's `.arbGeomParams` as float vertex parameters on their own
+    // time sampling (2: frames 11 and 12 of 10..=12); sigma is infinite where nothing holds the
+    // vertex. When every frame has one, they share the points' sampling and no other is added.
+    use abc_reader::File;
+    let fr = frames(3);
+    let conf = |f: u32| -> Vec<VertexConfidence> {
+        (0..6)
+            .map(|v| VertexConfidence {
+                information: if v == 5 {
+                    0.0
+                } else {
+                    f as f64 * 100.0 + v as f64
+                },
+                residual: 0.01 * (v + 1) as f64,
+                pixels: 50.0,
+            })
+            .collect()
+    };
+    let confidence = vec![(11, conf(11)), (12, conf(12))];
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("c.abc");
+    export(
+        &fr,
+        &confidence,
+        ExportFormat::Abc,
+        &out,
+        &ExportOptions::default(),
+    )
+    .unwrap();
+    let bytes = std::fs::read(&out).unwrap();
+    let f = File(&bytes);
+    let root = f.children(f.root());
+    let ts = f.data(root[4]);
+    // Samplings 0 and 1 as before (24 bytes each), then 2: two samples, 1/24 s from 11/24 s.
+    assert_eq!(ts.len(), 3 * 24);
+    assert_eq!(&ts[48..52], &2u32.to_le_bytes());
+    assert_eq!(f64s(&ts[52..60]), vec![1.0 / 24.0]);
+    assert_eq!(f64s(&ts[64..72]), vec![11.0 / 24.0]);
+    let top = f.objects(root[2]);
+    let mesh = f.objects(top[0].2);
+    let props = f.props(f.children(mesh[0].2)[0]);
+    let geom = f.props(props[0].group);
+    let arb = geom.iter().find(|p| p.name == ".arbGeomParams").unwrap();
+    assert_eq!(arb.kind, 0);
+    let params = f.props(arb.group);
+    let names: Vec<&str> = params.iter().map(|p| p.name.as_str()).collect();
+    assert_eq!(names, ["information", "residual", "sigma"]);
+    for p in &params {
+        assert_eq!(
+            (p.kind, p.pod, p.extent, p.samples, p.sampling),
+            (2, 10, 1, 2, 2)
+        );
+        assert!(p.metadata.contains("geoScope=vtx") && p.metadata.contains("isGeomParam=true"));
+    }
+    for (i, (frame, c)) in confidence.iter().enumerate() {
+        let info = f32s(f.sample(&params[0], i));
+        let want: Vec<f32> = c.iter().map(|v| v.information as f32).collect();
+        assert_eq!(info, want, "frame {frame}");
+        let sigma = f32s(f.sample(&params[2], i));
+        assert_eq!(sigma[0], c[0].sigma() as f32);
+        assert!(sigma[5].is_infinite(), "nothing holds vertex 5");
+    }
+    // Every frame with its confidence: the points' sampling, no third.
+    let all: Vec<_> = fr.iter().map(|(f, _)| (*f, conf(*f))).collect();
+    export(
+        &fr,
+        &all,
+        ExportFormat::Abc,
+        &out,
+        &ExportOptions::default(),
+    )
+    .unwrap();
+    let bytes = std::fs::read(&out).unwrap();
+    let f = File(&bytes);
+    let root = f.children(f.root());
+    assert_eq!(f.data(root[4]).len(), 2 * 24);
+    let mesh = f.objects(f.objects(root[2])[0].2);
+    let geom = f.props(f.props(f.children(mesh[0].2)[0])[0].group);
+    let arb = geom.iter().find(|p| p.name == ".arbGeomParams").unwrap();
+    assert!(f
+        .props(arb.group)
+        .iter()
+        .all(|p| (p.samples, p.sampling) == (3, 1)));
+}
+
+#[test]
 fn alembic_keeps_an_artists_quads_and_uv_seams() {
     use abc_reader::File;
     // Two quads folded along x = 1, with a UV seam and a hard edge between them (as in

@@ -335,8 +335,8 @@ pub(super) fn usd_name(name: &str, taken: &[String]) -> String {
     out
 }
 
-/// One number of a vertex's confidence.
-type ConfidenceField = fn(&VertexConfidence) -> f64;
+/// One number of a vertex's confidence (also the Alembic export's).
+pub(super) type ConfidenceField = fn(&VertexConfidence) -> f64;
 
 /// Writes the items separated by ", ".
 fn list<T>(o: &mut String, items: impl Iterator<Item = T>, mut item: impl FnMut(&mut String, T)) {
