@@ -14,7 +14,7 @@ pub struct SelectArgs {
     /// mesh at the first frame.
     #[arg(long, value_name = "NAME,...", value_delimiter = ',')]
     pub cameras: Option<Vec<String>>,
-    /// The mesh lined up with the first frame, instead of the scene's (OBJ or PLY; e.g. an
+    /// The mesh lined up with the first frame, instead of the scene's (OBJ, PLY or glTF; e.g. an
     /// earlier run's last frame, to go on from there with --frames).
     #[arg(long, value_name = "FILE")]
     pub mesh: Option<std::path::PathBuf>,

@@ -1,6 +1,6 @@
 //! Mesh files: OBJ and PLY (ascii and both binary byte orders) read back exactly what was
-//! written, polygons are triangulated, and bad files give errors naming the file and line or
-//! element.
+//! written, polygons are triangulated, a glTF file from Blender is read as the surface it holds,
+//! and bad files give errors naming the file and line or element.
 
 use modelflow::base::{grid, Mesh};
 use modelflow::input::{read_mesh, write_obj};
@@ -209,7 +209,7 @@ fn obj_errors_name_file_and_line() {
     let msg = err(&d.join("missing.obj"));
     assert_names(&msg, &["missing.obj"]);
     let msg = err(&write(d, "m.stl", b"solid"));
-    assert_names(&msg, &["m.stl", "extension", ".obj or .ply"]);
+    assert_names(&msg, &["m.stl", "extension", ".obj, .ply, .glb or .gltf"]);
 }
 
 // ---- PLY -------------------------------------------------------------------------------------
@@ -483,4 +483,105 @@ fn a_polygon_with_three_corners_in_a_row_is_triangulated_without_a_flat_triangle
                end_header\n0 0 0\n1 0 0\n2 0 0\n2 1 0\n1 2 0\n0 1 0\n6 0 1 2 3 4 5\n";
     let p = read_mesh(&write(dir.path(), "hex.ply", ply.as_bytes())).unwrap();
     assert_eq!(p.triangles, m.triangles);
+}
+
+#[test]
+fn gltf_from_blender_is_read_as_one_welded_surface_in_world_coordinates() {
+    // fixtures/gltf (tools/make_gltf_fixture.py): the hard sample's irregular 565-vertex mesh as
+    // Blender's glTF exporter writes it, split at every UV seam and hard edge, placed by a parent
+    // node (turned, scaled unevenly, mirrored) and its own; beside it the same mesh as Blender's
+    // OBJ exporter writes it in world coordinates. Read, the glTF must be that mesh: one vertex
+    // per point (the splits welded), every triangle with the OBJ's corners in the OBJ's turning
+    // order (the mirror's winding turned back), the UVs per corner, and the normals facing the
+    // way the winding does.
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../fixtures/gltf");
+    let glb = read_mesh(&dir.join("surface.glb")).unwrap();
+    let obj = read_mesh(&dir.join("expected.obj")).unwrap();
+    let stored: usize = gltf::Gltf::open(dir.join("surface.glb"))
+        .unwrap()
+        .document
+        .meshes()
+        .flat_map(|m| m.primitives().collect::<Vec<_>>())
+        .map(|p| p.get(&gltf::Semantic::Positions).unwrap().count())
+        .sum();
+    assert!(stored > 700, "the file splits the vertices ({stored})");
+    assert_eq!(glb.positions.len(), 565);
+    assert_eq!(obj.positions.len(), 565);
+    assert_eq!(glb.triangles.len(), obj.triangles.len());
+    // The OBJ's vertex at each glTF vertex's point (6 decimals in the OBJ).
+    let to_obj: Vec<usize> = glb
+        .positions
+        .iter()
+        .map(|p| {
+            let (i, d) = obj
+                .positions
+                .iter()
+                .enumerate()
+                .map(|(i, q)| (i, (p - q).norm()))
+                .fold((0, f64::INFINITY), |a, b| if b.1 < a.1 { b } else { a });
+            assert!(d < 2e-6, "vertex at {p:?} is {d} from the OBJ's nearest");
+            i
+        })
+        .collect();
+    let mut seen = to_obj.clone();
+    seen.sort_unstable();
+    seen.dedup();
+    assert_eq!(seen.len(), 565, "one glTF vertex per OBJ vertex");
+    // Triangles: the same corners in the same turning order, and their UVs.
+    let key = |t: [usize; 3]| {
+        let r = (0..3).min_by_key(|&k| t[k]).unwrap();
+        [t[r], t[(r + 1) % 3], t[(r + 2) % 3]]
+    };
+    let obj_tris: std::collections::HashMap<[usize; 3], usize> = obj
+        .triangles
+        .iter()
+        .enumerate()
+        .map(|(i, t)| (key(t.map(|v| v as usize)), i))
+        .collect();
+    let (guv, ouv) = (
+        glb.corner_uvs.as_ref().unwrap(),
+        obj.corner_uvs.as_ref().unwrap(),
+    );
+    for (i, t) in glb.triangles.iter().enumerate() {
+        let mapped = t.map(|v| to_obj[v as usize]);
+        let j = *obj_tris.get(&key(mapped)).unwrap_or_else(|| {
+            panic!("triangle {i} {mapped:?} is not the OBJ's, or turns the other way")
+        });
+        for (k, &v) in mapped.iter().enumerate() {
+            let m = (0..3).find(|&m| obj.triangles[j][m] as usize == v).unwrap();
+            let a = guv.values[guv.index[i][k] as usize];
+            let b = ouv.values[ouv.index[j][m] as usize];
+            assert!(
+                (a[0] - b[0]).abs() < 2e-6 && (a[1] - b[1]).abs() < 2e-6,
+                "triangle {i} corner {k}: uv {a:?} against the OBJ's {b:?}"
+            );
+        }
+    }
+    // The normals (Blender's, turned by the nodes' inverse transpose) face as the winding does.
+    let normals = glb.corner_normals.as_ref().unwrap();
+    for (i, t) in glb.triangles.iter().enumerate() {
+        let p = t.map(|v| glb.positions[v as usize]);
+        let face = (p[1] - p[0]).cross(&(p[2] - p[0])).normalize();
+        for k in 0..3 {
+            let n = normals.table.values[normals.table.index[i][k] as usize];
+            let d = face.dot(&nalgebra::Vector3::from(n));
+            assert!(
+                d > 0.3,
+                "triangle {i} corner {k}: normal against the face {d}"
+            );
+        }
+    }
+}
+
+#[test]
+fn gltf_errors_name_the_file() {
+    let dir = tempfile::tempdir().unwrap();
+    let p = write(dir.path(), "broken.glb", b"glTF\x02\x00\x00\x00garbage");
+    assert_names(&err(&p), &["broken.glb"]);
+    let p = write(
+        dir.path(),
+        "mesh.gltf",
+        b"{\"asset\": {\"version\": \"2.0\"}}",
+    );
+    assert_names(&err(&p), &["mesh.gltf", "no triangles"]);
 }

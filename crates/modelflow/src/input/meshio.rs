@@ -25,7 +25,8 @@ pub enum Checks {
     Structure,
 }
 
-/// Reads a mesh, dispatching on the file extension (`.obj` or `.ply`, any case), and validates
+/// Reads a mesh, dispatching on the file extension (`.obj`, `.ply`, or glTF's `.glb` and `.gltf`:
+/// [`super::gltfmesh`]; any case), and validates
 /// it fully (see [`validate`]).
 pub fn read_mesh(path: &Path) -> Result<Mesh> {
     read_mesh_with(path, Checks::Full)
@@ -47,10 +48,11 @@ pub fn read_mesh_with(path: &Path, checks: Checks) -> Result<Mesh> {
             let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
             parse_ply(path, &bytes, checks)
         }
+        "glb" | "gltf" => super::gltfmesh::read_gltf(path, checks),
         _ => Err(Error::invalid(
             path,
             "extension",
-            format!("unknown mesh format {ext:?}: expected .obj or .ply"),
+            format!("unknown mesh format {ext:?}: expected .obj, .ply, .glb or .gltf"),
         )),
     }
 }

@@ -6,6 +6,7 @@
 
 pub mod calib;
 pub(crate) mod dpx;
+pub(crate) mod gltfmesh;
 pub(crate) mod imageio;
 pub(crate) mod meshio;
 pub(crate) mod scene;
