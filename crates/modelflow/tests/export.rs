@@ -320,3 +320,50 @@ fn a_point_cache_is_not_written_over_by_its_own_mesh_nor_left_without_it() {
     export_run(&run, ExportFormat::Mdd, &out, &opts).unwrap();
     assert!(out.is_file() && dir.path().join("c.obj").is_file());
 }
+
+#[test]
+fn a_glb_export_reads_back_as_the_runs_first_mesh_in_its_vertex_order() {
+    // The folded quads (a UV seam, a hard edge, two vertices in no face) exported as glTF, whose
+    // vertices are split at the seam and the edge, then read as a first mesh: the same surface,
+    // its vertices numbered as the run's (those in no face left out: glTF draws corners), the
+    // same triangles, UVs and normals per corner. So a shot's glTF can start another track.
+    let dir = tempfile::tempdir().unwrap();
+    let run = folded_run(dir.path());
+    let glb = dir.path().join("f.glb");
+    export_run(&run, ExportFormat::Glb, &glb, &ExportOptions::default()).unwrap();
+    let back = read_mesh(&glb).unwrap();
+    let first = read_mesh(&run.join("0005.obj")).unwrap();
+    let used = [0usize, 1, 2, 3, 6, 7];
+    assert_eq!(back.positions.len(), used.len());
+    for (i, &v) in used.iter().enumerate() {
+        assert!(
+            (back.positions[i] - first.positions[v]).norm() < 1e-6,
+            "vertex {i}"
+        );
+    }
+    let number = |v: u32| used.iter().position(|&u| u == v as usize).unwrap() as u32;
+    let want: Vec<[u32; 3]> = first.triangles.iter().map(|t| t.map(number)).collect();
+    assert_eq!(back.triangles, want);
+    let (bu, fu) = (
+        back.corner_uvs.as_ref().unwrap(),
+        first.corner_uvs.as_ref().unwrap(),
+    );
+    let (bn, fln) = (
+        back.corner_normals.as_ref().unwrap(),
+        first.corner_normals.as_ref().unwrap(),
+    );
+    for i in 0..want.len() {
+        for k in 0..3 {
+            let (a, b) = (
+                bu.values[bu.index[i][k] as usize],
+                fu.values[fu.index[i][k] as usize],
+            );
+            assert!((a[0] - b[0]).abs() < 1e-6 && (a[1] - b[1]).abs() < 1e-6);
+            let (a, b) = (
+                bn.table.values[bn.table.index[i][k] as usize],
+                fln.table.values[fln.table.index[i][k] as usize],
+            );
+            assert!((0..3).all(|c| (a[c] - b[c]).abs() < 1e-6), "{a:?} {b:?}");
+        }
+    }
+}

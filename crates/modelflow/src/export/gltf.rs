@@ -1,5 +1,6 @@
 //! Binary glTF 2.0 (`.glb`): the first frame's mesh as one primitive (vertices split where a
-//! corner's texture coordinate or normal differs, as glTF needs; texture coordinates with v
+//! corner's texture coordinate or normal differs, as glTF needs, in the mesh's vertex order, so
+//! that the file read back as a first mesh numbers its vertices as the run; texture coordinates with v
 //! flipped to glTF's top-left origin), one morph target per frame holding that frame's
 //! displacement from the first (and its normals' change), and one animation whose weights
 //! channel switches the targets on in turn, linearly between frames, `(f - first) / fps` seconds
@@ -48,7 +49,22 @@ fn split(m: &Mesh) -> Split {
             s.corners.push(id);
         }
     }
-    s
+    // The glTF vertices in the mesh's vertex order (each vertex's copies in order of first
+    // use), so that a reader welding the copies back (as `input::gltfmesh` does) numbers the
+    // vertices as the mesh does.
+    let mut order: Vec<u32> = (0..s.vertex.len() as u32).collect();
+    order.sort_by_key(|&g| (s.vertex[g as usize], g));
+    let mut new_id = vec![0u32; order.len()];
+    for (n, &g) in order.iter().enumerate() {
+        new_id[g as usize] = n as u32;
+    }
+    let pick = |v: &[u32]| order.iter().map(|&g| v[g as usize]).collect::<Vec<_>>();
+    Split {
+        vertex: pick(&s.vertex),
+        uv: pick(&s.uv),
+        normal: pick(&s.normal),
+        corners: s.corners.iter().map(|&c| new_id[c as usize]).collect(),
+    }
 }
 
 /// Builds the binary chunk and the JSON's buffer views and accessors.
