@@ -5,9 +5,9 @@
 //! face-varying parameter, the input's normals (when it had them) as `N`, face-varying, at every
 //! frame, the per-vertex confidence (when the run has it) as vertex parameters at the solved
 //! frames; and the scene's cameras (when known) as an `Xform` `cameras` holding, per camera, an
-//! `Xform` (camera-to-world) over a `Camera` (film back: the USD export's numbers). Written by hand: no maintained Rust crate writes Alembic (the
-//! `alembic` crates are placeholders, `ogawa-rs` only reads), and the subset a deforming mesh
-//! needs is small.
+//! `Xform` (camera-to-world) over a `Camera` (film back: the USD export's numbers). Written by
+//! hand: no maintained Rust crate writes Alembic (the `alembic` crates are placeholders,
+//! `ogawa-rs` only reads), and the subset a deforming mesh needs is small.
 //!
 //! **Ogawa**: a 16-byte header (`Ogawa`, the frozen byte `0xff`, format version 1, the root
 //! group's position), then *data* (a `u64` size and the bytes) and *groups* (a `u64` count and

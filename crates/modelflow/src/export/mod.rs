@@ -238,6 +238,13 @@ pub fn export_with_cameras(
             });
         }
     }
+    if let Some(w) = confidence.windows(2).find(|w| w[1].0 <= w[0].0) {
+        return Err(Error::option(
+            "confidence",
+            w[1].0,
+            "frame numbers in ascending order",
+        ));
+    }
     if let Some((f, c)) = confidence
         .iter()
         .find(|(_, c)| c.len() != first.positions.len())

@@ -88,6 +88,24 @@ fn mismatched_topology_and_bad_fps_are_refused() {
     .unwrap_err();
     assert!(e.to_string().contains("frame 10's confidence"), "{e}");
     assert!(!dir.path().join("a.usda").exists());
+    // Confidence out of order (the Alembic export samples it in time).
+    let swapped = vec![
+        (11, vec![VertexConfidence::default(); 6]),
+        (10, vec![VertexConfidence::default(); 6]),
+    ];
+    let e = export(
+        &frames(2),
+        &swapped,
+        ExportFormat::Abc,
+        &dir.path().join("a.abc"),
+        &ExportOptions::default(),
+    )
+    .unwrap_err();
+    assert!(
+        e.to_string().contains("confidence") && e.to_string().contains("ascending"),
+        "{e}"
+    );
+    assert!(!dir.path().join("a.abc").exists());
 }
 
 #[test]

@@ -25,8 +25,9 @@ pub enum Checks {
     Structure,
 }
 
-/// Reads a mesh, dispatching on the file extension (`.obj`, `.ply`, or glTF's `.glb` and `.gltf`:
-/// [`super::gltfmesh`]; any case), and validates
+/// Reads a mesh, dispatching on the file extension (`.obj`, `.ply`, or glTF's `.glb` and `.gltf`,
+/// whose meshes are read as one in world coordinates, the vertices split at seams welded:
+/// docs/scene-format.md; any case), and validates
 /// it fully (see [`validate`]).
 pub fn read_mesh(path: &Path) -> Result<Mesh> {
     read_mesh_with(path, Checks::Full)
