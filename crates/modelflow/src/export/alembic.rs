@@ -240,6 +240,22 @@ fn scalar_property<'a>(o: &mut Ogawa, samples: impl IntoIterator<Item = &'a [u8]
     o.group(&children)
 }
 
+/// An object's properties: one compound `name` (its schema's, `.geom` or `.xform`) with
+/// `metadata` naming the schema, holding the compound `inner`.
+fn schema_compound(o: &mut Ogawa, name: &'static str, metadata: &'static str, inner: u64) -> u64 {
+    compound(
+        o,
+        &[(
+            inner,
+            Header {
+                name,
+                metadata,
+                kind: Kind::Compound,
+            },
+        )],
+    )
+}
+
 /// A compound property's group: its properties' groups, then their headers.
 fn compound(o: &mut Ogawa, props: &[(u64, Header)]) -> u64 {
     let mut headers = Vec::new();
@@ -519,31 +535,16 @@ pub(crate) fn abc(
         ));
     }
     let geom = compound(&mut o, &geom);
-    let mesh_props = compound(
+    let mesh_props = schema_compound(
         &mut o,
-        &[(
-            geom,
-            Header {
-                name: ".geom",
-                metadata: "schema=AbcGeom_PolyMesh_v1;schemaBaseType=AbcGeom_GeomBase_v1",
-                kind: Kind::Compound,
-            },
-        )],
+        ".geom",
+        "schema=AbcGeom_PolyMesh_v1;schemaBaseType=AbcGeom_GeomBase_v1",
+        geom,
     );
     let mesh = object(&mut o, mesh_props, &[]);
     // The transform above it: the identity, constant (its `.xform` compound holds no samples).
     let xform = compound(&mut o, &[]);
-    let xform_props = compound(
-        &mut o,
-        &[(
-            xform,
-            Header {
-                name: ".xform",
-                metadata: "schema=AbcGeom_Xform_v3",
-                kind: Kind::Compound,
-            },
-        )],
-    );
+    let xform_props = schema_compound(&mut o, ".xform", "schema=AbcGeom_Xform_v3", xform);
     let tracked = object(
         &mut o,
         xform_props,
@@ -667,17 +668,7 @@ fn camera_objects(o: &mut Ogawa, frames: &[(u32, Mesh)], cameras: &[ExportCamera
                 },
             )],
         );
-        let shape_props = compound(
-            o,
-            &[(
-                geom,
-                Header {
-                    name: ".geom",
-                    metadata: "schema=AbcGeom_Camera_v1",
-                    kind: Kind::Compound,
-                },
-            )],
-        );
+        let shape_props = schema_compound(o, ".geom", "schema=AbcGeom_Camera_v1", geom);
         let shape = object(o, shape_props, &[]);
         // The transform: `.inherits` (whose samples give the schema its sample count), one
         // matrix operation (`.ops`: type 3 in the high nibble), its 16 channels (`.vals`, the
@@ -742,17 +733,7 @@ fn camera_objects(o: &mut Ogawa, frames: &[(u32, Mesh)], cameras: &[ExportCamera
                 ),
             ],
         );
-        let xform_props = compound(
-            o,
-            &[(
-                xform,
-                Header {
-                    name: ".xform",
-                    metadata: "schema=AbcGeom_Xform_v3",
-                    kind: Kind::Compound,
-                },
-            )],
-        );
+        let xform_props = schema_compound(o, ".xform", "schema=AbcGeom_Xform_v3", xform);
         built.push((name, xform_props, shape));
     }
     let mut objects = Vec::new();
@@ -770,16 +751,6 @@ fn camera_objects(o: &mut Ogawa, frames: &[(u32, Mesh)], cameras: &[ExportCamera
         objects.push((name.as_str(), XFORM, g));
     }
     let identity = compound(o, &[]);
-    let props = compound(
-        o,
-        &[(
-            identity,
-            Header {
-                name: ".xform",
-                metadata: "schema=AbcGeom_Xform_v3",
-                kind: Kind::Compound,
-            },
-        )],
-    );
+    let props = schema_compound(o, ".xform", "schema=AbcGeom_Xform_v3", identity);
     object(o, props, &objects)
 }

@@ -305,9 +305,18 @@ mod abc_reader {
 
 /// `frames` exported as Alembic to `out`, and the file's bytes.
 fn abc_bytes(frames: &[(u32, Mesh)], out: &std::path::Path) -> Vec<u8> {
+    abc_bytes_with(frames, &[], out)
+}
+
+/// [`abc_bytes`] with the per-vertex `confidence` of some frames.
+fn abc_bytes_with(
+    frames: &[(u32, Mesh)],
+    confidence: &[(u32, Vec<VertexConfidence>)],
+    out: &std::path::Path,
+) -> Vec<u8> {
     export(
         frames,
-        &[],
+        confidence,
         ExportFormat::Abc,
         out,
         &ExportOptions::default(),
@@ -596,15 +605,7 @@ fn alembic_carries_the_confidence_as_vertex_parameters_at_the_solved_frames() {
     let confidence = vec![(11, conf(11)), (12, conf(12))];
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("c.abc");
-    export(
-        &fr,
-        &confidence,
-        ExportFormat::Abc,
-        &out,
-        &ExportOptions::default(),
-    )
-    .unwrap();
-    let bytes = std::fs::read(&out).unwrap();
+    let bytes = abc_bytes_with(&fr, &confidence, &out);
     let f = File(&bytes);
     let root = f.children(f.root());
     let ts = f.data(root[4]);
@@ -639,15 +640,7 @@ fn alembic_carries_the_confidence_as_vertex_parameters_at_the_solved_frames() {
     }
     // Every frame with its confidence: the points' sampling, no third.
     let all: Vec<_> = fr.iter().map(|(f, _)| (*f, conf(*f))).collect();
-    export(
-        &fr,
-        &all,
-        ExportFormat::Abc,
-        &out,
-        &ExportOptions::default(),
-    )
-    .unwrap();
-    let bytes = std::fs::read(&out).unwrap();
+    let bytes = abc_bytes_with(&fr, &all, &out);
     let f = File(&bytes);
     let root = f.children(f.root());
     assert_eq!(f.data(root[4]).len(), 2 * 24);
