@@ -581,8 +581,8 @@ fn synth(
 /// Reads another tool's calibration and makes a scene file of it, as `modelflow import` does:
 /// `format` is "colmap" (a sparse model folder), "opencv" (a FileStorage .yml/.json), "metashape"
 /// (a camera XML), "nerfstudio" (a transforms.json), "toml" (anipose, Pose2Sim, FreeMoCap or
-/// caliscope TOML; also by those names), "kalibr" (a camchain.yaml) or "mrcal" (a .cameramodel
-/// or a folder of them), or "auto" (whichever of these the input is). `mesh`, `images` (with `{camera}`) and
+/// caliscope TOML; also by those names), "kalibr" (a camchain.yaml), "mrcal" (a .cameramodel
+/// or a folder of them) or "alembic" (the cameras of an .abc file), or "auto" (whichever of these the input is). `mesh`, `images` (with `{camera}`) and
 /// `frames` are what the scene file names; `size` (w, h) for cameras whose file gives none;
 /// `chunk` a Metashape chunk; `units` "m", "cm" or "mm"; `before_applied_transform` the world
 /// before a nerfstudio file's applied_transform. With `out`, the scene file is written there (an

@@ -356,6 +356,16 @@ def test_import_calibration_writes_a_scene_in_our_conventions(tmp_path):
     # "auto": the format told from the file.
     kal = modelflow.import_calibration("auto", ROOT / "fixtures" / "kalibr" / "camchain.yaml")
     assert [c["name"] for c in kal["scene"]["cameras"]] == ["cam0", "cam1", "cam2"]
+    # Blender's Alembic cameras: one of them moving, a pose per frame.
+    abc = modelflow.import_calibration(
+        "alembic", ROOT / "fixtures" / "alembic" / "cameras.abc", frames=(1, 5)
+    )
+    cams = {c["name"]: c for c in abc["scene"]["cameras"]}
+    assert sorted(cams) == ["front", "moving", "side", "tall"]
+    assert [p["frame"] for p in cams["moving"]["poses"]] == [1, 2, 3, 4, 5]
+    assert "R" not in cams["moving"] or cams["moving"]["R"] is None
+    assert (cams["side"]["width"], cams["side"]["height"]) == (1280, 720)
+    assert any("Y up" in n for n in abc["notes"])
 
 
 def test_synth_makes_footage_that_tracks_to_its_truth(tmp_path):

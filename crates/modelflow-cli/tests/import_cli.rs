@@ -331,6 +331,7 @@ fn auto_tells_the_formats_apart_and_says_when_it_cannot() {
         ("kalibr/camchain.yaml", "kalibr", 3),
         ("mrcal", "mrcal", 3),
         ("anipose/calibration.toml", "toml", 3),
+        ("alembic/cameras.abc", "alembic", 4),
     ]
     .into_iter()
     .enumerate()
@@ -340,7 +341,7 @@ fn auto_tells_the_formats_apart_and_says_when_it_cannot() {
         let err = String::from_utf8_lossy(&r.stderr);
         assert!(r.status.success(), "{input}: {err}");
         assert!(
-            err.contains(&format!("read as a {format} calibration")),
+            err.contains(&format!("read as the {format} format")),
             "{input}: {err}"
         );
         let file = SceneFile::parse(&out, &std::fs::read_to_string(&out).unwrap()).unwrap();
@@ -354,4 +355,47 @@ fn auto_tells_the_formats_apart_and_says_when_it_cannot() {
         err.contains("README.md") && err.contains("name it (colmap"),
         "{err}"
     );
+}
+
+/// Blender's Alembic cameras become a scene whose cameras (one of them moving: a pose per frame)
+/// put known points where Blender renders them (fixtures/alembic, tools/make_alembic_fixture.py).
+#[test]
+fn alembic_cameras_from_blender_become_a_scene_that_projects_as_blender() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("scene.json");
+    let input = fixtures().join("alembic/cameras.abc");
+    let r = import(&["alembic", "--frames", "1..5"], &input, &out);
+    let err = String::from_utf8_lossy(&r.stderr);
+    assert!(r.status.success(), "{err}");
+    assert!(err.contains("moving: a pose per frame at 24 fps"), "{err}");
+    assert!(err.contains("Y up") && err.contains("\"side\""), "{err}");
+    let file = SceneFile::parse(&out, &std::fs::read_to_string(&out).unwrap()).unwrap();
+    let cameras = file.cameras_of(&out).unwrap();
+    let want: serde_json::Value = serde_json::from_str(
+        &std::fs::read_to_string(fixtures().join("alembic/expected.json")).unwrap(),
+    )
+    .unwrap();
+    let points: Vec<nalgebra::Point3<f64>> = want["points"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|p| {
+            nalgebra::Point3::new(
+                p[0].as_f64().unwrap(),
+                p[1].as_f64().unwrap(),
+                p[2].as_f64().unwrap(),
+            )
+        })
+        .collect();
+    for view in want["views"].as_array().unwrap() {
+        let name = view["camera"].as_str().unwrap();
+        let frame = view["frame"].as_u64().unwrap() as u32;
+        let cam = cameras.iter().find(|c| c.name == name).unwrap();
+        assert_eq!(cam.is_moving(), name == "moving");
+        for (p, px) in points.iter().zip(view["pixels"].as_array().unwrap()) {
+            let got = cam.at(frame).project(p).unwrap();
+            let e = (got.x - px[0].as_f64().unwrap()).hypot(got.y - px[1].as_f64().unwrap());
+            assert!(e < 1e-3, "{name} frame {frame}: {e} px from Blender's");
+        }
+    }
 }

@@ -489,7 +489,7 @@ fn a_calibration_given_as_the_wrong_format_is_refused_with_the_format_it_looks_l
         .unwrap_err()
         .to_string();
     assert!(
-        e.contains("kalibr or mrcal") && e.contains("anipose"),
+        e.contains("mrcal or alembic") && e.contains("anipose"),
         "{e}"
     );
     let opts = ImportOptions::default();

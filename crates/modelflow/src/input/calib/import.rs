@@ -4,12 +4,12 @@
 //! `modelflow import` and Python's `import_calibration` do; writing the file is the caller's.
 
 use super::{
-    read_colmap, read_kalibr, read_metashape_chunk, read_mrcal, read_nerfstudio, read_opencv,
-    read_rig_toml, scene_file, CalibratedCamera, NerfWorld,
+    read_alembic, read_colmap, read_kalibr, read_metashape_chunk, read_mrcal, read_nerfstudio,
+    read_opencv, read_rig_toml, scene_file, CalibratedCamera, NerfWorld,
 };
 use crate::base::Units;
 use crate::error::{Error, Result};
-use crate::input::scene::{FramePattern, SceneFile};
+use crate::input::scene::{FramePattern, PoseEntry, SceneFile};
 use std::collections::BTreeSet;
 use std::path::Path;
 
@@ -31,6 +31,8 @@ pub enum CalibrationFormat {
     Kalibr,
     /// mrcal's `.cameramodel` files: one, or a folder of them.
     Mrcal,
+    /// The cameras of an Alembic file (`.abc`): still ones, and moving ones as a pose per frame.
+    Alembic,
 }
 
 impl std::str::FromStr for CalibrationFormat {
@@ -134,6 +136,7 @@ pub fn import_calibration(
     };
     pattern("cam")?;
     let mut notes = Vec::new();
+    let mut poses = Vec::new();
     let mut read = || -> Result<Vec<CalibratedCamera>> {
         Ok(match format {
             CalibrationFormat::Colmap => read_colmap(input)?,
@@ -156,6 +159,12 @@ pub fn import_calibration(
             }
             CalibrationFormat::Kalibr => read_kalibr(input)?,
             CalibrationFormat::Mrcal => read_mrcal(input)?,
+            CalibrationFormat::Alembic => {
+                let read = read_alembic(input, opts.size, opts.frames)?;
+                notes = read.notes;
+                poses = read.poses;
+                read.cameras
+            }
         })
     };
     let cameras = read().map_err(|e| with_format_hint(e, input, format))?;
@@ -194,6 +203,24 @@ pub fn import_calibration(
     let (first, last) = opts.frames;
     let mut file = scene_file(&cameras, &opts.mesh, &opts.images, first, last);
     file.units = opts.units;
+    // A moving camera (an Alembic one): its pose at every frame instead of one.
+    for (entry, poses) in file.cameras.iter_mut().zip(poses) {
+        if let Some(poses) = poses {
+            let rows = |m: &nalgebra::Matrix3<f64>| [0, 1, 2].map(|i| [0, 1, 2].map(|j| m[(i, j)]));
+            entry.poses = Some(
+                poses
+                    .iter()
+                    .map(|(frame, r, t)| PoseEntry {
+                        frame: *frame,
+                        r: rows(r),
+                        t: [t.x, t.y, t.z],
+                    })
+                    .collect(),
+            );
+            entry.r = None;
+            entry.t = None;
+        }
+    }
     Ok(Imported {
         cameras,
         notes,
@@ -206,7 +233,7 @@ const TOML_TOOLS: [&str; 4] = ["anipose", "pose2sim", "freemocap", "caliscope"];
 
 impl CalibrationFormat {
     /// Every format read, in the order the docs list them.
-    pub const ALL: [CalibrationFormat; 7] = [
+    pub const ALL: [CalibrationFormat; 8] = [
         Self::Colmap,
         Self::Opencv,
         Self::Metashape,
@@ -214,6 +241,7 @@ impl CalibrationFormat {
         Self::Toml,
         Self::Kalibr,
         Self::Mrcal,
+        Self::Alembic,
     ];
 
     /// "colmap, opencv, ... or mrcal": the names a user may give.
@@ -233,6 +261,7 @@ impl CalibrationFormat {
             Self::Toml => "toml",
             Self::Kalibr => "kalibr",
             Self::Mrcal => "mrcal",
+            Self::Alembic => "alembic",
         }
     }
 
@@ -254,8 +283,9 @@ impl CalibrationFormat {
     /// What `path` looks like, from its name and its first bytes (not a full read): a folder
     /// with COLMAP's files, an XML file (Metashape's), a JSON object with `frames` and
     /// `transform_matrix` (a `transforms.json`), a TOML file with camera tables, YAML with a
-    /// `cam0` map and `intrinsics` (Kalibr's), `.cameramodel` files (mrcal's), else YAML or JSON
-    /// (OpenCV's `FileStorage`). `None` when it is none of these or cannot be read.
+    /// `cam0` map and `intrinsics` (Kalibr's), `.cameramodel` files (mrcal's), an Alembic file
+    /// (Ogawa's header, or HDF5's with an `.abc` name), else YAML or JSON (OpenCV's
+    /// `FileStorage`). `None` when it is none of these or cannot be read.
     pub fn sniff(path: &Path) -> Option<CalibrationFormat> {
         let colmap = ["cameras.txt", "cameras.bin", "images.txt", "images.bin"];
         let cameramodel = |p: &Path| p.extension().is_some_and(|x| x == "cameramodel");
@@ -279,6 +309,12 @@ impl CalibrationFormat {
         let mut head = Vec::new();
         let file = std::fs::File::open(path).ok()?;
         std::io::Read::read_to_end(&mut std::io::Read::take(file, 64 * 1024), &mut head).ok()?;
+        let abc = path
+            .extension()
+            .is_some_and(|x| x.eq_ignore_ascii_case("abc"));
+        if head.starts_with(b"Ogawa") || (abc && head.starts_with(b"\x89HDF")) {
+            return Some(Self::Alembic);
+        }
         let text = String::from_utf8_lossy(&head);
         let text = text.trim_start_matches('\u{feff}').trim_start();
         if text.starts_with('<') {

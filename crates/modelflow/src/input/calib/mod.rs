@@ -1,11 +1,12 @@
 //! Calibration importers: the camera files users already have (COLMAP sparse models, OpenCV
 //! `FileStorage` files, Agisoft Metashape camera XML, nerfstudio / instant-ngp / NeRF
 //! `transforms.json`, the TOML files of anipose, Pose2Sim, FreeMoCap and caliscope, Kalibr's
-//! `camchain.yaml`, mrcal's `.cameramodel`) turned into the cameras of a `modelflow-scene/1` file, in our
+//! `camchain.yaml`, mrcal's `.cameramodel`, the cameras of an Alembic file) turned into the cameras of a `modelflow-scene/1` file, in our
 //! conventions (OpenCV pinhole, pixel centres at integers, world-to-camera `R`, `t`; see
 //! `docs/scene-format.md`, "Importing a calibration"). Each reader converts its tool's own
 //! conventions and names the file, line and field of anything it cannot use.
 
+mod alembic;
 mod colmap;
 mod import;
 mod kalibr;
@@ -15,6 +16,7 @@ mod nerfstudio;
 mod opencv;
 mod rig_toml;
 
+pub use alembic::{read_alembic, AlembicCalibration, FramePose};
 pub use colmap::read_colmap;
 pub use import::{import_calibration, CalibrationFormat, ImportOptions, Imported};
 pub use kalibr::read_kalibr;
