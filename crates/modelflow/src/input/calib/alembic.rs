@@ -884,6 +884,42 @@ mod tests {
     }
 
     #[test]
+    fn translate_rotate_scale_operations_compose_as_alembics_library_does() {
+        // fixtures/alembic/trs.abc: cameras whose transforms are translate, rotate (about an
+        // axis), rotateX, rotateY, rotateZ and scale operations, as Maya writes them, one of
+        // them not inheriting its parent's; trs-expected.json: where Blender puts six points
+        // after its importer (the Alembic library) composed them
+        // (tools/make_alembic_trs_fixture.py). No image size in the file: it is given.
+        let dir = fixture();
+        let want: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(dir.join("trs-expected.json")).unwrap())
+                .unwrap();
+        let read = read_alembic(&dir.join("trs.abc"), Some((1280, 720)), (1, 1)).unwrap();
+        let points: Vec<Vector3<f64>> = want["points"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|p| {
+                Vector3::new(
+                    p[0].as_f64().unwrap(),
+                    p[1].as_f64().unwrap(),
+                    p[2].as_f64().unwrap(),
+                )
+            })
+            .collect();
+        assert_eq!(read.cameras.len(), 2);
+        for view in want["views"].as_array().unwrap() {
+            let name = view["camera"].as_str().unwrap();
+            let cam = read.cameras.iter().find(|c| c.name == name).unwrap();
+            for (p, px) in points.iter().zip(view["pixels"].as_array().unwrap()) {
+                let got = project(&cam.k, &cam.r, &cam.t, p);
+                let e = (got[0] - px[0].as_f64().unwrap()).hypot(got[1] - px[1].as_f64().unwrap());
+                assert!(e < 1e-3, "{name}: {got:?} is {e} px from Blender's {px}");
+            }
+        }
+    }
+
+    #[test]
     fn the_alembic_export_reads_back_as_the_scenes_cameras() {
         // modelflow's own export: a webcam's K (principal point off centre, fx != fy) still,
         // and the same K moving, given at frames 10 and 12 of 10..13.
