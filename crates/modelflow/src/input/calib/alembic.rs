@@ -811,9 +811,30 @@ mod tests {
         Path::new(env!("CARGO_MANIFEST_DIR")).join("../../fixtures/alembic")
     }
 
-    fn project(k: &Matrix3<f64>, r: &Matrix3<f64>, t: &Vector3<f64>, p: &Vector3<f64>) -> [f64; 2] {
+    /// A fixture's points and its views (camera, frame, the points' pixels in Blender).
+    fn expected(file: &str) -> (Vec<Vector3<f64>>, Vec<serde_json::Value>) {
+        let text = std::fs::read_to_string(fixture().join(file)).unwrap();
+        let want: serde_json::Value = serde_json::from_str(&text).unwrap();
+        let num = |v: &serde_json::Value| v.as_f64().unwrap();
+        let points = want["points"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|p| Vector3::new(num(&p[0]), num(&p[1]), num(&p[2])))
+            .collect();
+        (points, want["views"].as_array().unwrap().clone())
+    }
+
+    /// How far `K·[R | t]` puts `p` from Blender's pixel `px`.
+    fn miss(
+        k: &Matrix3<f64>,
+        r: &Matrix3<f64>,
+        t: &Vector3<f64>,
+        p: &Vector3<f64>,
+        px: &serde_json::Value,
+    ) -> f64 {
         let x = k * (r * p + t);
-        [x.x / x.z, x.y / x.z]
+        (x.x / x.z - px[0].as_f64().unwrap()).hypot(x.y / x.z - px[1].as_f64().unwrap())
     }
 
     #[test]
@@ -824,9 +845,7 @@ mod tests {
         // and expected.json: where Blender's own `world_to_camera_view` puts six points at each
         // frame (tools/make_alembic_fixture.py).
         let dir = fixture();
-        let want: serde_json::Value =
-            serde_json::from_str(&std::fs::read_to_string(dir.join("expected.json")).unwrap())
-                .unwrap();
+        let (points, views) = expected("expected.json");
         let read = read_alembic(&dir.join("cameras.abc"), None, (1, 5)).unwrap();
         let names: Vec<&str> = read.cameras.iter().map(|c| c.name.as_str()).collect();
         assert_eq!(names.len(), 4);
@@ -842,20 +861,8 @@ mod tests {
             .iter()
             .any(|n| n.contains("\"side\"") && n.contains("fitted")));
         assert!(!read.notes.iter().any(|n| n.contains("\"front\"")));
-        let points: Vec<Vector3<f64>> = want["points"]
-            .as_array()
-            .unwrap()
-            .iter()
-            .map(|p| {
-                Vector3::new(
-                    p[0].as_f64().unwrap(),
-                    p[1].as_f64().unwrap(),
-                    p[2].as_f64().unwrap(),
-                )
-            })
-            .collect();
         let mut worst: f64 = 0.0;
-        for view in want["views"].as_array().unwrap() {
+        for view in &views {
             let name = view["camera"].as_str().unwrap();
             let frame = view["frame"].as_u64().unwrap() as u32;
             let i = names.iter().position(|n| *n == name).unwrap();
@@ -869,14 +876,9 @@ mod tests {
                 None => (cam.r, cam.t),
             };
             for (p, px) in points.iter().zip(view["pixels"].as_array().unwrap()) {
-                let got = project(&cam.k, &r, &t, p);
-                let (u, v) = (px[0].as_f64().unwrap(), px[1].as_f64().unwrap());
-                let e = (got[0] - u).hypot(got[1] - v);
+                let e = miss(&cam.k, &r, &t, p, px);
                 worst = worst.max(e);
-                assert!(
-                    e < 1e-3,
-                    "{name} frame {frame}: {got:?} against Blender's ({u}, {v})"
-                );
+                assert!(e < 1e-3, "{name} frame {frame}: {e} px from Blender's {px}");
             }
         }
         // Blender stores its matrices in 32-bit floats: about a ten-thousandth of a pixel.
@@ -891,30 +893,15 @@ mod tests {
         // after its importer (the Alembic library) composed them
         // (tools/make_alembic_trs_fixture.py). No image size in the file: it is given.
         let dir = fixture();
-        let want: serde_json::Value =
-            serde_json::from_str(&std::fs::read_to_string(dir.join("trs-expected.json")).unwrap())
-                .unwrap();
+        let (points, views) = expected("trs-expected.json");
         let read = read_alembic(&dir.join("trs.abc"), Some((1280, 720)), (1, 1)).unwrap();
-        let points: Vec<Vector3<f64>> = want["points"]
-            .as_array()
-            .unwrap()
-            .iter()
-            .map(|p| {
-                Vector3::new(
-                    p[0].as_f64().unwrap(),
-                    p[1].as_f64().unwrap(),
-                    p[2].as_f64().unwrap(),
-                )
-            })
-            .collect();
         assert_eq!(read.cameras.len(), 2);
-        for view in want["views"].as_array().unwrap() {
+        for view in &views {
             let name = view["camera"].as_str().unwrap();
             let cam = read.cameras.iter().find(|c| c.name == name).unwrap();
             for (p, px) in points.iter().zip(view["pixels"].as_array().unwrap()) {
-                let got = project(&cam.k, &cam.r, &cam.t, p);
-                let e = (got[0] - px[0].as_f64().unwrap()).hypot(got[1] - px[1].as_f64().unwrap());
-                assert!(e < 1e-3, "{name}: {got:?} is {e} px from Blender's {px}");
+                let e = miss(&cam.k, &cam.r, &cam.t, p, px);
+                assert!(e < 1e-3, "{name}: {e} px from Blender's {px}");
             }
         }
     }
