@@ -51,7 +51,7 @@ pub struct AlembicCalibration {
 }
 
 /// Reads every camera of the Alembic file `path` at frames `frames.0..=frames.1` (frame `f` at
-/// `f / fps` seconds, `fps` the file's own: its first uniform time sampling's). `size` is the
+/// `f / fps` seconds, `fps` the file's own: its first uniform time sampling's, else 24). `size` is the
 /// image size, for files that do not give one (Blender writes its render size as the cameras'
 /// `resx`, `resy` user properties; other packages write none).
 pub fn read_alembic(
@@ -70,7 +70,7 @@ pub fn read_alembic(
             "holds no Camera object: export the cameras with the scene (Maya: AbcExport with the camera's transform as a -root; Blender: File > Export > Alembic, the cameras selected or all objects)",
         ));
     }
-    let fps = a.fps();
+    let fps = a.fps().unwrap_or(24.0);
     let (first, last) = frames;
     let mut out = AlembicCalibration {
         cameras: Vec::new(),
@@ -118,6 +118,11 @@ pub fn read_alembic(
         if fitted {
             out.notes.push(format!(
                 "camera {name:?}: its film back's aspect is not the image's {width}x{height}: the film's width is fitted to the image's, square pixels (Blender's sensor fit Auto for a landscape image, Houdini's, Maya's Horizontal fit)"
+            ));
+        }
+        if moving && a.fps().is_none() {
+            out.notes.push(format!(
+                "camera {name:?} moves, and the file samples it at times of their own, not at a frame rate: frame F is read at F/24 s"
             ));
         }
         if moving {
@@ -443,13 +448,14 @@ impl<'a> Archive<'a> {
     }
 
     /// The frame rate frames are read at: the first uniform or cyclic time sampling after the
-    /// identity's (Blender's and Maya's exporters write the scene's), else 24.
-    fn fps(&self) -> f64 {
+    /// identity's (Blender's and Maya's exporters write the scene's); `None` when every one is
+    /// acyclic (samples at times of their own).
+    fn fps(&self) -> Option<f64> {
         self.samplings
             .iter()
             .skip(1)
             .find(|s| s.per_cycle < ACYCLIC)
-            .map_or(24.0, |s| 1.0 / s.per_cycle)
+            .map(|s| 1.0 / s.per_cycle)
     }
 
     fn root(&self) -> Result<u64> {
@@ -995,6 +1001,37 @@ mod tests {
             .notes
             .iter()
             .any(|n| n.contains("handheld") && n.contains("10..13")));
+        // Frames not evenly spaced: the export samples them at their own times (acyclic), read
+        // at 24 fps (the export's default), and the import says so.
+        let uneven: Vec<(u32, crate::base::Mesh)> =
+            [10, 11, 13].iter().map(|f| (*f, mesh.clone())).collect();
+        export_with_cameras(
+            &uneven,
+            &[],
+            &cameras,
+            ExportFormat::Abc,
+            &out,
+            &ExportOptions::default(),
+        )
+        .unwrap();
+        let read = read_alembic(&out, Some((1280, 720)), (10, 13)).unwrap();
+        assert!(read
+            .notes
+            .iter()
+            .any(|n| n.contains("handheld") && n.contains("F/24 s")));
+        // Frame 12, not in the file, holds frame 11's sample (the first view).
+        let poses = read.poses[1].as_ref().expect("moving");
+        for (f, r, t) in poses {
+            let (rr, tt) = pose(if *f < 13 {
+                [3.0, 1.0, 3.0]
+            } else {
+                [2.0, 2.5, 3.5]
+            });
+            assert!(
+                (r - rr).abs().max() < 1e-12 && (t - tt).norm() < 1e-12,
+                "frame {f}"
+            );
+        }
     }
 
     #[test]
