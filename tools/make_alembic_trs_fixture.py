@@ -5,7 +5,9 @@
 # expected pixels are where Blender then puts six points (what `modelflow import alembic` must
 # agree with). Two cameras, 1280x720:
 #   /rig (translate, rotateY) / trs_camShape under trs_cam: translate, rotate about an axis,
-#       rotateX, rotateY, rotateZ, scale (uniform), then the film back;
+#       rotateX, rotateY, rotateZ, scale (uniform), then the film back with Maya's four film-back
+#       operations, each doing nothing (Blender's importer, that is the Alembic library, reads
+#       them; film-translate.abc is the same with the film translated);
 #   /rig / world_cam: `.inherits` false (its transform is in the world, not the rig's): translate,
 #       rotateY, rotateX, rotateZ.
 #   target/bpyenv/bin/python tools/make_alembic_trs_fixture.py   (from the repository root; bpy 5.0)
@@ -99,30 +101,56 @@ def xform(o, ops, vals, inherits=True):
     return compound(o, [(inner, header(".xform", "schema=AbcGeom_Xform_v3", 0))])
 
 
-def camera(o, focal, hoff, voff):
+def strings(o, name, values):
+    """A string array property of one sample: the strings, each ending in a NUL, and their
+    count as the sample's dimensions."""
+    payload = b"".join(v.encode() + b"\x00" for v in values)
+    dims = o.data(struct.pack("<Q", len(values)))
+    return (o.group([sample(o, payload), dims]), header(name, "", 2, 12, 1, 1, 1))
+
+
+def camera(o, focal, hoff, voff, film_back=None):
+    """A Camera's properties; `film_back`: (op names, channels), as Maya writes them."""
     core = [focal, 3.6, hoff, 2.025, voff, 1.0, 0, 0, 0, 0, 5.6, 5.0, 0, 1 / 48, 0.05, 100.0]
-    inner = compound(o, [scalar(o, ".core", 11, "d", core)])
+    props = [scalar(o, ".core", 11, "d", core)]
+    if film_back:
+        names, channels = film_back
+        props += [strings(o, ".filmBackOps", names),
+                  scalar(o, ".filmBackChannels", 11, "d", channels)]
+    inner = compound(o, props)
     return compound(o, [(inner, header(".geom", "schema=AbcGeom_Camera_v1", 0))])
 
 
-o = Ogawa()
-T, R, S, RX, RY, RZ = 0x10, 0x20, 0x00, 0x40, 0x50, 0x60
-shape = obj(o, camera(o, 35.0, 0.12, -0.09), [])
-trs = obj(o, xform(o, [T, R, RX, RY, RZ, S],
-                   [0.4, 0.3, 5.5, 0.3, 1.0, 0.2, 8.0, -5.0, 4.0, 15.0, 1.5, 1.5, 1.5]),
-          [("trs_camShape", CAMERA, shape)])
-shape2 = obj(o, camera(o, 28.0, -0.05, 0.07), [])
-world = obj(o, xform(o, [T, RY, RX, RZ], [-4.5, 1.2, 2.0, -66.0, -13.7, 8.0], inherits=False),
-            [("world_camShape", CAMERA, shape2)])
-rig = obj(o, xform(o, [T, RY], [0.5, -0.3, 0.2, 30.0]),
-          [("trs_cam", XFORM, trs), ("world_cam", XFORM, world)])
-top = obj(o, o.group([]), [("rig", XFORM, rig)])
-# Time samplings: the identity, then 24 fps from frame 1; no indexed metadata.
-times = struct.pack("<IdId", 1, 1.0, 1, 0.0) + struct.pack("<IdId", 1, 1 / 24, 1, 1 / 24)
-root = o.group([o.data(struct.pack("<i", 0)), o.data(struct.pack("<i", 10805)), top,
-                o.data(b""), o.data(times), o.data(b"")])
-with open("fixtures/alembic/trs.abc", "wb") as f:
-    f.write(o.finish(root))
+MAYA_OPS = ["tfilmFitOffs", "spreScale", "tfilmTranslate", "spostScale"]
+
+
+def write(path, translate):
+    """The two cameras; trs_cam's film back carries Maya's four film-back operations, its film
+    translated by `translate`."""
+    o = Ogawa()
+    T, R, S, RX, RY, RZ = 0x10, 0x20, 0x00, 0x40, 0x50, 0x60
+    shape = obj(o, camera(o, 35.0, 0.12, -0.09,
+                          (MAYA_OPS, [0.0, 0.0, 1.0, 1.0, *translate, 1.0, 1.0])), [])
+    trs = obj(o, xform(o, [T, R, RX, RY, RZ, S],
+                       [0.4, 0.3, 5.5, 0.3, 1.0, 0.2, 8.0, -5.0, 4.0, 15.0, 1.5, 1.5, 1.5]),
+              [("trs_camShape", CAMERA, shape)])
+    shape2 = obj(o, camera(o, 28.0, -0.05, 0.07), [])
+    world = obj(o, xform(o, [T, RY, RX, RZ], [-4.5, 1.2, 2.0, -66.0, -13.7, 8.0], inherits=False),
+                [("world_camShape", CAMERA, shape2)])
+    rig = obj(o, xform(o, [T, RY], [0.5, -0.3, 0.2, 30.0]),
+              [("trs_cam", XFORM, trs), ("world_cam", XFORM, world)])
+    top = obj(o, o.group([]), [("rig", XFORM, rig)])
+    # Time samplings: the identity, then 24 fps from frame 1; no indexed metadata.
+    times = struct.pack("<IdId", 1, 1.0, 1, 0.0) + struct.pack("<IdId", 1, 1 / 24, 1, 1 / 24)
+    root = o.group([o.data(struct.pack("<i", 0)), o.data(struct.pack("<i", 10805)), top,
+                    o.data(b""), o.data(times), o.data(b"")])
+    with open(path, "wb") as f:
+        f.write(o.finish(root))
+
+
+write("fixtures/alembic/trs.abc", [0.0, 0.0])
+# The same with the film translated (Maya's film translate): refused, the screen window moved.
+write("fixtures/alembic/film-translate.abc", [0.05, -0.02])
 
 bpy.ops.wm.read_factory_settings(use_empty=True)
 scene = bpy.context.scene

@@ -34,6 +34,7 @@ const POD_UINT8: u32 = 1;
 const POD_INT32: u32 = 6;
 const POD_FLOAT32: u32 = 10;
 const POD_FLOAT64: u32 = 11;
+const POD_STRING: u32 = 12;
 
 /// A moving camera's world-to-camera `R`, `t` at a frame.
 pub type FramePose = (u32, Matrix3<f64>, Vector3<f64>);
@@ -681,20 +682,89 @@ impl<'a> Archive<'a> {
             .iter()
             .find(|p| p.name == ".core" && p.kind == 1 && p.extent == 16)
             .ok_or_else(|| self.err(field, "a Camera without its film back (.core)"))?;
-        if let Some(ops) = cam.geom.iter().find(|p| p.name == ".filmBackOps") {
-            if ops.samples > 0 {
-                return Err(self.err(
-                    field,
-                    "film back operations (a film roll or translate): not read; bake them into the film offsets",
-                ));
-            }
-        }
+        self.check_film_back_ops(cam, time, field)?;
         let i = self.sampling(core)?.index_at(time, core.samples);
         let v = self.numbers(core, i)?;
         if v.len() != 16 {
             return Err(self.damaged("a film back without its 16 values"));
         }
         Ok(v)
+    }
+
+    /// Film-back operations (Maya writes `filmFitOffs`, `preScale`, `filmTranslate`,
+    /// `postScale`): each named by its type (`t` translate, two channels; `s` scale, two; `m`
+    /// matrix, nine) and a hint, their channels in `.filmBackChannels`. Ones that do nothing
+    /// (translate 0, scale 1, the identity) are passed over; any other is refused, since the
+    /// screen window it would move is not read.
+    fn check_film_back_ops(&self, cam: &FoundCamera, time: f64, field: &str) -> Result<()> {
+        let Some(ops) = cam
+            .geom
+            .iter()
+            .find(|p| p.name == ".filmBackOps" && p.samples > 0)
+        else {
+            return Ok(());
+        };
+        let names = self.strings(ops, 0)?;
+        let channels = match cam
+            .geom
+            .iter()
+            .find(|p| p.name == ".filmBackChannels" && p.samples > 0)
+        {
+            Some(p) => {
+                let i = self.sampling(p)?.index_at(time, p.samples);
+                self.numbers(p, i)?
+            }
+            None => Vec::new(),
+        };
+        let mut at = 0;
+        for name in &names {
+            let (n, rest): (usize, &[f64]) = match name.as_bytes().first() {
+                Some(b't') => (2, &[0.0, 0.0]),
+                Some(b's') => (2, &[1.0, 1.0]),
+                Some(b'm') => (9, &[1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0]),
+                _ => {
+                    return Err(self.err(
+                        field,
+                        format!("a film-back operation {name:?}: not an Alembic one"),
+                    ))
+                }
+            };
+            let values = channels.get(at..at + n).ok_or_else(|| {
+                self.err(
+                    field,
+                    "film-back operations with fewer channels than they take",
+                )
+            })?;
+            at += n;
+            if values.iter().zip(rest).any(|(v, r)| (v - r).abs() > 1e-12) {
+                return Err(self.err(
+                    field,
+                    format!(
+                        "the film-back operation {:?} moves the film ({values:?}): not read; set the camera's film fit and offsets so that it does nothing (Maya: film fit Horizontal with the film back of the image's aspect, no film translate or scale)",
+                        &name[1..]
+                    ),
+                ));
+            }
+        }
+        Ok(())
+    }
+
+    /// The strings of sample `i` of a string array or scalar property (each ends in a NUL).
+    fn strings(&self, p: &Prop, i: usize) -> Result<Vec<String>> {
+        if p.pod != POD_STRING {
+            return Err(self.damaged("strings of another type"));
+        }
+        let ch = self.children(p.group)?;
+        let step = if p.kind == 2 { 2 } else { 1 };
+        let child = *ch
+            .get(step * p.stored(i))
+            .ok_or_else(|| self.damaged("a property's sample missing"))?;
+        let d = self.data(child)?;
+        let v = d.get(16..).unwrap_or(&[]);
+        Ok(v.split(|b| *b == 0)
+            .take(v.iter().filter(|b| **b == 0).count())
+            .map(|s| String::from_utf8_lossy(s).into_owned())
+            .collect())
     }
 
     /// The camera's camera-to-world transform at `time` (column vectors).
@@ -897,7 +967,8 @@ mod tests {
         // axis), rotateX, rotateY, rotateZ and scale operations, as Maya writes them, one of
         // them not inheriting its parent's; trs-expected.json: where Blender puts six points
         // after its importer (the Alembic library) composed them
-        // (tools/make_alembic_trs_fixture.py). No image size in the file: it is given.
+        // (tools/make_alembic_trs_fixture.py). No image size in the file: it is given. trs_cam
+        // carries Maya's four film-back operations, each doing nothing.
         let dir = fixture();
         let (points, views) = expected("trs-expected.json");
         let read = read_alembic(&dir.join("trs.abc"), Some((1280, 720)), (1, 1)).unwrap();
@@ -910,6 +981,20 @@ mod tests {
                 assert!(e < 1e-3, "{name}: {e} px from Blender's {px}");
             }
         }
+        // trs_cam carries Maya's four film-back operations, each doing nothing: passed over.
+        // Translating the film moves the screen window, which is not read: refused by name.
+        let err = read_alembic(&dir.join("film-translate.abc"), Some((1280, 720)), (1, 1))
+            .unwrap_err()
+            .to_string();
+        has(
+            &err,
+            &[
+                "film-translate.abc",
+                "trs_cam",
+                "\"filmTranslate\"",
+                "moves the film",
+            ],
+        );
     }
 
     #[test]
