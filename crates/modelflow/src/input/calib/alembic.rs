@@ -71,7 +71,8 @@ pub fn read_alembic(
             "holds no Camera object: export the cameras with the scene (Maya: AbcExport with the camera's transform as a -root; Blender: File > Export > Alembic, the cameras selected or all objects)",
         ));
     }
-    let fps = a.fps().unwrap_or(24.0);
+    let file_fps = a.fps();
+    let fps = file_fps.unwrap_or(24.0);
     let (first, last) = frames;
     let mut out = AlembicCalibration {
         cameras: Vec::new(),
@@ -121,12 +122,12 @@ pub fn read_alembic(
                 "camera {name:?}: its film back's aspect is not the image's {width}x{height}: the film's width is fitted to the image's, square pixels (Blender's sensor fit Auto for a landscape image, Houdini's, Maya's Horizontal fit)"
             ));
         }
-        if moving && a.fps().is_none() {
-            out.notes.push(format!(
-                "camera {name:?} moves, and the file samples it at times of their own, not at a frame rate: frame F is read at F/24 s"
-            ));
-        }
         if moving {
+            if file_fps.is_none() {
+                out.notes.push(format!(
+                    "camera {name:?} moves, and the file samples it at times of their own, not at a frame rate: frame F is read at F/24 s"
+                ));
+            }
             if let Some((lo, hi)) = a.sampled_frames(cam, fps) {
                 if first < lo || last > hi {
                     out.notes.push(format!(
@@ -1037,18 +1038,33 @@ mod tests {
             ],
             vec![[0, 1, 2]],
         );
-        let frames: Vec<(u32, crate::base::Mesh)> = (10..14).map(|f| (f, mesh.clone())).collect();
         let dir = tempfile::tempdir().unwrap();
         let out = dir.path().join("shot.abc");
-        export_with_cameras(
-            &frames,
-            &[],
-            &cameras,
-            ExportFormat::Abc,
-            &out,
-            &ExportOptions::default(),
-        )
-        .unwrap();
+        // The two cameras exported at `frames`.
+        let export = |frames: &[u32]| {
+            let meshes: Vec<(u32, crate::base::Mesh)> =
+                frames.iter().map(|f| (*f, mesh.clone())).collect();
+            let opts = ExportOptions::default();
+            export_with_cameras(&meshes, &[], &cameras, ExportFormat::Abc, &out, &opts).unwrap();
+        };
+        // The moving camera read back: its first view before frame `second`, its second after.
+        let moves_at = |read: &AlembicCalibration, second: u32| {
+            let poses = read.poses[1].as_ref().expect("moving");
+            for (f, r, t) in poses {
+                let eye = if *f < second {
+                    [3.0, 1.0, 3.0]
+                } else {
+                    [2.0, 2.5, 3.5]
+                };
+                let (rr, tt) = pose(eye);
+                assert!(
+                    (r - rr).abs().max() < 1e-12 && (t - tt).norm() < 1e-12,
+                    "frame {f}"
+                );
+            }
+            poses.iter().map(|p| p.0).collect::<Vec<u32>>()
+        };
+        export(&[10, 11, 12, 13]);
         let err = read_alembic(&out, None, (10, 13)).unwrap_err().to_string();
         has(&err, &["shot.abc", "web_cam", "--size"]);
         let read = read_alembic(&out, Some((1280, 720)), (10, 13)).unwrap();
@@ -1066,20 +1082,7 @@ mod tests {
             (read.cameras[0].r - r).abs().max() < 1e-12 && (read.cameras[0].t - t).norm() < 1e-12
         );
         assert!(read.poses[0].is_none());
-        let poses = read.poses[1].as_ref().expect("moving");
-        let frames: Vec<u32> = poses.iter().map(|p| p.0).collect();
-        assert_eq!(frames, [10, 11, 12, 13]);
-        for (f, r, t) in poses {
-            let (rr, tt) = pose(if *f < 12 {
-                [3.0, 1.0, 3.0]
-            } else {
-                [2.0, 2.5, 3.5]
-            });
-            assert!(
-                (r - rr).abs().max() < 1e-12 && (t - tt).norm() < 1e-12,
-                "frame {f}"
-            );
-        }
+        assert_eq!(moves_at(&read, 12), [10, 11, 12, 13]);
         // Outside its samples a camera holds its nearest pose, and the import says so.
         let read = read_alembic(&out, Some((1280, 720)), (8, 15)).unwrap();
         assert!(read
@@ -1088,35 +1091,14 @@ mod tests {
             .any(|n| n.contains("handheld") && n.contains("10..13")));
         // Frames not evenly spaced: the export samples them at their own times (acyclic), read
         // at 24 fps (the export's default), and the import says so.
-        let uneven: Vec<(u32, crate::base::Mesh)> =
-            [10, 11, 13].iter().map(|f| (*f, mesh.clone())).collect();
-        export_with_cameras(
-            &uneven,
-            &[],
-            &cameras,
-            ExportFormat::Abc,
-            &out,
-            &ExportOptions::default(),
-        )
-        .unwrap();
+        export(&[10, 11, 13]);
         let read = read_alembic(&out, Some((1280, 720)), (10, 13)).unwrap();
         assert!(read
             .notes
             .iter()
             .any(|n| n.contains("handheld") && n.contains("F/24 s")));
         // Frame 12, not in the file, holds frame 11's sample (the first view).
-        let poses = read.poses[1].as_ref().expect("moving");
-        for (f, r, t) in poses {
-            let (rr, tt) = pose(if *f < 13 {
-                [3.0, 1.0, 3.0]
-            } else {
-                [2.0, 2.5, 3.5]
-            });
-            assert!(
-                (r - rr).abs().max() < 1e-12 && (t - tt).norm() < 1e-12,
-                "frame {f}"
-            );
-        }
+        assert_eq!(moves_at(&read, 13), [10, 11, 12, 13]);
     }
 
     #[test]
