@@ -1,6 +1,9 @@
 # Writes fixtures/alembic/: cameras as Blender's own Alembic exporter writes them, and where
 # Blender itself puts known points in their images (what `modelflow import alembic` must agree
-# with, tests in crates/modelflow/src/input/calib/alembic.rs). A 1280x720 render and four cameras:
+# with, tests in crates/modelflow/src/input/calib/alembic.rs); and fixtures/usd/blender.usda, the
+# same cameras as Blender's USD exporter writes them, with blender-expected.json (the same
+# pixels, the points in Blender's own Z-up world, which its USD export keeps; tests in
+# crates/modelflow/src/input/calib/usd.rs). A 1280x720 render and four cameras:
 #   front:  a 16:9 film back (36 x 20.25 mm, the image's aspect), lens 35 mm, shifted (0.05, -0.03),
 #           under an empty `rig` that is moved, turned and scaled by 2 (a camera's parent is often
 #           scaled: Blender views through its axes, not their length);
@@ -95,3 +98,11 @@ with open("fixtures/alembic/expected.json", "w") as f:
     json.dump(expected, f, indent=1)
     f.write("\n")
 print("wrote fixtures/alembic/cameras.abc and expected.json")
+
+bpy.ops.wm.usd_export(filepath="fixtures/usd/blender.usda", export_animation=True,
+                      selected_objects_only=False, export_cameras=True)
+expected["points"] = [[p.x, p.y, p.z] for p in points]
+with open("fixtures/usd/blender-expected.json", "w") as f:
+    json.dump(expected, f, indent=1)
+    f.write("\n")
+print("wrote fixtures/usd/blender.usda and blender-expected.json")

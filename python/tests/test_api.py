@@ -366,6 +366,19 @@ def test_import_calibration_writes_a_scene_in_our_conventions(tmp_path):
     assert "R" not in cams["moving"] or cams["moving"]["R"] is None
     assert (cams["side"]["width"], cams["side"]["height"]) == (1280, 720)
     assert any("Y up" in n for n in abc["notes"])
+    # The same cameras as Blender's USD exporter writes them: no image size in the file.
+    with pytest.raises(modelflow.ModelflowError, match="--size"):
+        modelflow.import_calibration("usd", ROOT / "fixtures" / "usd" / "blender.usda", frames=(1, 5))
+    usd = modelflow.import_calibration(
+        "auto", ROOT / "fixtures" / "usd" / "blender.usda", frames=(1, 5), size=(1280, 720)
+    )
+    ucams = {c["name"]: c for c in usd["scene"]["cameras"]}
+    assert sorted(ucams) == ["front", "moving", "side", "tall"]
+    assert [p["frame"] for p in ucams["moving"]["poses"]] == [1, 2, 3, 4, 5]
+    for name in ["front", "side", "tall"]:
+        for row_a, row_b in zip(ucams[name]["K"], cams[name]["K"]):
+            assert all(abs(a - b) < 1e-3 for a, b in zip(row_a, row_b)), name
+    assert any("Z up" in n for n in usd["notes"])
 
 
 def test_synth_makes_footage_that_tracks_to_its_truth(tmp_path):

@@ -1,7 +1,7 @@
 //! `modelflow import`: writes a scene file from a calibration made by another tool (a COLMAP
 //! sparse model, an OpenCV `FileStorage` file, a Metashape camera XML, a nerfstudio / instant-ngp /
 //! NeRF `transforms.json`, an anipose / Pose2Sim / FreeMoCap / caliscope TOML file, a Kalibr
-//! `camchain.yaml`, mrcal `.cameramodel` files, the cameras of an Alembic file), with the
+//! `camchain.yaml`, mrcal `.cameramodel` files, the cameras of an Alembic or USD file), with the
 //! user's mesh, image pattern and frames.
 //! The readers, the conversion of conventions and the checks are the library's
 //! (`input::calib::import_calibration`); this parses the options, writes and reports.
@@ -38,6 +38,9 @@ pub enum Format {
     /// The cameras of an Alembic file (.abc, Ogawa): Maya's, Houdini's, Blender's, a matchmove
     /// package's or modelflow's own export; a moving camera gets a pose per frame.
     Alembic,
+    /// The cameras of a USD text file (.usda): Houdini's, Maya's, Blender's, Omniverse's or
+    /// modelflow's own export; a moving camera gets a pose per frame.
+    Usd,
 }
 
 #[derive(clap::Args)]
@@ -47,7 +50,7 @@ pub struct Args {
     format: Format,
     /// The calibration: a COLMAP model folder, an OpenCV file, a Metashape XML file, a
     /// transforms.json file, a TOML file, a Kalibr camchain.yaml, an mrcal .cameramodel (or a
-    /// folder of them), or an Alembic file.
+    /// folder of them), an Alembic file or a USD text file.
     input: PathBuf,
     /// The scene file to write.
     #[arg(long)]
@@ -61,12 +64,14 @@ pub struct Args {
     /// video file (videos/{camera}.mp4).
     #[arg(long, default_value = "images/{camera}/{frame:04}.png")]
     images: String,
-    /// The frames, A..B inclusive (Alembic: frame F at F/fps seconds, the file's fps).
+    /// The frames, A..B inclusive (Alembic: frame F at F/fps seconds, the file's fps; USD: at
+    /// time code F).
     #[arg(long, value_name = "A..B", default_value = "0..0", value_parser = crate::select::parse_frames)]
     frames: (u32, u32),
     /// The image size of cameras whose calibration gives none (OpenCV files without
     /// image_width/image_height, NeRF synthetic transforms.json files without w/h, TOML cameras
-    /// without size, Alembic cameras from other packages than Blender), as WxH.
+    /// without size, Alembic cameras from other packages than Blender, USD cameras without render
+    /// settings), as WxH.
     #[arg(long, value_name = "WxH", value_parser = parse_size)]
     size: Option<(u32, u32)>,
     /// Metashape: the chunk to import, by its label or id (needed when several enabled chunks
@@ -114,6 +119,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         Format::Kalibr => CalibrationFormat::Kalibr,
         Format::Mrcal => CalibrationFormat::Mrcal,
         Format::Alembic => CalibrationFormat::Alembic,
+        Format::Usd => CalibrationFormat::Usd,
     };
     let opts = ImportOptions {
         mesh: args.mesh,

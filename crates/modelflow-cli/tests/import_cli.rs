@@ -332,6 +332,7 @@ fn auto_tells_the_formats_apart_and_says_when_it_cannot() {
         ("mrcal", "mrcal", 3),
         ("anipose/calibration.toml", "toml", 3),
         ("alembic/cameras.abc", "alembic", 4),
+        ("usd/cameras.usda", "usd", 5),
     ]
     .into_iter()
     .enumerate()
@@ -369,12 +370,51 @@ fn alembic_cameras_from_blender_become_a_scene_that_projects_as_blender() {
     assert!(r.status.success(), "{err}");
     assert!(err.contains("moving: a pose per frame at 24 fps"), "{err}");
     assert!(err.contains("Y up") && err.contains("\"side\""), "{err}");
-    let file = SceneFile::parse(&out, &std::fs::read_to_string(&out).unwrap()).unwrap();
-    let cameras = file.cameras_of(&out).unwrap();
-    let want: serde_json::Value = serde_json::from_str(
-        &std::fs::read_to_string(fixtures().join("alembic/expected.json")).unwrap(),
-    )
-    .unwrap();
+    projects_as(&out, "alembic/expected.json", &["moving"]);
+}
+
+/// A USD stage's cameras (written by Pixar's library: transform operations, time samples,
+/// render settings) become a scene whose cameras put known points where Pixar's camera model
+/// does (fixtures/usd, tools/make_usd_fixture.py); each camera's image size from its render
+/// settings.
+#[test]
+fn usd_cameras_become_a_scene_that_projects_as_pixars_camera_model() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("scene.json");
+    let input = fixtures().join("usd/cameras.usda");
+    let r = import(&["usd", "--frames", "1..5"], &input, &out);
+    let err = String::from_utf8_lossy(&r.stderr);
+    assert!(r.status.success(), "{err}");
+    assert!(err.contains("moving: a pose per frame"), "{err}");
+    assert!(err.contains("conformed by `cropAperture`"), "{err}");
+    projects_as(&out, "usd/cameras-expected.json", &["moving", "tumble"]);
+    // Blender's USD export gives no image size: refused until --size gives it.
+    let input = fixtures().join("usd/blender.usda");
+    let out = dir.path().join("blender.json");
+    let r = import(&["usd", "--frames", "1..5"], &input, &out);
+    let err = String::from_utf8_lossy(&r.stderr);
+    assert!(!r.status.success() && !out.exists());
+    assert!(
+        err.contains("blender.usda") && err.contains("--size WxH"),
+        "{err}"
+    );
+    let r = import(
+        &["usd", "--frames", "1..5", "--size", "1280x720"],
+        &input,
+        &out,
+    );
+    assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
+    projects_as(&out, "usd/blender-expected.json", &["moving"]);
+}
+
+/// The scene file `out`'s cameras put the points of the fixture `expected` (points, and views of
+/// camera, frame and pixels) where the package that wrote it does, to a thousandth of a pixel;
+/// the cameras `moving` with a pose per frame, the others still.
+fn projects_as(out: &std::path::Path, expected: &str, moving: &[&str]) {
+    let file = SceneFile::parse(out, &std::fs::read_to_string(out).unwrap()).unwrap();
+    let cameras = file.cameras_of(out).unwrap();
+    let want: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(fixtures().join(expected)).unwrap()).unwrap();
     let points: Vec<nalgebra::Point3<f64>> = want["points"]
         .as_array()
         .unwrap()
@@ -391,11 +431,11 @@ fn alembic_cameras_from_blender_become_a_scene_that_projects_as_blender() {
         let name = view["camera"].as_str().unwrap();
         let frame = view["frame"].as_u64().unwrap() as u32;
         let cam = cameras.iter().find(|c| c.name == name).unwrap();
-        assert_eq!(cam.is_moving(), name == "moving");
+        assert_eq!(cam.is_moving(), moving.contains(&name), "{name}");
         for (p, px) in points.iter().zip(view["pixels"].as_array().unwrap()) {
             let got = cam.at(frame).project(p).unwrap();
             let e = (got.x - px[0].as_f64().unwrap()).hypot(got.y - px[1].as_f64().unwrap());
-            assert!(e < 1e-3, "{name} frame {frame}: {e} px from Blender's");
+            assert!(e < 1e-3, "{name} frame {frame}: {e} px from {expected}");
         }
     }
 }

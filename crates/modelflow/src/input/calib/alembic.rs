@@ -14,7 +14,8 @@
 //! image's width with square pixels, as Blender (sensor fit Auto, a landscape image), Houdini
 //! and Maya's horizontal fit do, and the import says so.
 
-use super::{pinhole_k, CalibratedCamera};
+use super::pinhole_k;
+use super::scene3d::{still_or_moving, world_to_camera, SceneCameras};
 use crate::error::{Error, Result};
 use nalgebra::{Matrix3, Matrix4, Rotation3, Unit, Vector3};
 use std::path::Path;
@@ -36,21 +37,6 @@ const POD_FLOAT32: u32 = 10;
 const POD_FLOAT64: u32 = 11;
 const POD_STRING: u32 = 12;
 
-/// A moving camera's world-to-camera `R`, `t` at a frame.
-pub type FramePose = (u32, Matrix3<f64>, Vector3<f64>);
-
-/// The cameras of an Alembic file.
-#[derive(Clone, Debug)]
-pub struct AlembicCalibration {
-    /// Every camera, with its pose at the first frame of the range.
-    pub cameras: Vec<CalibratedCamera>,
-    /// Per camera, its world-to-camera `R`, `t` at every frame of the range when it moves
-    /// (`None` when it holds still).
-    pub poses: Vec<Option<Vec<FramePose>>>,
-    /// What the user should know (the file's world, a film back fitted, frames held).
-    pub notes: Vec<String>,
-}
-
 /// Reads every camera of the Alembic file `path` at frames `frames.0..=frames.1` (frame `f` at
 /// `f / fps` seconds, `fps` the file's own: its first uniform time sampling's, else 24). `size` is the
 /// image size, for files that do not give one (Blender writes its render size as the cameras'
@@ -59,7 +45,7 @@ pub fn read_alembic(
     path: &Path,
     size: Option<(u32, u32)>,
     frames: (u32, u32),
-) -> Result<AlembicCalibration> {
+) -> Result<SceneCameras> {
     let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
     let a = Archive::open(path, &bytes)?;
     let mut found = Vec::new();
@@ -74,7 +60,7 @@ pub fn read_alembic(
     let file_fps = a.fps();
     let fps = file_fps.unwrap_or(24.0);
     let (first, last) = frames;
-    let mut out = AlembicCalibration {
+    let mut out = SceneCameras {
         cameras: Vec::new(),
         poses: Vec::new(),
         notes: vec![
@@ -103,20 +89,11 @@ pub fn read_alembic(
             let (r, t) = world_to_camera(&world).map_err(|m| a.err(&field, m))?;
             views.push((frame, k, r, t));
         }
-        let (_, k0, r0, t0) = views[0];
-        if let Some((f, k, ..)) = views.iter().find(|v| !close(&v.1, &k0, 1e-9)) {
-            return Err(a.err(
-                &field,
-                format!(
-                    "the lens or film back changes over the frames (fx {:.3} at frame {first}, {:.3} at frame {f}): modelflow's cameras keep one K; import a range over which it holds",
-                    k0[(0, 0)],
-                    k[(0, 0)]
-                ),
-            ));
-        }
-        let moving = views
-            .iter()
-            .any(|v| !close(&v.2, &r0, 1e-12) || (v.3 - t0).norm() > 1e-12 * (1.0 + t0.norm()));
+        let (camera, poses) = still_or_moving(name.clone(), (width, height), &views, || {
+            format!("moving: a pose per frame at {fps} fps")
+        })
+        .map_err(|m| a.err(&field, m))?;
+        let moving = poses.is_some();
         if fitted {
             out.notes.push(format!(
                 "camera {name:?}: its film back's aspect is not the image's {width}x{height}: the film's width is fitted to the image's, square pixels (Blender's sensor fit Auto for a landscape image, Houdini's, Maya's Horizontal fit)"
@@ -136,24 +113,10 @@ pub fn read_alembic(
                 }
             }
         }
-        out.cameras.push(CalibratedCamera {
-            name,
-            width,
-            height,
-            k: k0,
-            r: r0,
-            t: t0,
-            distortion: None,
-            note: moving.then(|| format!("moving: a pose per frame at {fps} fps")),
-        });
-        out.poses
-            .push(moving.then(|| views.iter().map(|v| (v.0, v.2, v.3)).collect()));
+        out.cameras.push(camera);
+        out.poses.push(poses);
     }
     Ok(out)
-}
-
-fn close(a: &Matrix3<f64>, b: &Matrix3<f64>, tol: f64) -> bool {
-    (a - b).abs().max() <= tol * (1.0 + b.abs().max())
 }
 
 /// The camera matrix of Alembic's 16 film-back values for a `width`×`height` image, and whether
@@ -194,35 +157,6 @@ fn film_back_k(
     let cy = h / 2.0 + voff * py - 0.5;
     let k = pinhole_k(fx, fy, cx, cy).ok_or("a film back that gives no focal length")?;
     Ok((k, fitted))
-}
-
-/// World-to-camera `R`, `t` (ours: x right, y down, looking down +z) of an Alembic camera's
-/// camera-to-world transform (column vectors here: `p_world = M·p_camera`), whose axes may be
-/// scaled (a scaled parent), never sheared or mirrored.
-fn world_to_camera(m: &Matrix4<f64>) -> std::result::Result<(Matrix3<f64>, Vector3<f64>), String> {
-    let mut axes = m.fixed_view::<3, 3>(0, 0).into_owned();
-    if !axes.iter().all(|x| x.is_finite()) {
-        return Err("a transform that is not finite".into());
-    }
-    for mut c in axes.column_iter_mut() {
-        let n = c.norm();
-        if n < 1e-12 {
-            return Err("a transform that scales an axis to zero".into());
-        }
-        c /= n;
-    }
-    let dots = [(0, 1), (0, 2), (1, 2)].map(|(i, j)| axes.column(i).dot(&axes.column(j)).abs());
-    if dots.iter().any(|d| *d > 1e-4) {
-        return Err("a transform that shears the camera (its axes not at right angles)".into());
-    }
-    if axes.determinant() < 0.0 {
-        return Err("a transform that mirrors the camera (a negative scale)".into());
-    }
-    // Camera-to-world axes X, Y, Z of Alembic's camera; ours are X, −Y, −Z.
-    let flip = Matrix3::from_diagonal(&Vector3::new(1.0, -1.0, -1.0));
-    let r = flip * axes.transpose();
-    let c = Vector3::new(m[(0, 3)], m[(1, 3)], m[(2, 3)]);
-    Ok((r, -(r * c)))
 }
 
 /// An object's child as its parent lists it: name, metadata, group.
@@ -882,7 +816,6 @@ impl<'a> Archive<'a> {
 mod tests {
     use super::*;
     use crate::input::calib::testing::has;
-    use nalgebra::Point3;
 
     fn fixture() -> std::path::PathBuf {
         Path::new(env!("CARGO_MANIFEST_DIR")).join("../../fixtures/alembic")
@@ -1002,53 +935,14 @@ mod tests {
     fn the_alembic_export_reads_back_as_the_scenes_cameras() {
         // modelflow's own export: a webcam's K (principal point off centre, fx != fy) still,
         // and the same K moving, given at frames 10 and 12 of 10..13.
-        use crate::base::{look_at, Projection};
-        use crate::export::{export_with_cameras, ExportCamera, ExportFormat, ExportOptions};
-        let k = Matrix3::new(903.5, 0.0, 618.3, 0.0, 907.9, 394.2, 0.0, 0.0, 1.0);
-        let pose = |eye: [f64; 3]| {
-            look_at(
-                &Point3::from(eye),
-                &Point3::new(1.0, 0.5, -0.5),
-                &Vector3::new(0.0, 1.0, 0.0),
-            )
-        };
-        let view = |eye| {
-            let (r, t) = pose(eye);
-            Projection::from_krt(&k, &r, &t).unwrap()
-        };
-        let cameras = [
-            ExportCamera {
-                name: "web cam".into(),
-                width: 1280,
-                height: 720,
-                views: vec![(10, view([0.3, -2.0, 4.0]))],
-            },
-            ExportCamera {
-                name: "handheld".into(),
-                width: 1280,
-                height: 720,
-                views: vec![(10, view([3.0, 1.0, 3.0])), (12, view([2.0, 2.5, 3.5]))],
-            },
-        ];
-        let mesh = crate::base::Mesh::new(
-            vec![
-                Point3::new(0.0, 0.0, 0.0),
-                Point3::new(1.0, 0.0, 0.0),
-                Point3::new(0.0, 1.0, 0.0),
-            ],
-            vec![[0, 1, 2]],
-        );
+        use super::super::scene3d::rig::{self, pose};
+        let k = rig::k();
         let dir = tempfile::tempdir().unwrap();
         let out = dir.path().join("shot.abc");
         // The two cameras exported at `frames`.
-        let export = |frames: &[u32]| {
-            let meshes: Vec<(u32, crate::base::Mesh)> =
-                frames.iter().map(|f| (*f, mesh.clone())).collect();
-            let opts = ExportOptions::default();
-            export_with_cameras(&meshes, &[], &cameras, ExportFormat::Abc, &out, &opts).unwrap();
-        };
+        let export = |frames: &[u32]| rig::export(crate::export::ExportFormat::Abc, &out, frames);
         // The moving camera read back: its first view before frame `second`, its second after.
-        let moves_at = |read: &AlembicCalibration, second: u32| {
+        let moves_at = |read: &SceneCameras, second: u32| {
             let poses = read.poses[1].as_ref().expect("moving");
             for (f, r, t) in poses {
                 let eye = if *f < second {

@@ -5,7 +5,7 @@
 
 use super::{
     read_alembic, read_colmap, read_kalibr, read_metashape_chunk, read_mrcal, read_nerfstudio,
-    read_opencv, read_rig_toml, scene_file, CalibratedCamera, NerfWorld,
+    read_opencv, read_rig_toml, read_usd, scene_file, CalibratedCamera, NerfWorld,
 };
 use crate::base::Units;
 use crate::error::{Error, Result};
@@ -33,6 +33,9 @@ pub enum CalibrationFormat {
     Mrcal,
     /// The cameras of an Alembic file (`.abc`): still ones, and moving ones as a pose per frame.
     Alembic,
+    /// The cameras of a USD text layer (`.usda`): still ones, and moving ones as a pose per
+    /// frame.
+    Usd,
 }
 
 impl std::str::FromStr for CalibrationFormat {
@@ -165,6 +168,12 @@ pub fn import_calibration(
                 poses = read.poses;
                 read.cameras
             }
+            CalibrationFormat::Usd => {
+                let read = read_usd(input, opts.size, opts.frames)?;
+                notes = read.notes;
+                poses = read.poses;
+                read.cameras
+            }
         })
     };
     let cameras = read().map_err(|e| with_format_hint(e, input, format))?;
@@ -203,7 +212,7 @@ pub fn import_calibration(
     let (first, last) = opts.frames;
     let mut file = scene_file(&cameras, &opts.mesh, &opts.images, first, last);
     file.units = opts.units;
-    // A moving camera (an Alembic one): its pose at every frame instead of one.
+    // A moving camera (an Alembic or USD one): its pose at every frame instead of one.
     for (entry, poses) in file.cameras.iter_mut().zip(poses) {
         if let Some(poses) = poses {
             let rows = |m: &nalgebra::Matrix3<f64>| [0, 1, 2].map(|i| [0, 1, 2].map(|j| m[(i, j)]));
@@ -233,7 +242,7 @@ const TOML_TOOLS: [&str; 4] = ["anipose", "pose2sim", "freemocap", "caliscope"];
 
 impl CalibrationFormat {
     /// Every format read, in the order the docs list them.
-    pub const ALL: [CalibrationFormat; 8] = [
+    pub const ALL: [CalibrationFormat; 9] = [
         Self::Colmap,
         Self::Opencv,
         Self::Metashape,
@@ -242,6 +251,7 @@ impl CalibrationFormat {
         Self::Kalibr,
         Self::Mrcal,
         Self::Alembic,
+        Self::Usd,
     ];
 
     /// "colmap, opencv, ... or mrcal": the names a user may give.
@@ -262,6 +272,7 @@ impl CalibrationFormat {
             Self::Kalibr => "kalibr",
             Self::Mrcal => "mrcal",
             Self::Alembic => "alembic",
+            Self::Usd => "usd",
         }
     }
 
@@ -284,7 +295,8 @@ impl CalibrationFormat {
     /// with COLMAP's files, an XML file (Metashape's), a JSON object with `frames` and
     /// `transform_matrix` (a `transforms.json`), a TOML file with camera tables, YAML with a
     /// `cam0` map and `intrinsics` (Kalibr's), `.cameramodel` files (mrcal's), an Alembic file
-    /// (Ogawa's header, or HDF5's with an `.abc` name), else YAML or JSON (OpenCV's
+    /// (Ogawa's header, or HDF5's with an `.abc` name), a USD file (`#usda`, a `.usdc` or `.usdz`
+    /// name), else YAML or JSON (OpenCV's
     /// `FileStorage`). `None` when it is none of these or cannot be read.
     pub fn sniff(path: &Path) -> Option<CalibrationFormat> {
         let colmap = ["cameras.txt", "cameras.bin", "images.txt", "images.bin"];
@@ -314,6 +326,13 @@ impl CalibrationFormat {
             .is_some_and(|x| x.eq_ignore_ascii_case("abc"));
         if head.starts_with(b"Ogawa") || (abc && head.starts_with(b"\x89HDF")) {
             return Some(Self::Alembic);
+        }
+        let usd = path.extension().and_then(|x| x.to_str()).is_some_and(|x| {
+            ["usd", "usda", "usdc", "usdz"].contains(&x.to_ascii_lowercase().as_str())
+        });
+        let text_start = head.strip_prefix("\u{feff}".as_bytes()).unwrap_or(&head);
+        if text_start.starts_with(b"#usda ") || head.starts_with(b"PXR-USDC") || usd {
+            return Some(Self::Usd);
         }
         let text = String::from_utf8_lossy(&head);
         let text = text.trim_start_matches('\u{feff}').trim_start();

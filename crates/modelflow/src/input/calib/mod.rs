@@ -1,7 +1,7 @@
 //! Calibration importers: the camera files users already have (COLMAP sparse models, OpenCV
 //! `FileStorage` files, Agisoft Metashape camera XML, nerfstudio / instant-ngp / NeRF
 //! `transforms.json`, the TOML files of anipose, Pose2Sim, FreeMoCap and caliscope, Kalibr's
-//! `camchain.yaml`, mrcal's `.cameramodel`, the cameras of an Alembic file) turned into the cameras of a `modelflow-scene/1` file, in our
+//! `camchain.yaml`, mrcal's `.cameramodel`, the cameras of an Alembic or USD file) turned into the cameras of a `modelflow-scene/1` file, in our
 //! conventions (OpenCV pinhole, pixel centres at integers, world-to-camera `R`, `t`; see
 //! `docs/scene-format.md`, "Importing a calibration"). Each reader converts its tool's own
 //! conventions and names the file, line and field of anything it cannot use.
@@ -15,8 +15,10 @@ mod mrcal;
 mod nerfstudio;
 mod opencv;
 mod rig_toml;
+mod scene3d;
+mod usd;
 
-pub use alembic::{read_alembic, AlembicCalibration, FramePose};
+pub use alembic::read_alembic;
 pub use colmap::read_colmap;
 pub use import::{import_calibration, CalibrationFormat, ImportOptions, Imported};
 pub use kalibr::read_kalibr;
@@ -25,6 +27,8 @@ pub use mrcal::read_mrcal;
 pub use nerfstudio::{read_nerfstudio, NerfCalibration, NerfWorld};
 pub use opencv::read_opencv;
 pub use rig_toml::{read_rig_toml, TomlCalibration};
+pub use scene3d::{FramePose, SceneCameras};
+pub use usd::read_usd;
 
 use crate::base::camera::is_rotation;
 use crate::base::lens::Distortion;
