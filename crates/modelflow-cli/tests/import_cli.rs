@@ -388,6 +388,21 @@ fn usd_cameras_become_a_scene_that_projects_as_pixars_camera_model() {
     assert!(err.contains("moving: a pose per frame"), "{err}");
     assert!(err.contains("conformed by `cropAperture`"), "{err}");
     projects_as(&out, "usd/cameras-expected.json", &["moving", "tumble"]);
+    // The stage's metersPerUnit = 1 is the scene's unit, unless --units says otherwise.
+    let units = |out: &std::path::Path| {
+        SceneFile::parse(out, &std::fs::read_to_string(out).unwrap())
+            .unwrap()
+            .units
+    };
+    assert_eq!(units(&out), Some(modelflow::base::Units::Metres));
+    let cm = dir.path().join("cm.json");
+    let r = import(&["usd", "--frames", "1..5", "--units", "cm"], &input, &cm);
+    let err = String::from_utf8_lossy(&r.stderr);
+    assert!(
+        err.contains("the file says its unit is m, --units says cm"),
+        "{err}"
+    );
+    assert_eq!(units(&cm), Some(modelflow::base::Units::Centimetres));
     // Blender's USD export gives no image size: refused until --size gives it.
     let input = fixtures().join("usd/blender.usda");
     let out = dir.path().join("blender.json");

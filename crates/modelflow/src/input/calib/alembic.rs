@@ -61,6 +61,7 @@ pub fn read_alembic(
     let fps = file_fps.unwrap_or(24.0);
     let (first, last) = frames;
     let mut out = SceneCameras {
+        units: None,
         cameras: Vec::new(),
         poses: Vec::new(),
         notes: vec![

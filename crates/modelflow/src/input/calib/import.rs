@@ -140,6 +140,7 @@ pub fn import_calibration(
     pattern("cam")?;
     let mut notes = Vec::new();
     let mut poses = Vec::new();
+    let mut file_units = None;
     let mut read = || -> Result<Vec<CalibratedCamera>> {
         Ok(match format {
             CalibrationFormat::Colmap => read_colmap(input)?,
@@ -172,6 +173,7 @@ pub fn import_calibration(
                 let read = read_usd(input, opts.size, opts.frames)?;
                 notes = read.notes;
                 poses = read.poses;
+                file_units = read.units;
                 read.cameras
             }
         })
@@ -211,7 +213,21 @@ pub fn import_calibration(
     }
     let (first, last) = opts.frames;
     let mut file = scene_file(&cameras, &opts.mesh, &opts.images, first, last);
-    file.units = opts.units;
+    // The unit given wins over the one the file says (USD's metersPerUnit), which is said.
+    file.units = opts.units.or(file_units);
+    match (opts.units, file_units) {
+        (Some(given), Some(said)) if given != said => notes.push(format!(
+            "the file says its unit is {}, --units says {}: the scene is written in {}",
+            said.name(),
+            given.name(),
+            given.name()
+        )),
+        (None, Some(said)) => notes.push(format!(
+            "the scene's unit is the file's, {} (written as \"units\")",
+            said.name()
+        )),
+        _ => {}
+    }
     // A moving camera (an Alembic or USD one): its pose at every frame instead of one.
     for (entry, poses) in file.cameras.iter_mut().zip(poses) {
         if let Some(poses) = poses {

@@ -20,6 +20,9 @@ pub struct SceneCameras {
     pub poses: Vec<Option<Vec<FramePose>>>,
     /// What the user should know (the file's world, a film back fitted, frames held).
     pub notes: Vec<String>,
+    /// The unit of the file's world, where the file says it (USD's `metersPerUnit`) and it is
+    /// one a scene file names.
+    pub units: Option<crate::base::Units>,
 }
 
 /// A camera's `K`, `R`, `t` at one frame.

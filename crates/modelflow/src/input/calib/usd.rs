@@ -16,6 +16,7 @@
 
 use super::scene3d::{still_or_moving, world_to_camera, SceneCameras, View};
 use super::{line_at, pinhole_k};
+use crate::base::Units;
 use crate::error::{Error, Result};
 use nalgebra::{Matrix3, Matrix4, Rotation3, Vector3};
 use std::path::Path;
@@ -781,9 +782,16 @@ impl<'a> Reader<'a> {
             Some((_, Value::Text(a))) => a.clone(),
             _ => "Y".into(),
         };
-        let unit = match self.layer_number("metersPerUnit") {
+        let metres = self.layer_number("metersPerUnit");
+        let unit = match metres {
             Some(m) => format!("{m} m per unit"),
             None => "0.01 m per unit (USD's default: centimetres)".into(),
+        };
+        let units = match metres.unwrap_or(0.01) {
+            1.0 => Some(Units::Metres),
+            0.01 => Some(Units::Centimetres),
+            0.001 => Some(Units::Millimetres),
+            _ => None,
         };
         notes.push(format!(
             "the cameras are in the USD file's world, {up} up, {unit}: give the mesh in the same world (Blender's OBJ export: up Z, forward Y, for its USD export's Z-up world)"
@@ -819,6 +827,7 @@ impl<'a> Reader<'a> {
             cameras: Vec::new(),
             poses: Vec::new(),
             notes,
+            units,
         };
         for cam in &found {
             let prim = cam.prim();
