@@ -46,6 +46,7 @@ pub fn read_alembic(
     size: Option<(u32, u32)>,
     frames: (u32, u32),
 ) -> Result<SceneCameras> {
+    super::scene3d::check_frames(frames).map_err(|m| Error::invalid(path, "--frames", m))?;
     let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
     let a = Archive::open(path, &bytes)?;
     let mut found = Vec::new();

@@ -25,6 +25,23 @@ pub struct SceneCameras {
     pub units: Option<crate::base::Units>,
 }
 
+/// The most frames one import reads (an hour at 240 fps).
+const MAX_FRAMES: u64 = 864_000;
+
+/// Refuses a frame range that is empty (`A..B` with `A > B`) or longer than any shot.
+pub(crate) fn check_frames((first, last): (u32, u32)) -> Result<(), String> {
+    if first > last {
+        return Err(format!("{first}..{last}: expected A..B with A <= B"));
+    }
+    if (last - first) as u64 + 1 > MAX_FRAMES {
+        return Err(format!(
+            "{first}..{last}: {} frames, more than the {MAX_FRAMES} one import reads",
+            (last - first) as u64 + 1
+        ));
+    }
+    Ok(())
+}
+
 /// A camera's `K`, `R`, `t` at one frame.
 pub(crate) type View = (u32, Matrix3<f64>, Matrix3<f64>, Vector3<f64>);
 

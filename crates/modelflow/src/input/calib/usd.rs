@@ -21,10 +21,9 @@ use crate::error::{Error, Result};
 use nalgebra::{Matrix3, Matrix4, Rotation3, Vector3};
 use std::path::Path;
 
-/// How far a film back's aspect may differ from the image's and still be taken as it (pixels
-/// not square, as modelflow's own export writes a camera whose `fx` and `fy` differ) rather than
-/// conformed by the render settings' policy.
-const CONFORM_ASPECT: f64 = 0.02;
+/// How far a film back's aspect may differ from the image's before `import` says it was
+/// conformed (below it, the rounding of 32-bit apertures: Blender's 0.2025 for 16:9).
+const SAY_CONFORMED: f64 = 1e-4;
 /// Deeper nesting than any scene has (prims, values): a file that nests further is refused.
 const MAX_DEPTH: usize = 200;
 /// How to flatten a stage into one text layer, for files this reader cannot take as they are.
@@ -36,6 +35,7 @@ const FLATTEN: &str = "flatten the stage into one text layer first: `usdcat --fl
 /// modelflow's own `modelflow:imageSize`, else the resolution of the render settings or
 /// product that names the camera.
 pub fn read_usd(path: &Path, size: Option<(u32, u32)>, frames: (u32, u32)) -> Result<SceneCameras> {
+    super::scene3d::check_frames(frames).map_err(|m| Error::invalid(path, "--frames", m))?;
     let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
     read_bytes(path, bytes, size, frames)
 }
@@ -146,6 +146,20 @@ struct Prim {
 }
 
 impl Prim {
+    /// A prim that holds what is parsed and not kept (a variant's body, a deleting list edit).
+    fn scratch(line: usize) -> Prim {
+        Prim {
+            specifier: Specifier::Over,
+            ty: String::new(),
+            name: String::new(),
+            line,
+            meta: Vec::new(),
+            attrs: Vec::new(),
+            children: Vec::new(),
+            variants: false,
+        }
+    }
+
     fn attr(&self, name: &str) -> Option<&Attr> {
         self.attrs.iter().find(|a| a.name == name)
     }
@@ -165,6 +179,8 @@ struct Parser<'a> {
     toks: Vec<(Tok, usize)>,
     at: usize,
     depth: usize,
+    /// The byte offset where each line starts.
+    line_starts: Vec<usize>,
 }
 
 impl<'a> Parser<'a> {
@@ -177,6 +193,9 @@ impl<'a> Parser<'a> {
             toks: Vec::new(),
             at: 0,
             depth: 0,
+            line_starts: std::iter::once(0)
+                .chain(text.match_indices('\n').map(|(i, _)| i + 1))
+                .collect(),
         };
         p.lex(start)?;
         let mut layer = Layer {
@@ -221,9 +240,11 @@ impl<'a> Parser<'a> {
         self.err_at(off, m)
     }
 
+    /// The line of the next token, from the table of line starts (not a count per statement:
+    /// a flattened stage runs to hundreds of megabytes).
     fn line(&self) -> usize {
         let off = self.toks.get(self.at).map_or(self.text.len(), |t| t.1);
-        line_at(self.text.as_bytes(), off)
+        self.line_starts.partition_point(|&s| s <= off)
     }
 
     fn lex(&mut self, start: usize) -> Result<()> {
@@ -355,13 +376,39 @@ impl<'a> Parser<'a> {
                 let Some(e) = self.text[j + 1..].chars().next() else {
                     return Err(self.err_at(i, "a string that is never closed"));
                 };
-                out.push(match e {
-                    'n' => '\n',
-                    't' => '\t',
-                    'r' => '\r',
-                    other => other,
-                });
-                j += 1 + e.len_utf8();
+                // `\xNN` (two hex digits) and `\NNN` (octal) as USD writes bytes; the rest C's.
+                let digits = |radix: u32, most: usize| {
+                    let run: String = self.text[j + 2..]
+                        .chars()
+                        .take(most)
+                        .take_while(|c| c.is_digit(radix))
+                        .collect();
+                    (u32::from_str_radix(&run, radix).ok(), run.len())
+                };
+                let (ch, used) = match e {
+                    'n' => ('\n', 1),
+                    't' => ('\t', 1),
+                    'r' => ('\r', 1),
+                    'x' => match digits(16, 2) {
+                        (Some(v), n) => (char::from_u32(v).unwrap_or('?'), 1 + n),
+                        (None, _) => ('x', 1),
+                    },
+                    '0'..='7' => {
+                        let run: String = self.text[j + 1..]
+                            .chars()
+                            .take(3)
+                            .take_while(|c| c.is_digit(8))
+                            .collect();
+                        let v = u32::from_str_radix(&run, 8).unwrap_or(0);
+                        (char::from_u32(v).unwrap_or('?'), run.len())
+                    }
+                    other => (other, 1),
+                };
+                out.push(ch);
+                j += 1 + match e {
+                    'x' | '0'..='7' => used,
+                    _ => e.len_utf8(),
+                };
             } else {
                 out.push(ch);
                 j += ch.len_utf8();
@@ -438,6 +485,11 @@ impl<'a> Parser<'a> {
                         key = self.next_ident()?;
                     }
                     let value = if self.eat(b'=') {
+                        // An empty value (`symmetryFunction =`) before the block's end.
+                        if self.peek_punct(b')') {
+                            out.push((key, Value::None));
+                            continue;
+                        }
                         let v = self.value()?;
                         // A reference's or sublayer's layer offset: `@a.usd@ (offset = 2)`.
                         if self.peek_punct(b'(') {
@@ -592,16 +644,7 @@ impl<'a> Parser<'a> {
                             self.metadata()?;
                         }
                         self.expect(b'{')?;
-                        let mut variant = Prim {
-                            specifier: Specifier::Over,
-                            ty: String::new(),
-                            name: String::new(),
-                            line,
-                            meta: Vec::new(),
-                            attrs: Vec::new(),
-                            children: Vec::new(),
-                            variants: false,
-                        };
+                        let mut variant = Prim::scratch(line);
                         self.deeper()?;
                         self.body(&mut variant)?;
                         self.depth -= 1;
@@ -621,6 +664,11 @@ impl<'a> Parser<'a> {
     /// A property declaration whose first word is `first`: `[listop] [custom] [uniform] type
     /// name[.timeSamples | .connect | .spline | .default] [= value] [( metadata )]`, or a `rel`.
     fn property(&mut self, prim: &mut Prim, first: String, line: usize) -> Result<()> {
+        if first == "delete" {
+            // A list edit that removes targets or values: parsed, not applied to the prim.
+            let word = self.next_ident()?;
+            return self.property(&mut Prim::scratch(line), word, line);
+        }
         let mut word = first;
         while matches!(
             word.as_str(),
@@ -737,6 +785,8 @@ impl Found<'_> {
 /// The render settings that may give a camera its image size and conform policy.
 #[derive(Clone)]
 struct Render {
+    /// A `RenderProduct` (which wins over settings naming the same camera).
+    product: bool,
     camera: Option<String>,
     resolution: Option<(u32, u32)>,
     policy: Option<String>,
@@ -798,8 +848,12 @@ impl<'a> Reader<'a> {
         ));
         if let Some((_, v)) = self.layer.meta.iter().find(|m| m.0 == "subLayers") {
             if !matches!(v, Value::List(l) if l.is_empty()) {
-                notes.push(format!(
-                    "the file has sublayers, which are not read: cameras in them are left out ({FLATTEN})"
+                // A sublayer's `over` may move or zoom a camera defined here.
+                return Err(self.err(
+                    "subLayers",
+                    format!(
+                        "the file has sublayers, which this reader does not compose: {FLATTEN}"
+                    ),
                 ));
             }
         }
@@ -810,8 +864,13 @@ impl<'a> Reader<'a> {
                 "holds no Camera prim defined on the stage: export the cameras with the scene (Blender: File > Export > Universal Scene Description, Cameras ticked; Houdini: a Camera LOP; Maya: Export, USD)",
             ));
         }
-        let tcps = self.layer_number("timeCodesPerSecond").unwrap_or(24.0);
-        let fps = self.layer_number("framesPerSecond").unwrap_or(tcps);
+        // USD's fallbacks: time codes at the frame rate, the frame rate 24.
+        let fps_said = self.layer_number("framesPerSecond");
+        let tcps = self
+            .layer_number("timeCodesPerSecond")
+            .or(fps_said)
+            .unwrap_or(24.0);
+        let fps = fps_said.unwrap_or(24.0);
         if !(tcps > 0.0 && fps > 0.0 && tcps.is_finite() && fps.is_finite()) {
             return Err(self.err(
                 "timeCodesPerSecond",
@@ -836,13 +895,13 @@ impl<'a> Reader<'a> {
             let err = |m: String| self.err(&field, m);
             if let Some(p) = cam.chain.iter().find(|p| composed(p)) {
                 return Err(err(format!(
-                    "the prim {:?} (line {}) has references, payloads, inherits or variants, which this reader does not compose: {FLATTEN}",
+                    "the prim {:?} (line {}) has references, payloads, inherits, variants or value clips, which this reader does not compose: {FLATTEN}",
                     p.name, p.line
                 )));
             }
-            let render = renders
-                .iter()
-                .find(|r| r.camera.as_deref() == Some(cam.path.as_str()));
+            let names = |r: &&Render| r.camera.as_deref() == Some(cam.path.as_str());
+            let render = (renders.iter().filter(|r| r.product).find(names))
+                .or_else(|| renders.iter().find(names));
             let own_size = match prim
                 .attr("modelflow:imageSize")
                 .and_then(|a| a.default.as_ref())
@@ -873,7 +932,8 @@ impl<'a> Reader<'a> {
             let mut conformed = false;
             for frame in first..=last {
                 let time = frame as f64 * tcps / fps;
-                let (k, c) = film_k(prim, time, (width, height), &policy).map_err(&err)?;
+                let (k, c) = film_k(prim, time, (width, height), &policy, own_size.is_some())
+                    .map_err(&err)?;
                 conformed |= c;
                 let world = orthonormalized(world_transform(&cam.chain, time).map_err(&err)?)
                     .map_err(&err)?;
@@ -918,7 +978,10 @@ fn walk<'a>(
 ) {
     let path = format!("{parent}/{}", p.name);
     chain.push(p);
-    if p.ty == "RenderSettings" || p.ty == "RenderProduct" {
+    let defined = chain
+        .iter()
+        .all(|q| q.specifier == Specifier::Def && active(q));
+    if defined && (p.ty == "RenderSettings" || p.ty == "RenderProduct") {
         let rel = |n: &str| match p.attr(n).and_then(|a| a.default.as_ref()) {
             Some(Value::Path(s)) => vec![s.clone()],
             Some(Value::List(l)) => l
@@ -931,6 +994,7 @@ fn walk<'a>(
             _ => Vec::new(),
         };
         renders.push(Render {
+            product: p.ty == "RenderProduct",
             camera: rel("camera").into_iter().next(),
             resolution: p
                 .attr("resolution")
@@ -952,10 +1016,7 @@ fn walk<'a>(
         });
     }
     if p.ty == "Camera" {
-        let active = chain.iter().all(|q| {
-            !matches!(q.meta("active"), Some(Value::Text(s)) if s == "false" || s == "0")
-                && !matches!(q.meta("active"), Some(Value::Num(x)) if *x == 0.0)
-        });
+        let active = chain.iter().all(|q| active(q));
         if let Some(q) = chain.iter().find(|q| q.specifier != Specifier::Def) {
             let how = if q.specifier == Specifier::Class {
                 "class"
@@ -1000,6 +1061,12 @@ fn inherit_render_settings(renders: &mut [Render]) {
     }
 }
 
+/// Whether the prim is active (not `active = false`).
+fn active(p: &Prim) -> bool {
+    !matches!(p.meta("active"), Some(Value::Text(s)) if s == "false" || s == "0")
+        && !matches!(p.meta("active"), Some(Value::Num(x)) if *x == 0.0)
+}
+
 /// Whether composition would change the prim: references, payloads, inherits, specializes or
 /// variants.
 fn composed(p: &Prim) -> bool {
@@ -1007,7 +1074,14 @@ fn composed(p: &Prim) -> bool {
         || p.meta.iter().any(|(k, v)| {
             matches!(
                 k.as_str(),
-                "references" | "payload" | "inherits" | "specializes" | "variants" | "variantSets"
+                "references"
+                    | "payload"
+                    | "inherits"
+                    | "specializes"
+                    | "variants"
+                    | "variantSets"
+                    | "clips"
+                    | "clipSets"
             ) && *v != Value::None
                 && !matches!(v, Value::List(l) if l.is_empty())
         })
@@ -1085,9 +1159,13 @@ fn numbers_at(a: &Attr, time: f64) -> std::result::Result<Option<Vec<f64>>, Stri
     let values = match &a.samples {
         Some(s) if !s.is_empty() => {
             let i = s.partition_point(|x| x.0 <= time);
-            if i == 0 {
+            if i == 0 && s[0].1 != Value::None {
                 get(&s[0].1)?
-            } else if i == s.len() || s[i - 1].0 == time {
+            } else if s[i.max(1) - 1].1 == Value::None {
+                // Blocked from this sample on: the fallback, as USD reads it.
+                return Ok(None);
+            } else if i == s.len() || s[i - 1].0 == time || s[i].1 == Value::None {
+                // After the last sample, or before a blocked one: held.
                 get(&s[i - 1].1)?
             } else {
                 let (t0, t1) = (s[i - 1].0, s[i].0);
@@ -1107,8 +1185,9 @@ fn numbers_at(a: &Attr, time: f64) -> std::result::Result<Option<Vec<f64>>, Stri
             }
         }
         _ => match &a.default {
+            // Blocked (None): the schema's fallback, as when not authored.
+            Some(Value::None) | None => return Ok(None),
             Some(v) => get(v)?,
-            None => return Ok(None),
         },
     };
     if values.iter().any(|x| !x.is_finite()) {
@@ -1140,7 +1219,24 @@ fn slerp(a: &[f64], b: &[f64], u: f64) -> Vec<f64> {
 /// each prim's operations composed from the top, a `!resetXformStack!` dropping those above.
 fn world_transform(chain: &[&Prim], time: f64) -> std::result::Result<Matrix4<f64>, String> {
     let mut m = Matrix4::identity();
-    for p in chain {
+    // Prims that are not transformable (a Scope, a typeless prim, a material) have no
+    // transform, whatever operations they author: USD ignores them.
+    let transformable = |p: &&&Prim| {
+        !matches!(
+            p.ty.as_str(),
+            "" | "Scope"
+                | "Material"
+                | "Shader"
+                | "NodeGraph"
+                | "RenderSettings"
+                | "RenderProduct"
+                | "RenderVar"
+                | "GeomSubset"
+                | "SkelAnimation"
+                | "BlendShape"
+        )
+    };
+    for p in chain.iter().filter(transformable) {
         let (local, reset) = local_transform(p, time)?;
         m = if reset { local } else { m * local };
     }
@@ -1215,14 +1311,10 @@ fn local_transform(p: &Prim, time: f64) -> std::result::Result<(Matrix4<f64>, bo
     };
     let mut m = Matrix4::identity();
     let mut reset = false;
-    for (i, op) in ops.iter().enumerate() {
+    for op in &ops {
         if op == "!resetXformStack!" {
-            if i != 0 {
-                return Err(format!(
-                    "{}'s xformOpOrder: !resetXformStack! must come first",
-                    p.name
-                ));
-            }
+            // As USD: the operations before it are dropped with the parents'.
+            m = Matrix4::identity();
             reset = true;
             continue;
         }
@@ -1359,7 +1451,19 @@ fn film_k(
     time: f64,
     (width, height): (u32, u32),
     policy: &str,
+    own: bool,
 ) -> std::result::Result<(Matrix3<f64>, bool), String> {
+    // Omniverse's lens models replace the pinhole; no other package reads them.
+    if let Some(a) = cam.attrs.iter().find(|a| {
+        a.name.starts_with("omni:lensdistortion:")
+            || (a.name == "cameraProjectionType"
+                && !matches!(&a.default, Some(Value::Text(t)) if t == "pinhole"))
+    }) {
+        return Err(format!(
+            "{} (line {}): an Omniverse lens model, not read: only pinhole cameras are (calibrate the lens, e.g. with COLMAP or OpenCV, and import that)",
+            a.name, a.line
+        ));
+    }
     if let Some(Value::Text(p)) = cam.attr("projection").and_then(|a| a.default.as_ref()) {
         if p != "perspective" {
             return Err(format!(
@@ -1394,8 +1498,11 @@ fn film_k(
     }
     let (w, h) = (width as f64, height as f64);
     let aspect = w / h;
-    let conformed = ((ah / av) / aspect - 1.0).abs() > CONFORM_ASPECT;
-    if conformed {
+    let mismatch = ((ah / av) / aspect - 1.0).abs();
+    // modelflow's own export writes a camera whose fx and fy differ as an aperture of another
+    // aspect than the image's (marked by its modelflow:imageSize): taken as it is.
+    let conformed = mismatch > SAY_CONFORMED && !own;
+    if mismatch > 0.0 && !own {
         // CameraUtilConformWindow: one aperture changed to the image's aspect, the offsets kept.
         let widen = match policy {
             "expandAperture" => ah / av < aspect,
@@ -1583,6 +1690,46 @@ mod tests {
     const CAMERA: &str = "#usda 1.0\ndef Xform \"rig\" (\n    kind = \"group\"\n)\n{\n    def Camera \"cam\"\n    {\n        float focalLength = 30\n        float horizontalAperture = 36\n        float verticalAperture = 27\n        double3 xformOp:translate = (0, 0, 5)\n        uniform token[] xformOpOrder = [\"xformOp:translate\"]\n    }\n}\n";
 
     #[test]
+    fn what_usd_ignores_or_falls_back_on_is_ignored_and_fallen_back_on() {
+        // A Scope's and a typeless prim's operations move nothing; !resetXformStack! after
+        // operations drops them with the parents'; a blocked focal length is the fallback, 50;
+        // a list edit that deletes a relationship's target names nothing.
+        let text = CAMERA
+            .replace("def Xform \"rig\"", "def Scope \"rig\"")
+            .replace(
+                "    def Camera \"cam\"\n    {",
+                "    double3 xformOp:translate = (10, 0, 0)\n    uniform token[] xformOpOrder = [\"xformOp:translate\"]\n    def Camera \"cam\"\n    {",
+            )
+            .replace("float focalLength = 30", "float focalLength = None");
+        let read = read_text(&text).unwrap();
+        let c = &read.cameras[0];
+        assert!((c.k[(0, 0)] - 50.0 * 640.0 / 36.0).abs() < 1e-9, "{}", c.k);
+        assert!(
+            (c.t - Vector3::new(0.0, 0.0, 5.0)).norm() < 1e-12,
+            "{}",
+            c.t
+        );
+        let text = CAMERA.replace(
+            "[\"xformOp:translate\"]",
+            "[\"xformOp:rotateX\", \"!resetXformStack!\", \"xformOp:translate\"]\n        float xformOp:rotateX = 90",
+        );
+        let c = &read_text(&text).unwrap().cameras[0];
+        assert!(
+            (c.t - Vector3::new(0.0, 0.0, 5.0)).norm() < 1e-12
+                && (c.r - Matrix3::from_diagonal(&Vector3::new(1.0, -1.0, -1.0)))
+                    .abs()
+                    .max()
+                    < 1e-12
+        );
+        let render = "def RenderSettings \"r\"\n{\n    delete rel camera = </rig/cam>\n    uniform int2 resolution = (10, 10)\n}\n";
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("shot.usda");
+        std::fs::write(&path, format!("{CAMERA}{render}")).unwrap();
+        let e = read_usd(&path, None, (1, 1)).unwrap_err().to_string();
+        has(&e, &["no image size"]);
+    }
+
+    #[test]
     fn cameras_it_cannot_read_as_usd_shows_them_are_refused_by_name() {
         let read = read_text(CAMERA).unwrap();
         assert_eq!(names(&read), ["cam"]);
@@ -1654,6 +1801,31 @@ mod tests {
             ],
         );
         refused(&with("Camera", "Mesh"), &["holds no Camera prim"]);
+        refused(
+            &with(
+                "#usda 1.0\n",
+                "#usda 1.0\n(\n    subLayers = [@./anim.usda@]\n)\n",
+            ),
+            &["subLayers", "usdcat --flatten"],
+        );
+        refused(
+            &with(
+                "kind = \"group\"",
+                "clips = { dictionary default = { asset[] assetPaths = [@a.usd@] } }",
+            ),
+            &["value clips", "usdcat --flatten"],
+        );
+        refused(
+            &with(
+                "float focalLength = 30",
+                "token cameraProjectionType = \"fisheyePolynomial\"",
+            ),
+            &["cameraProjectionType (line 8)", "Omniverse lens model"],
+        );
+        match read_usd(Path::new("x.usda"), None, (2, 1)) {
+            Err(e) => has(&e.to_string(), &["--frames", "2..1", "A <= B"]),
+            Ok(_) => panic!("a reversed range read"),
+        }
         // Broken text: the line named.
         refused(
             &with(
