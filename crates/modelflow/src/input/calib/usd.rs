@@ -737,6 +737,12 @@ impl<'a> Parser<'a> {
                 "connect" => {
                     self.value()?;
                 }
+                // Arrays other than tokens (a mesh's points) are never read: skipped, not kept.
+                "" | "default"
+                    if ty.ends_with("[]") && ty != "token[]" && self.peek_punct(b'[') =>
+                {
+                    self.skip_balanced()?;
+                }
                 "" | "default" => {
                     let v = self.value()?;
                     prim.attrs[index].default = Some(v);
