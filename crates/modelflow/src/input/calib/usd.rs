@@ -4,15 +4,15 @@
 //! one that holds still becomes a static camera, one that moves a pose per frame. Read by hand:
 //! no maintained Rust crate parses USD's text format, and the part cameras need (prims,
 //! attributes, time samples, `xformOp`s) is small. A binary (`.usdc`) or zipped (`.usdz`) layer,
-//! and cameras that need composition (references, payloads, variants), are refused with the
-//! command that flattens the stage into one text layer.
+//! and cameras that need composition (references, payloads, variants, value clips, sublayers),
+//! are refused with the command that flattens the stage into one text layer.
 //!
 //! Conventions (docs/scene-format.md, "Importing a calibration"): USD's matrices map row
 //! vectors, translation in the last row; `xformOpOrder` lists the operations outermost first;
 //! the camera looks down its −Z with +Y up; focal length, apertures and aperture offsets are in
 //! one unit, and Pixar's `GfCamera` maps the aperture onto the image. A film back whose aspect is
-//! not the image's (by more than 2 %) is conformed as USD's render settings say
-//! (`aspectRatioConformPolicy`, by default `expandAperture`).
+//! not the image's is conformed as USD's render settings say (`aspectRatioConformPolicy`, by
+//! default `expandAperture`), except in modelflow's own export, whose aperture carries `fx ≠ fy`.
 
 use super::scene3d::{still_or_moving, world_to_camera, SceneCameras, View};
 use super::{line_at, pinhole_k};
