@@ -512,14 +512,20 @@ impl<'a> Archive<'a> {
         Ok(out)
     }
 
-    /// The values of sample `i` of a scalar or array property of numbers, as `f64`.
-    fn numbers(&self, p: &Prop, i: usize) -> Result<Vec<f64>> {
+    /// The stored bytes of sample `i` of a scalar or array property (an array's data block,
+    /// after its dimensions block).
+    fn sample_data(&self, p: &Prop, i: usize) -> Result<&[u8]> {
         let ch = self.children(p.group)?;
         let step = if p.kind == 2 { 2 } else { 1 };
         let child = *ch
             .get(step * p.stored(i))
             .ok_or_else(|| self.damaged("a property's sample missing"))?;
-        let d = self.data(child)?;
+        self.data(child)
+    }
+
+    /// The values of sample `i` of a scalar or array property of numbers, as `f64`.
+    fn numbers(&self, p: &Prop, i: usize) -> Result<Vec<f64>> {
+        let d = self.sample_data(p, i)?;
         if d.is_empty() {
             return Ok(Vec::new());
         }
@@ -691,12 +697,7 @@ impl<'a> Archive<'a> {
         if p.pod != POD_STRING {
             return Err(self.damaged("strings of another type"));
         }
-        let ch = self.children(p.group)?;
-        let step = if p.kind == 2 { 2 } else { 1 };
-        let child = *ch
-            .get(step * p.stored(i))
-            .ok_or_else(|| self.damaged("a property's sample missing"))?;
-        let d = self.data(child)?;
+        let d = self.sample_data(p, i)?;
         let v = d.get(16..).unwrap_or(&[]);
         Ok(v.split(|b| *b == 0)
             .take(v.iter().filter(|b| **b == 0).count())
