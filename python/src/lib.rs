@@ -582,8 +582,9 @@ fn synth(
 /// `format` is "colmap" (a sparse model folder), "opencv" (a FileStorage .yml/.json), "metashape"
 /// (a camera XML), "nerfstudio" (a transforms.json), "toml" (anipose, Pose2Sim, FreeMoCap or
 /// caliscope TOML; also by those names), "kalibr" (a camchain.yaml), "mrcal" (a .cameramodel
-/// or a folder of them), "alembic" (the cameras of an .abc file) or "usd" (the cameras of a .usda
-/// file), or "auto" (whichever of these the input is). `mesh`, `images` (with `{camera}`) and
+/// or a folder of them), "alembic" (the cameras of an .abc file), "usd" (the cameras of a .usda
+/// file) or "alicevision" (a Meshroom SfM file, cameras.sfm; also "meshroom"), or "auto"
+/// (whichever of these the input is). `mesh`, `images` (with `{camera}`) and
 /// `frames` are what the scene file names; `size` (w, h) for cameras whose file gives none;
 /// `chunk` a Metashape chunk; `units` "m", "cm" or "mm"; `before_applied_transform` the world
 /// before a nerfstudio file's applied_transform. With `out`, the scene file is written there (an

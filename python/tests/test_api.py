@@ -379,6 +379,10 @@ def test_import_calibration_writes_a_scene_in_our_conventions(tmp_path):
         for row_a, row_b in zip(ucams[name]["K"], cams[name]["K"]):
             assert all(abs(a - b) < 1e-3 for a, b in zip(row_a, row_b)), name
     assert any("Z up" in n for n in usd["notes"])
+    # A Meshroom reconstruction: the view without a pose left out and said.
+    sfm = modelflow.import_calibration("meshroom", ROOT / "fixtures" / "alicevision" / "cameras.sfm")
+    assert [c["name"] for c in sfm["scene"]["cameras"]] == [f"cam{i}" for i in range(6)]
+    assert any("cam6" in n and "no pose" in n for n in sfm["notes"])
 
 
 def test_synth_makes_footage_that_tracks_to_its_truth(tmp_path):

@@ -41,6 +41,10 @@ pub enum Format {
     /// The cameras of a USD text file (.usda): Houdini's, Maya's, Blender's, Omniverse's or
     /// modelflow's own export; a moving camera gets a pose per frame.
     Usd,
+    /// An AliceVision (Meshroom) SfM file in JSON: StructureFromMotion's cameras.sfm, or an
+    /// sfm.json; one camera per reconstructed view.
+    #[value(alias = "meshroom")]
+    Alicevision,
 }
 
 #[derive(clap::Args)]
@@ -120,6 +124,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         Format::Mrcal => CalibrationFormat::Mrcal,
         Format::Alembic => CalibrationFormat::Alembic,
         Format::Usd => CalibrationFormat::Usd,
+        Format::Alicevision => CalibrationFormat::AliceVision,
     };
     let opts = ImportOptions {
         mesh: args.mesh,

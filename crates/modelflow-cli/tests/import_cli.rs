@@ -333,6 +333,8 @@ fn auto_tells_the_formats_apart_and_says_when_it_cannot() {
         ("anipose/calibration.toml", "toml", 3),
         ("alembic/cameras.abc", "alembic", 4),
         ("usd/cameras.usda", "usd", 5),
+        ("alicevision/cameras.sfm", "alicevision", 6),
+        ("alicevision/legacy.sfm", "alicevision", 2),
     ]
     .into_iter()
     .enumerate()

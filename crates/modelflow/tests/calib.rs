@@ -8,11 +8,16 @@
 //! `camera_array.toml` of the real board sample (`tools/make_toml_fixtures.py`).
 //! `fixtures/kalibr`: a camera chain in Kalibr's layout (`tools/make_kalibr_fixture.py`).
 //! `fixtures/mrcal`: a rig's `.cameramodel` files written by mrcal 2.2 (`tools/make_mrcal_fixture.py`).
+//! `fixtures/alicevision`: SfM files in AliceVision's JSON layout, today's and file version
+//! 1.0.0's, with landmarks observed where AliceVision's camera model puts them
+//! (`tools/make_alicevision_fixture.py`, written from AliceVision's sources independently of
+//! modelflow).
 
 use modelflow::base::{Camera, Projection};
 use modelflow::input::calib::{
-    import_calibration, read_colmap, read_kalibr, read_metashape, read_mrcal, read_nerfstudio,
-    read_opencv, read_rig_toml, CalibratedCamera, CalibrationFormat, ImportOptions, NerfWorld,
+    import_calibration, read_alicevision, read_colmap, read_kalibr, read_metashape, read_mrcal,
+    read_nerfstudio, read_opencv, read_rig_toml, CalibratedCamera, CalibrationFormat,
+    ImportOptions, NerfWorld,
 };
 use nalgebra::Point3;
 use std::path::{Path, PathBuf};
@@ -301,6 +306,59 @@ fn nerf_synthetic_transforms_need_the_size_and_centre_the_principal_point() {
     }
 }
 
+/// Every landmark of the AliceVision fixtures, projected through the imported cameras, lands on
+/// its observations (AliceVision's pixel centres are at integers, as ours): every distortion
+/// model AliceVision has an equivalent for, a pixel aspect, a rig's sub-poses, the legacy file
+/// version's absolute principal point and focal length in pixels.
+#[test]
+fn alicevision_cameras_put_the_landmarks_on_their_observations() {
+    for (file, names) in [
+        (
+            "cameras.sfm",
+            &["cam0", "cam1", "cam2", "cam3", "cam4", "cam5"][..],
+        ),
+        ("legacy.sfm", &["cam0", "cam1"][..]),
+    ] {
+        let input = fixture(&format!("alicevision/{file}"));
+        let read = read_alicevision(&input).unwrap();
+        let got: Vec<&str> = read.cameras.iter().map(|c| c.name.as_str()).collect();
+        assert_eq!(got, names, "{file}");
+        let doc: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(&input).unwrap()).unwrap();
+        let num = |v: &serde_json::Value| v.as_str().unwrap().parse::<f64>().unwrap();
+        let views = doc["views"].as_array().unwrap();
+        let mut checked = 0;
+        for landmark in doc["structure"].as_array().unwrap() {
+            let x: Vec<f64> = landmark["X"].as_array().unwrap().iter().map(num).collect();
+            let x = Point3::new(x[0], x[1], x[2]);
+            for obs in landmark["observations"].as_array().unwrap() {
+                let view = views
+                    .iter()
+                    .position(|v| v["viewId"] == obs["observationId"])
+                    .unwrap();
+                let want: Vec<f64> = obs["x"].as_array().unwrap().iter().map(num).collect();
+                close(
+                    project(&read.cameras[view], &x),
+                    [want[0], want[1]],
+                    &format!("{file} view {view}"),
+                );
+                checked += 1;
+            }
+        }
+        assert_eq!(checked, 3 * names.len(), "{file}");
+    }
+    // The same through `import`, by its other name.
+    let opts = ImportOptions::default();
+    let format: CalibrationFormat = "meshroom".parse().unwrap();
+    let imported = import_calibration(format, &fixture("alicevision/cameras.sfm"), &opts).unwrap();
+    assert_eq!(imported.cameras.len(), 6);
+    assert!(
+        imported.notes[0].contains("no pose"),
+        "{:?}",
+        imported.notes
+    );
+}
+
 /// `fixtures/metashape/cameras.xml` and the projections of its world point by Metashape's
 /// published camera model, computed independently of modelflow by
 /// `tools/make_metashape_fixture.py` (Metashape's pixel centres at half-integers).
@@ -474,6 +532,8 @@ fn a_calibration_given_as_the_wrong_format_is_refused_with_the_format_it_looks_l
         ("kalibr/camchain.yaml", Kalibr),
         ("mrcal", Mrcal),
         ("mrcal/camera-1.cameramodel", Mrcal),
+        ("alicevision/cameras.sfm", AliceVision),
+        ("alicevision/legacy.sfm", AliceVision),
     ];
     for (f, format) in cases {
         assert_eq!(CalibrationFormat::sniff(&fixture(f)), Some(format), "{f}");
@@ -484,11 +544,18 @@ fn a_calibration_given_as_the_wrong_format_is_refused_with_the_format_it_looks_l
         assert_eq!(f.name().parse::<CalibrationFormat>().unwrap(), f);
     }
     assert_eq!("Caliscope".parse::<CalibrationFormat>().unwrap(), Toml);
+    assert_eq!(
+        "Meshroom".parse::<CalibrationFormat>().unwrap(),
+        AliceVision
+    );
     let e = "bundler"
         .parse::<CalibrationFormat>()
         .unwrap_err()
         .to_string();
-    assert!(e.contains("alembic or usd") && e.contains("anipose"), "{e}");
+    assert!(
+        e.contains("usd or alicevision") && e.contains("anipose") && e.contains("meshroom"),
+        "{e}"
+    );
     let opts = ImportOptions::default();
     let wrong = [
         ("anipose/calibration.toml", Opencv, "`toml`"),
@@ -497,6 +564,7 @@ fn a_calibration_given_as_the_wrong_format_is_refused_with_the_format_it_looks_l
         ("metashape/cameras.xml", Nerfstudio, "`metashape`"),
         ("kalibr/camchain.yaml", Opencv, "`kalibr`"),
         ("mrcal", Colmap, "`mrcal`"),
+        ("alicevision/cameras.sfm", Nerfstudio, "`alicevision`"),
     ];
     for (f, format, want) in wrong {
         let e = import_calibration(format, &fixture(f), &opts)

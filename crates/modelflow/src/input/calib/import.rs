@@ -4,8 +4,8 @@
 //! `modelflow import` and Python's `import_calibration` do; writing the file is the caller's.
 
 use super::{
-    read_alembic, read_colmap, read_kalibr, read_metashape_chunk, read_mrcal, read_nerfstudio,
-    read_opencv, read_rig_toml, read_usd, scene_file, CalibratedCamera, NerfWorld,
+    read_alembic, read_alicevision, read_colmap, read_kalibr, read_metashape_chunk, read_mrcal,
+    read_nerfstudio, read_opencv, read_rig_toml, read_usd, scene_file, CalibratedCamera, NerfWorld,
 };
 use crate::base::Units;
 use crate::error::{Error, Result};
@@ -36,6 +36,8 @@ pub enum CalibrationFormat {
     /// The cameras of a USD text layer (`.usda`): still ones, and moving ones as a pose per
     /// frame.
     Usd,
+    /// An AliceVision (Meshroom) SfM file in JSON (`cameras.sfm`, `sfm.json`).
+    AliceVision,
 }
 
 impl std::str::FromStr for CalibrationFormat {
@@ -45,6 +47,9 @@ impl std::str::FromStr for CalibrationFormat {
         if TOML_TOOLS.contains(&s_lower.as_str()) {
             return Ok(Self::Toml);
         }
+        if s_lower == "meshroom" {
+            return Ok(Self::AliceVision);
+        }
         Self::ALL
             .into_iter()
             .find(|f| f.name() == s_lower)
@@ -53,7 +58,7 @@ impl std::str::FromStr for CalibrationFormat {
                     "format",
                     s,
                     format!(
-                        "{} (toml also named {})",
+                        "{} (toml also named {}; alicevision also meshroom)",
                         Self::names(),
                         TOML_TOOLS.join(", ")
                     ),
@@ -176,6 +181,11 @@ pub fn import_calibration(
                 file_units = read.units;
                 read.cameras
             }
+            CalibrationFormat::AliceVision => {
+                let read = read_alicevision(input)?;
+                notes = read.notes;
+                read.cameras
+            }
         })
     };
     let cameras = read().map_err(|e| with_format_hint(e, input, format))?;
@@ -258,7 +268,7 @@ const TOML_TOOLS: [&str; 4] = ["anipose", "pose2sim", "freemocap", "caliscope"];
 
 impl CalibrationFormat {
     /// Every format read, in the order the docs list them.
-    pub const ALL: [CalibrationFormat; 9] = [
+    pub const ALL: [CalibrationFormat; 10] = [
         Self::Colmap,
         Self::Opencv,
         Self::Metashape,
@@ -268,6 +278,7 @@ impl CalibrationFormat {
         Self::Mrcal,
         Self::Alembic,
         Self::Usd,
+        Self::AliceVision,
     ];
 
     /// "colmap, opencv, ... or mrcal": the names a user may give.
@@ -289,6 +300,7 @@ impl CalibrationFormat {
             Self::Mrcal => "mrcal",
             Self::Alembic => "alembic",
             Self::Usd => "usd",
+            Self::AliceVision => "alicevision",
         }
     }
 
@@ -312,7 +324,8 @@ impl CalibrationFormat {
     /// `transform_matrix` (a `transforms.json`), a TOML file with camera tables, YAML with a
     /// `cam0` map and `intrinsics` (Kalibr's), `.cameramodel` files (mrcal's), an Alembic file
     /// (Ogawa's header, or HDF5's with an `.abc` name), a USD file (`#usda`, a `.usdc` or `.usdz`
-    /// name), else YAML or JSON (OpenCV's
+    /// name), a JSON object with `viewId` and `poseId` or an `.sfm` name (AliceVision's), else
+    /// YAML or JSON (OpenCV's
     /// `FileStorage`). `None` when it is none of these or cannot be read.
     pub fn sniff(path: &Path) -> Option<CalibrationFormat> {
         let colmap = ["cameras.txt", "cameras.bin", "images.txt", "images.bin"];
@@ -359,6 +372,14 @@ impl CalibrationFormat {
             } else {
                 Self::Metashape
             });
+        }
+        let sfm = path
+            .extension()
+            .is_some_and(|x| x.eq_ignore_ascii_case("sfm"));
+        if text.starts_with('{')
+            && (sfm || (text.contains("\"viewId\"") && text.contains("\"poseId\"")))
+        {
+            return Some(Self::AliceVision);
         }
         if text.starts_with('{') {
             return Some(

@@ -1,12 +1,14 @@
 //! Calibration importers: the camera files users already have (COLMAP sparse models, OpenCV
 //! `FileStorage` files, Agisoft Metashape camera XML, nerfstudio / instant-ngp / NeRF
 //! `transforms.json`, the TOML files of anipose, Pose2Sim, FreeMoCap and caliscope, Kalibr's
-//! `camchain.yaml`, mrcal's `.cameramodel`, the cameras of an Alembic or USD file) turned into the cameras of a `modelflow-scene/1` file, in our
+//! `camchain.yaml`, mrcal's `.cameramodel`, AliceVision's (Meshroom's) SfM files, the cameras of
+//! an Alembic or USD file) turned into the cameras of a `modelflow-scene/1` file, in our
 //! conventions (OpenCV pinhole, pixel centres at integers, world-to-camera `R`, `t`; see
 //! `docs/scene-format.md`, "Importing a calibration"). Each reader converts its tool's own
 //! conventions and names the file, line and field of anything it cannot use.
 
 mod alembic;
+mod alicevision;
 mod colmap;
 mod import;
 mod kalibr;
@@ -19,6 +21,7 @@ mod scene3d;
 mod usd;
 
 pub use alembic::read_alembic;
+pub use alicevision::{read_alicevision, AliceVisionCalibration};
 pub use colmap::read_colmap;
 pub use import::{import_calibration, CalibrationFormat, ImportOptions, Imported};
 pub use kalibr::read_kalibr;
@@ -91,6 +94,42 @@ pub fn scene_file(
         ground_truth: None,
         units: None,
     }
+}
+
+/// One camera name per image path: the folders holding the images when those all differ
+/// (`images/cam0/0000.png` → `cam0`), else the file stems (`cam0_0000.png` → `cam0_0000`); the
+/// indices `(first, second)` of two images that name the same camera both ways.
+pub(crate) fn names_from_paths(
+    files: &[String],
+) -> std::result::Result<Vec<String>, (usize, usize)> {
+    let part = |f: &String, folder: bool| {
+        let p = std::path::Path::new(f.as_str());
+        let s = if folder {
+            p.parent().and_then(|d| d.file_name())
+        } else {
+            p.file_stem()
+        };
+        s.map(|s| s.to_string_lossy().into_owned())
+            .unwrap_or_default()
+    };
+    let distinct = |names: &[String]| {
+        let mut seen = std::collections::BTreeMap::new();
+        for (i, n) in names.iter().enumerate() {
+            if n.is_empty() {
+                return Err((i, i));
+            }
+            if let Some(j) = seen.insert(n.as_str(), i) {
+                return Err((j, i));
+            }
+        }
+        Ok(())
+    };
+    let folders: Vec<String> = files.iter().map(|f| part(f, true)).collect();
+    if distinct(&folders).is_ok() {
+        return Ok(folders);
+    }
+    let stems: Vec<String> = files.iter().map(|f| part(f, false)).collect();
+    distinct(&stems).map(|()| stems)
 }
 
 /// The rotation of a quaternion `(w, x, y, z)` (normalised first), or `None` for a zero or

@@ -26,12 +26,11 @@
 //! (`images/cam0/0000.png` → `cam0`), else after its file stem (`./train/r_0` → `r_0`). Frames
 //! of different `time` (D-NeRF's dynamic scenes: one camera's moments) are refused.
 
-use super::{check_rotation, strip_bom, CalibratedCamera};
+use super::{check_rotation, names_from_paths, strip_bom, CalibratedCamera};
 use crate::base::lens::Distortion;
 use crate::error::{Error, Result};
 use nalgebra::{Matrix3, Vector3};
 use serde_json::{Map, Value};
-use std::collections::BTreeMap;
 use std::path::Path;
 
 /// Which world a `transforms.json` file's cameras are placed in.
@@ -212,47 +211,19 @@ pub fn read_nerfstudio(
     })
 }
 
-/// One name per frame: the folder holding its image when those are all different, else the
-/// file stem; two frames of one name are two moments of one camera, which a scene cannot hold.
+/// One name per frame (see [`names_from_paths`]); two frames of one name are two moments of one
+/// camera, which a scene cannot hold.
 fn camera_names(path: &Path, files: &[String]) -> Result<Vec<String>> {
-    let part = |f: &String, folder: bool| {
-        let p = Path::new(f.as_str());
-        let s = if folder {
-            p.parent().and_then(|d| d.file_name())
-        } else {
-            p.file_stem()
-        };
-        s.map(|s| s.to_string_lossy().into_owned())
-            .unwrap_or_default()
-    };
-    let distinct = |names: &[String]| {
-        let mut seen = BTreeMap::new();
-        for (i, n) in names.iter().enumerate() {
-            if n.is_empty() {
-                return Err((i, i));
-            }
-            if let Some(j) = seen.insert(n.as_str(), i) {
-                return Err((j, i));
-            }
-        }
-        Ok(())
-    };
-    let folders: Vec<String> = files.iter().map(|f| part(f, true)).collect();
-    if distinct(&folders).is_ok() {
-        return Ok(folders);
-    }
-    let stems: Vec<String> = files.iter().map(|f| part(f, false)).collect();
-    match distinct(&stems) {
-        Ok(()) => Ok(stems),
-        Err((j, i)) => Err(Error::invalid(
+    names_from_paths(files).map_err(|(j, i)| {
+        Error::invalid(
             path,
             format!("frames[{i}].file_path"),
             format!(
                 "{:?} and {:?} (frames[{j}]) name the same camera, by folder and by file name: import the frames of one moment of the rig (one image per camera)",
                 files[i], files[j]
             ),
-        )),
-    }
+        )
+    })
 }
 
 /// A 3×3 rotation part and translation from a 4×4 or 3×4 matrix given as rows.
