@@ -8,7 +8,9 @@
 #   rig:   R = R_sub·R_rig, C = C_rig + R_rigᵀ·C_sub   (sub-pose ∘ rig pose, "isPoseIndependant": "false")
 #   p = x_cam[:2] / x_cam[2], distorted in those normalised coordinates
 #   u = fx·p_d + (w/2 + offset), pixel centres at integers (AliceVision samples images at them)
-#   fx = focalLength[mm] / sensorWidth[mm] · width, fy = fx · pixelRatio   (file version ≥ 1.2.5)
+#   fy = focalLength[mm] / sensorWidth[mm] · width, fx = fy / pixelRatio   (file version ≥ 1.2.11:
+#   camera/IntrinsicScaleOffset.cpp's setFocalLength, and AliceVision's compatibility files of one
+#   camera, whose focalLength is fx's up to 1.2.8 and fy's from 1.2.11)
 #   version < 1.2.1: the principal point is absolute; < 1.2.0: one pxFocalLength.
 # pip install numpy; run from the repository root.
 import json
@@ -52,7 +54,7 @@ def distort(kind, k, p):
 def project(intr, R, C, X):
     xc = R @ (X - C)
     pd = distort(intr['kind'], intr['k'], xc[:2] / xc[2])
-    fx = intr['fmm'] / intr['sw'] * intr['w']; fy = fx * intr['ratio']
+    fy = intr['fmm'] / intr['sw'] * intr['w']; fx = fy / intr['ratio']
     return [fx * pd[0] + intr['w'] / 2 + intr['off'][0], fy * pd[1] + intr['h'] / 2 + intr['off'][1]]
 
 s = lambda v: repr(float(v)) if isinstance(v, (float, np.floating)) else str(v)

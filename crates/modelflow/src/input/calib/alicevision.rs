@@ -12,9 +12,12 @@
 //! - pixel centres at integers, as ours (AliceVision samples images at integer coordinates);
 //! - the file `version`: from 1.2.1 on the `principalPoint` is an offset from the image's centre
 //!   (`cx = w/2 + offset`), before it from the top-left corner; from 1.2.2 on the focal length is
-//!   `focalLength` in millimetres on a `sensorWidth` (`fx = f·w/sensorWidth`) with `pixelRatio`
-//!   (`fy = fx·pixelRatio`; before 1.2.5 that field held `fx/fy`), before it `pxFocalLength` in
-//!   pixels (one number before 1.2.0, `fx`, `fy` after);
+//!   `focalLength` in millimetres on a `sensorWidth` with a `pixelRatio` (`p`), before it
+//!   `pxFocalLength` in pixels (one number before 1.2.0, `fx`, `fy` after). The millimetres are
+//!   `fx`'s up to 1.2.8 (`fx = f·w/sensorWidth`; `fy = fx/p` before 1.2.5, where the field held
+//!   `fx/fy`, `fy = fx·p` from it) and `fy`'s from 1.2.11 (`fy = f·w/sensorWidth`, `fx = fy/p`:
+//!   AliceVision's compatibility files of the same camera say so); 1.2.9 and 1.2.10 are refused
+//!   unless `p` is 1, where both agree;
 //! - the distortion (`distortionType`, or before it the `type`'s name: `radial1`, `radial3`,
 //!   `brown`, `fisheye4`) in the normalised coordinates, as OpenCV's: `radialk1` (k1),
 //!   `radialk3` (k1, k2, k3), `brown` (k1, k2, k3, t1, t2 = OpenCV's k1, k2, k3, p1, p2),
@@ -23,9 +26,12 @@
 //!   model), the 3DEqualizer models, an `undistortionType` and `equidistant` cameras have no
 //!   equivalent in our camera model and are refused by name.
 //!
-//! Views without a pose or an intrinsic (not reconstructed) are left out and said. Cameras are
-//! named after the folder holding each view's image when those differ (`images/cam0/0000.png` →
-//! `cam0`), else after its file stem.
+//! Views without a pose or an intrinsic (not reconstructed; AliceVision's undefined id is −1 or
+//! 4294967295), and rotation-only (panorama) poses, are left out and said. Cameras are named
+//! after the folder holding each view's image when those differ (`images/cam0/0000.png` →
+//! `cam0`), else after its file stem. The file's own landmarks check the conversion: where a
+//! camera's observations lie a median of more than 3 px from its landmarks' projections, the
+//! import says so (AliceVision's solve leaves about 1 px; a convention read wrongly, hundreds).
 
 use super::{check_rotation, expected_count, names_from_paths, strip_bom, CalibratedCamera};
 use crate::base::lens::Distortion;
@@ -54,7 +60,10 @@ type Intrinsic = (u32, u32, Matrix3<f64>, Option<Distortion>);
 
 /// Reads an AliceVision (Meshroom) SfM file in its JSON form (`.sfm` or `.json`).
 pub fn read_alicevision(path: &Path) -> Result<AliceVisionCalibration> {
-    let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
+    // Image metadata copied into the views may hold bytes that are not UTF-8 (Meshroom reads the
+    // file ignoring them, and so does this).
+    let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
+    let text = String::from_utf8_lossy(&bytes);
     let root: Value = serde_json::from_str(strip_bom(&text)).map_err(|e| {
         Error::invalid(
             path,
@@ -70,6 +79,13 @@ pub fn read_alicevision(path: &Path) -> Result<AliceVisionCalibration> {
             "expected an object with \"views\" and \"intrinsics\" (an AliceVision SfM file)",
         )
     })?;
+    if !top.contains_key("version") && top.contains_key("landmarks") {
+        return Err(Error::invalid(
+            path,
+            "version",
+            "missing, with \"landmarks\": the serialised layout of AliceVision's newest builds, not read; write the SfM as JSON with aliceVision_convertSfMFormat from a release that writes \"version\"",
+        ));
+    }
     let version = file.version(top)?;
     let list = |key: &str| -> Result<&[Value]> {
         match top.get(key) {
@@ -94,17 +110,26 @@ pub fn read_alicevision(path: &Path) -> Result<AliceVisionCalibration> {
     for (i, e) in list("intrinsics")?.iter().enumerate() {
         let at = format!("intrinsics[{i}]");
         let o = file.object(e, &at)?;
-        let id = file.id(o, &at, "intrinsicId")?;
-        intrinsics.insert(id, (at, o));
+        if let Some(id) = file.id(o, &at, "intrinsicId")? {
+            intrinsics.insert(id, (at, o));
+        }
     }
     let mut poses: BTreeMap<u64, Pose> = BTreeMap::new();
+    let mut rotation_only = Vec::new();
     for (i, e) in list("poses")?.iter().enumerate() {
         let at = format!("poses[{i}]");
         let o = file.object(e, &at)?;
-        let id = file.id(o, &at, "poseId")?;
+        let Some(id) = file.id(o, &at, "poseId")? else {
+            continue;
+        };
         let pose = file.object(o.get("pose").unwrap_or(&Value::Null), &format!("{at}.pose"))?;
         // A pose marked invalid ("valid": "0") is one the reconstruction gave up.
-        if pose.get("valid").and_then(number).is_some_and(|v| v == 0.0) {
+        if pose.get("valid").is_some_and(is_false) {
+            continue;
+        }
+        // A rotation-only pose (a panorama's) has no centre worth the name.
+        if pose.get("rotationOnly").is_some_and(|v| !is_false(v)) {
+            rotation_only.push(id);
             continue;
         }
         let transform = file.object(
@@ -117,7 +142,9 @@ pub fn read_alicevision(path: &Path) -> Result<AliceVisionCalibration> {
     for (i, e) in list("rigs")?.iter().enumerate() {
         let at = format!("rigs[{i}]");
         let o = file.object(e, &at)?;
-        let id = file.id(o, &at, "rigId")?;
+        let Some(id) = file.id(o, &at, "rigId")? else {
+            continue;
+        };
         let subs = o.get("subPoses").and_then(Value::as_array).ok_or_else(|| {
             Error::invalid(path, format!("{at}.subPoses"), "missing or not a list")
         })?;
@@ -138,48 +165,60 @@ pub fn read_alicevision(path: &Path) -> Result<AliceVisionCalibration> {
     }
     let mut notes = Vec::new();
     let mut posed = Vec::new();
+    let mut view_ids = Vec::new();
     for (i, v) in views.iter().enumerate() {
         let at = format!("views[{i}]");
         let o = file.object(v, &at)?;
-        let image = o
+        let mut image = o
             .get("path")
             .and_then(Value::as_str)
             .ok_or_else(|| Error::invalid(path, format!("{at}.path"), "missing or not a string"))?
             .to_owned();
+        let view_id = file.id(o, &at, "viewId")?;
+        if image.is_empty() {
+            // A view without an image path is named by its id.
+            image = format!("view{}", view_id.unwrap_or(i as u64));
+        }
         let left_out = |why: &str| format!("views[{i}] ({image:?}) left out: {why}");
-        let pose = match (o.get("rigId"), o.get("isPoseIndependant").and_then(string)) {
-            (Some(_), Some(independent)) if independent == "false" || independent == "0" => {
-                let rig = file.id(o, &at, "rigId")?;
+        let pose_id = file.id(o, &at, "poseId")?;
+        let rig = file.id(o, &at, "rigId")?;
+        let dependent = o.get("isPoseIndependant").is_some_and(is_false);
+        let pose = match (rig, dependent) {
+            (Some(rig), true) => {
                 let sub = file.id(o, &at, "subPoseId")?;
-                let rig_pose = poses.get(&file.id(o, &at, "poseId")?);
+                let rig_pose = pose_id.and_then(|p| poses.get(&p));
                 let sub_pose = rigs
                     .get(&rig)
-                    .and_then(|s| s.get(sub as usize))
+                    .zip(sub)
+                    .and_then(|(s, sub)| s.get(usize::try_from(sub).ok()?))
                     .and_then(Option::as_ref);
                 match (rig_pose, sub_pose) {
                     (Some((rr, cr)), Some((rs, cs))) => Some((rs * rr, cr + rr.transpose() * cs)),
                     _ => None,
                 }
             }
-            _ => match o.get("poseId") {
-                Some(_) => poses.get(&file.id(o, &at, "poseId")?).copied(),
-                None => None,
-            },
+            _ => pose_id.and_then(|p| poses.get(&p)).copied(),
         };
         let Some((r, centre)) = pose else {
-            notes.push(left_out("no pose (not reconstructed)"));
+            notes.push(left_out(
+                if pose_id.is_some_and(|p| rotation_only.contains(&p)) {
+                    "a rotation-only pose (a panorama's: no camera centre)"
+                } else {
+                    "no pose (not reconstructed)"
+                },
+            ));
             continue;
         };
-        let intrinsic = match o.get("intrinsicId") {
-            Some(_) => intrinsics.get(&file.id(o, &at, "intrinsicId")?),
-            None => None,
-        };
+        let intrinsic = file
+            .id(o, &at, "intrinsicId")?
+            .and_then(|id| intrinsics.get(&id));
         let Some((iat, intrinsic)) = intrinsic else {
             notes.push(left_out("no intrinsic"));
             continue;
         };
         let (width, height, k, distortion) = file.intrinsic(intrinsic, iat, version)?;
         posed.push((image, r, centre, width, height, k, distortion));
+        view_ids.push(view_id);
     }
     if posed.is_empty() {
         return Err(Error::invalid(
@@ -203,7 +242,7 @@ pub fn read_alicevision(path: &Path) -> Result<AliceVisionCalibration> {
             ),
         )
     })?;
-    let cameras = posed
+    let cameras: Vec<CalibratedCamera> = posed
         .into_iter()
         .zip(names)
         .map(
@@ -219,7 +258,84 @@ pub fn read_alicevision(path: &Path) -> Result<AliceVisionCalibration> {
             },
         )
         .collect();
+    notes.extend(reprojection_notes(
+        &cameras,
+        &view_ids,
+        top.get("structure").and_then(Value::as_array),
+    ));
     Ok(AliceVisionCalibration { cameras, notes })
+}
+
+/// Where the file's landmarks project through the cameras read, against where AliceVision
+/// observed them: a note for each camera whose observations lie a median of more than 3 px off.
+fn reprojection_notes(
+    cameras: &[CalibratedCamera],
+    view_ids: &[Option<u64>],
+    structure: Option<&Vec<Value>>,
+) -> Vec<String> {
+    use crate::base::{Camera, Lens, Projection};
+    let Some(structure) = structure else {
+        return Vec::new();
+    };
+    let projectors: Vec<Option<Camera>> = cameras
+        .iter()
+        .map(|c| {
+            let p = Projection::from_krt(&c.k, &c.r, &c.t).ok()?;
+            Some(
+                Camera::fixed(&c.name, c.width, c.height, p)
+                    .with_lens(c.distortion.clone().map(|d| Lens::new(c.k, d))),
+            )
+        })
+        .collect();
+    let mut misses: Vec<Vec<f64>> = vec![Vec::new(); cameras.len()];
+    let vec_of =
+        |v: Option<&Value>| -> Option<Vec<f64>> { v?.as_array()?.iter().map(number).collect() };
+    for landmark in structure {
+        let Some(x) = vec_of(landmark.get("X")).filter(|x| x.len() == 3) else {
+            continue;
+        };
+        let x = nalgebra::Point3::new(x[0], x[1], x[2]);
+        let Some(observations) = landmark.get("observations").and_then(Value::as_array) else {
+            continue;
+        };
+        for obs in observations {
+            let Some(id) = obs.get("observationId").and_then(number) else {
+                continue;
+            };
+            let Some(i) = view_ids
+                .iter()
+                .position(|v| v.is_some_and(|v| v as f64 == id))
+            else {
+                continue;
+            };
+            let (Some(seen), Some(Some(camera))) = (
+                vec_of(obs.get("x")).filter(|x| x.len() == 2),
+                projectors.get(i),
+            ) else {
+                continue;
+            };
+            let miss = camera
+                .project_raw(0, &x)
+                .map_or(f64::INFINITY, |q| (q.x - seen[0]).hypot(q.y - seen[1]));
+            misses[i].push(miss);
+        }
+    }
+    let mut notes = Vec::new();
+    for (c, mut m) in cameras.iter().zip(misses) {
+        if m.is_empty() {
+            continue;
+        }
+        m.sort_by(f64::total_cmp);
+        let median = m[m.len() / 2];
+        if median > 3.0 {
+            notes.push(format!(
+                "camera {:?}: the file's landmarks project a median of {median:.1} px from where AliceVision observed them ({} observations; its solve leaves about 1 px): this file may use a convention the importer does not know; check the scene's overlay before tracking",
+                c.name,
+                m.len()
+            ));
+        }
+    }
+    notes
 }
 
 /// A number written as AliceVision writes it (a string) or as a JSON number.
@@ -239,6 +355,19 @@ fn string(v: &Value) -> Option<String> {
         Value::Bool(b) => Some(b.to_string()),
         Value::Number(n) => Some(n.to_string()),
         _ => None,
+    }
+}
+
+/// Whether a flag is false as AliceVision or Meshroom write it (`"false"`, `"0"`, `false`, `0`).
+fn is_false(v: &Value) -> bool {
+    match v {
+        Value::Bool(b) => !b,
+        Value::String(s) => {
+            let s = s.trim();
+            s.eq_ignore_ascii_case("false") || s.parse::<f64>().is_ok_and(|x| x == 0.0)
+        }
+        Value::Number(n) => n.as_f64() == Some(0.0),
+        _ => false,
     }
 }
 
@@ -265,8 +394,16 @@ impl File<'_> {
         })
     }
 
-    fn id(&self, o: &Map<String, Value>, at: &str, key: &str) -> Result<u64> {
+    /// An id, or `None` when the field is missing or AliceVision's undefined one (−1, or
+    /// 4294967295 as it writes its unsigned index).
+    fn id(&self, o: &Map<String, Value>, at: &str, key: &str) -> Result<Option<u64>> {
+        if !o.contains_key(key) {
+            return Ok(None);
+        }
         let x = self.number(o, at, key)?;
+        if x == -1.0 || x == u32::MAX as f64 {
+            return Ok(None);
+        }
         if x < 0.0 || x.fract() != 0.0 || x > u64::MAX as f64 {
             return Err(Error::invalid(
                 self.path,
@@ -274,7 +411,7 @@ impl File<'_> {
                 format!("{x} is not an id (a whole number, at least 0)"),
             ));
         }
-        Ok(x as u64)
+        Ok(Some(x as u64))
     }
 
     /// The numbers of a list (`""` is AliceVision's empty list).
@@ -354,6 +491,8 @@ impl File<'_> {
         let kind = o.get("type").and_then(string).unwrap_or_default();
         // From file version 1.2.11 the distortion has its own field; before it, the type's name.
         let distortion = match o.get("distortionType").and_then(string) {
+            // Meshroom's CameraInit writes `fisheye4` where AliceVision writes `fisheye`.
+            Some(d) if d == "fisheye4" => "fisheye".into(),
             Some(d) => d,
             None => match kind.as_str() {
                 "pinhole" => "none".into(),
@@ -383,7 +522,9 @@ impl File<'_> {
             if u != "none" {
                 return Err(bad(
                     "undistortionType",
-                    format!("{u:?}: a 3DEqualizer lens model, which OpenCV's models cannot hold"),
+                    format!(
+                        "{u:?}: an undistortion model (AliceVision's 3DEqualizer anamorphic or radial inverse), which OpenCV's models cannot hold"
+                    ),
                 ));
             }
         }
@@ -411,16 +552,24 @@ impl File<'_> {
                     ),
                 ));
             }
-            let fx = mm / sensor * w;
-            // Before 1.2.5 `pixelRatio` held fx/fy, since then the pixels' aspect, fy/fx.
-            (
-                fx,
-                if version < (1, 2, 5) {
-                    fx / ratio
-                } else {
-                    fx * ratio
-                },
-            )
+            let f = mm / sensor * w;
+            if version < (1, 2, 5) {
+                // `pixelRatio` held fx/fy.
+                (f, f / ratio)
+            } else if version < (1, 2, 9) {
+                (f, f * ratio)
+            } else if version < (1, 2, 11) && ratio != 1.0 {
+                return Err(bad(
+                    "pixelRatio",
+                    format!(
+                        "{ratio} in file version {}.{}.{}: the millimetres were fx's before and fy's after these versions, and which this one uses is not known; write the SfM again with a newer Meshroom",
+                        version.0, version.1, version.2
+                    ),
+                ));
+            } else {
+                // The millimetres are fy's.
+                (f / ratio, f)
+            }
         };
         let pp = self.fixed::<2>(o, at, "principalPoint")?;
         let (cx, cy) = if version < (1, 2, 1) {
@@ -489,7 +638,11 @@ impl File<'_> {
         };
         let k = super::pinhole_k(fx, fy, cx, cy).ok_or_else(|| {
             bad(
-                "focalLength",
+                if version < (1, 2, 2) {
+                    "pxFocalLength"
+                } else {
+                    "focalLength"
+                },
                 format!("focal lengths {fx}, {fy} px: expected positive ones"),
             )
         })?;
@@ -585,6 +738,62 @@ mod tests {
                 "expected 9 numbers, found 10",
             ],
         );
+    }
+
+    /// The file's landmarks catch a camera read wrongly: observations moved 12 px in one camera
+    /// are said, the others not.
+    #[test]
+    fn landmarks_that_do_not_reproject_are_said() {
+        let mut doc: Value = serde_json::from_str(&fixture()).unwrap();
+        for landmark in doc["structure"].as_array_mut().unwrap() {
+            for obs in landmark["observations"].as_array_mut().unwrap() {
+                if obs["observationId"] == "103" {
+                    let u: f64 = obs["x"][0].as_str().unwrap().parse().unwrap();
+                    obs["x"][0] = Value::String((u + 12.0).to_string());
+                }
+            }
+        }
+        let notes = read(&doc.to_string()).unwrap().notes;
+        assert_eq!(notes.len(), 2, "{notes:?}");
+        has(
+            &notes[1],
+            &["camera \"cam2\"", "median of 12.0 px", "3 observations"],
+        );
+    }
+
+    /// What Meshroom writes besides AliceVision's strings: numbers, booleans, −1 for an undefined
+    /// id, `fisheye4`; a rotation-only pose left out; the versions whose focal length is
+    /// ambiguous refused when the pixels are not square.
+    #[test]
+    fn meshrooms_own_spellings_are_read() {
+        let mut doc: Value = serde_json::from_str(&fixture()).unwrap();
+        doc["views"][0]["poseId"] = Value::from(-1);
+        doc["views"][1]["intrinsicId"] = Value::from(2);
+        doc["views"][3]["isPoseIndependant"] = Value::Bool(true);
+        doc["views"][4]["isPoseIndependant"] = Value::Bool(false);
+        doc["intrinsics"][3]["distortionType"] = Value::from("fisheye4");
+        doc["poses"][1]["pose"]["rotationOnly"] = Value::from("true");
+        let read = read(&doc.to_string()).unwrap();
+        let names: Vec<&str> = read.cameras.iter().map(|c| c.name.as_str()).collect();
+        assert_eq!(names, ["cam2", "cam3", "cam4", "cam5"]);
+        has(&read.notes[0], &["views[0]", "no pose"]);
+        has(&read.notes[1], &["views[1]", "rotation-only"]);
+        assert!(matches!(
+            read.cameras[1].distortion,
+            Some(Distortion::Fisheye { .. })
+        ));
+        for version in ["9", "10"] {
+            let mut doc: Value = serde_json::from_str(&fixture()).unwrap();
+            doc["version"][2] = Value::from(version);
+            has(
+                &err(super::tests::read(&doc.to_string())),
+                &[
+                    "intrinsics[2].pixelRatio",
+                    "1.02",
+                    &format!("1.2.{version}"),
+                ],
+            );
+        }
     }
 
     #[test]
