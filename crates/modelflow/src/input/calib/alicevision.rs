@@ -33,7 +33,7 @@
 //! camera's observations lie a median of more than 3 px from its landmarks' projections, the
 //! import says so (AliceVision's solve leaves about 1 px; a convention read wrongly, hundreds).
 
-use super::{check_rotation, expected_count, names_from_paths, strip_bom, CalibratedCamera};
+use super::{check_rotation, expected_count, names_from_paths, parse_json, CalibratedCamera};
 use crate::base::lens::Distortion;
 use crate::error::{Error, Result};
 use nalgebra::{Matrix3, Vector3};
@@ -64,13 +64,7 @@ pub fn read_alicevision(path: &Path) -> Result<AliceVisionCalibration> {
     // file ignoring them, and so does this).
     let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
     let text = String::from_utf8_lossy(&bytes);
-    let root: Value = serde_json::from_str(strip_bom(&text)).map_err(|e| {
-        Error::invalid(
-            path,
-            format!("line {} column {}", e.line(), e.column()),
-            format!("invalid JSON: {e}"),
-        )
-    })?;
+    let root = parse_json(path, &text)?;
     let file = File { path };
     let top = root.as_object().ok_or_else(|| {
         Error::invalid(

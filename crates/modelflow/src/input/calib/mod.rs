@@ -149,6 +149,21 @@ pub(crate) fn strip_bom(text: &str) -> &str {
     text.strip_prefix('\u{feff}').unwrap_or(text)
 }
 
+/// `text`, the content of `path`, as JSON (a byte-order mark skipped), or an error naming its
+/// line and column.
+pub(crate) fn parse_json(
+    path: &std::path::Path,
+    text: &str,
+) -> crate::error::Result<serde_json::Value> {
+    serde_json::from_str(strip_bom(text)).map_err(|e| {
+        crate::error::Error::invalid(
+            path,
+            format!("line {} column {}", e.line(), e.column()),
+            format!("invalid JSON: {e}"),
+        )
+    })
+}
+
 /// "expected 4 or 5 numbers, found 3": a list of the wrong length, as every reader says it.
 pub(crate) fn expected_count(want: &[usize], found: usize) -> String {
     let want: Vec<String> = want.iter().map(|n| n.to_string()).collect();

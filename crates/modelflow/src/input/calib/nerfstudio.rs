@@ -26,7 +26,7 @@
 //! (`images/cam0/0000.png` → `cam0`), else after its file stem (`./train/r_0` → `r_0`). Frames
 //! of different `time` (D-NeRF's dynamic scenes: one camera's moments) are refused.
 
-use super::{check_rotation, names_from_paths, strip_bom, CalibratedCamera};
+use super::{check_rotation, names_from_paths, parse_json, CalibratedCamera};
 use crate::base::lens::Distortion;
 use crate::error::{Error, Result};
 use nalgebra::{Matrix3, Vector3};
@@ -60,13 +60,7 @@ pub fn read_nerfstudio(
     world: NerfWorld,
 ) -> Result<NerfCalibration> {
     let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
-    let root: Value = serde_json::from_str(strip_bom(&text)).map_err(|e| {
-        Error::invalid(
-            path,
-            format!("line {} column {}", e.line(), e.column()),
-            format!("invalid JSON: {e}"),
-        )
-    })?;
+    let root = parse_json(path, &text)?;
     let top = root.as_object().ok_or_else(|| {
         Error::invalid(
             path,

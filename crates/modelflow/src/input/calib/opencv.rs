@@ -37,13 +37,7 @@ pub fn read_opencv(path: &Path, size: Option<(u32, u32)>) -> Result<Vec<Calibrat
         ));
     }
     let root = if text.trim_start().starts_with('{') {
-        serde_json::from_str::<Value>(text).map_err(|e| {
-            Error::invalid(
-                path,
-                format!("line {} column {}", e.line(), e.column()),
-                format!("invalid JSON: {e}"),
-            )
-        })?
+        super::parse_json(path, text)?
     } else {
         parse_yaml(path, text)?
     };
