@@ -650,10 +650,7 @@ mod tests {
     use super::*;
 
     fn read(text: &str) -> Result<AliceVisionCalibration> {
-        let dir = tempfile::tempdir().unwrap();
-        let p = dir.path().join("cameras.sfm");
-        std::fs::write(&p, text).unwrap();
-        read_alicevision(&p)
+        super::super::testing::read_text("cameras.sfm", text, read_alicevision)
     }
 
     fn fixture() -> String {

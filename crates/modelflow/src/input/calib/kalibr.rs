@@ -243,10 +243,7 @@ mod tests {
     use nalgebra::Matrix3;
 
     fn read(text: &str) -> Result<Vec<CalibratedCamera>> {
-        let dir = tempfile::tempdir().unwrap();
-        let p = dir.path().join("camchain.yaml");
-        std::fs::write(&p, text).unwrap();
-        read_kalibr(&p)
+        super::super::testing::read_text("camchain.yaml", text, read_kalibr)
     }
 
     fn err(text: &str) -> String {

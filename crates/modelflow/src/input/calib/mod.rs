@@ -210,6 +210,14 @@ pub(crate) mod testing {
         }
     }
 
+    /// `read` on a file named `name` holding `text`, in a folder removed afterwards.
+    pub fn read_text<T>(name: &str, text: &str, read: impl FnOnce(&std::path::Path) -> T) -> T {
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join(name);
+        std::fs::write(&p, text).unwrap();
+        read(&p)
+    }
+
     pub fn has(msg: &str, parts: &[&str]) {
         for p in parts {
             assert!(msg.contains(p), "{msg:?} should mention {p:?}");

@@ -384,10 +384,7 @@ mod tests {
     use nalgebra::Matrix3;
 
     fn read(text: &str) -> Result<CalibratedCamera> {
-        let dir = tempfile::tempdir().unwrap();
-        let p = dir.path().join("camera-0.cameramodel");
-        std::fs::write(&p, text).unwrap();
-        read_one(&p)
+        super::super::testing::read_text("camera-0.cameramodel", text, read_one)
     }
 
     fn err(text: &str) -> String {

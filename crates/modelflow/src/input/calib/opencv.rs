@@ -461,10 +461,7 @@ mod tests {
     }
 
     fn read(name: &str, text: &str) -> Result<Vec<CalibratedCamera>> {
-        let dir = tempfile::tempdir().unwrap();
-        let p = dir.path().join(name);
-        std::fs::write(&p, text).unwrap();
-        read_opencv(&p, None)
+        super::super::testing::read_text(name, text, |p| read_opencv(p, None))
     }
 
     /// The line (from 1) of the `nth` (from 0) line holding `s`.

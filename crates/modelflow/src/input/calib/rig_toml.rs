@@ -345,10 +345,7 @@ mod tests {
     use crate::input::calib::testing::has;
 
     fn read(text: &str) -> Result<TomlCalibration> {
-        let dir = tempfile::tempdir().unwrap();
-        let p = dir.path().join("calibration.toml");
-        std::fs::write(&p, text).unwrap();
-        read_rig_toml(&p, None)
+        super::super::testing::read_text("calibration.toml", text, |p| read_rig_toml(p, None))
     }
 
     fn err(text: &str) -> String {
