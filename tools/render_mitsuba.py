@@ -166,6 +166,15 @@ def texture(path, size=1024, seed=3):
     ).write(path)
 
 
+def surface(gloss, tex):
+    """Matte paint, or with `gloss` a varnish over it (a rough dielectric coat: the sun's
+    highlight moves over the surface as it turns)."""
+    paint = {"type": "bitmap", "filename": tex}
+    if gloss <= 0:
+        return {"type": "diffuse", "reflectance": paint}
+    return {"type": "roughplastic", "diffuse_reflectance": paint, "alpha": gloss}
+
+
 def to_png(image, path):
     mi.Bitmap(image).convert(mi.Bitmap.PixelFormat.RGB, mi.Struct.Type.UInt8, srgb_gamma=True).write(path)
 
@@ -272,10 +281,7 @@ def clip(args):
                 "type": "ply",
                 "filename": ply,
                 # Two-sided: the inside seen through a hole or past a rim is lit as the outside.
-                "bsdf": {
-                    "type": "twosided",
-                    "bsdf": {"type": "diffuse", "reflectance": {"type": "bitmap", "filename": tex}},
-                },
+                "bsdf": {"type": "twosided", "bsdf": surface(args.gloss, tex)},
             },
             "sun": {"type": "directional", "direction": (-sun).tolist(), "irradiance": 2.2},
             "sky": {"type": "constant", "radiance": 0.35},
@@ -317,6 +323,9 @@ def main():
     c.add_argument("scene")
     c.add_argument("out")
     c.add_argument("--spp", type=int, default=32)
+    c.add_argument(
+        "--gloss", type=float, default=0.0, help="a glossy coat of this roughness (e.g. 0.1); 0: matte"
+    )
     args = ap.parse_args()
     {"markers": markers, "clip": clip}[args.cmd](args)
 
