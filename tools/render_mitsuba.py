@@ -36,6 +36,9 @@ import sys
 
 import numpy as np
 
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from objread import read_obj  # noqa: E402  (the tools' one OBJ reader)
+
 try:
     import mitsuba as mi
 except ImportError:
@@ -92,22 +95,8 @@ def project(cam, X):
     return (K @ x)[:2] / x[2]
 
 
-def read_obj(path):
-    v, vt, faces = [], [], []
-    with open(path) as f:
-        for line in f:
-            p = line.split()
-            if not p:
-                continue
-            if p[0] == "v":
-                v.append([float(a) for a in p[1:4]])
-            elif p[0] == "vt":
-                vt.append([float(a) for a in p[1:3]])
-            elif p[0] == "f":
-                corners = [c.split("/") for c in p[1:]]
-                for k in range(1, len(corners) - 1):
-                    faces.append([corners[0], corners[k], corners[k + 1]])
-    return np.array(v), np.array(vt), faces
+def positions(path):
+    return np.array(read_obj(path)["v"])
 
 
 def write_ply(path, positions, uvs, tris):
@@ -128,22 +117,23 @@ def write_ply(path, positions, uvs, tris):
         f.write(faces.tobytes())
 
 
-def split_corners(v, vt, faces):
-    """One render vertex per distinct (position, uv) corner: positions indexed by `index`."""
+def split_corners(mesh):
+    """One render vertex per distinct (position, uv) corner of `mesh` (`objread.read_obj`'s),
+    its polygons as fans of triangles: the positions are then `v[index]`."""
     key_of = {}
     index, uvs, tris = [], [], []
-    for face in faces:
-        tri = []
-        for c in face:
-            vi = int(c[0]) - 1
-            ti = int(c[1]) - 1 if len(c) > 1 and c[1] else -1
+    corner = 0
+    for count in mesh["fc"]:
+        ids = []
+        for vi, ti in zip(mesh["fv"][corner : corner + count], mesh["ft"][corner : corner + count]):
             key = (vi, ti)
             if key not in key_of:
                 key_of[key] = len(index)
                 index.append(vi)
-                uvs.append(vt[ti] if ti >= 0 else [0.0, 0.0])
-            tri.append(key_of[key])
-        tris.append(tri)
+                uvs.append(mesh["vt"][ti] if ti is not None else (0.0, 0.0))
+            ids.append(key_of[key])
+        corner += count
+        tris.extend([ids[0], ids[k], ids[k + 1]] for k in range(1, count - 1))
     return np.array(index), np.array(uvs), np.array(tris)
 
 
@@ -181,7 +171,7 @@ def to_png(image, path):
 
 def markers(args):
     scene, base = load_scene(args.scene)
-    v, _, _ = read_obj(os.path.join(base, scene["mesh"]))
+    v = positions(os.path.join(base, scene["mesh"]))
     lo, hi = v.min(axis=0), v.max(axis=0)
     size = float(np.linalg.norm(hi - lo))
     rng = np.random.default_rng(1)
@@ -259,10 +249,10 @@ def clip(args):
     os.makedirs(work, exist_ok=True)
     tex = os.path.join(work, "texture.png")
     texture(tex)
-    v0, vt, faces = read_obj(os.path.join(base, scene["mesh"]))
-    if len(vt) == 0:
+    mesh = read_obj(os.path.join(base, scene["mesh"]))
+    if not mesh["vt"]:
         sys.exit(f"{scene['mesh']}: the mesh has no texture coordinates to put a texture on")
-    index, uvs, tris = split_corners(v0, vt, faces)
+    index, uvs, tris = split_corners(mesh)
     first, last = scene["frames"]["first"], scene["frames"]["last"]
     sun = np.array([0.4, -0.5, 0.75])
     cams = scene["cameras"]
@@ -271,7 +261,7 @@ def clip(args):
     pattern = scene["ground_truth"]
     for frame in range(first, last + 1):
         truth = os.path.join(base, fill(pattern, frame))
-        v, _, _ = read_obj(truth)
+        v = positions(truth)
         ply = os.path.join(work, "mesh.ply")
         write_ply(ply, v[index], uvs, tris)
         d = {
