@@ -64,6 +64,11 @@ pub struct Args {
     /// records it as each camera's `shutter`.
     #[arg(long, default_value_t = 0.0)]
     motion_blur: f64,
+    /// A rolling shutter: the readout from the top row to the bottom row, in frames (0 to 1;
+    /// 0, the default: a global shutter), centred on each camera's time. A moving object leans
+    /// and stretches; the scene file records it as each camera's `rolling_shutter`.
+    #[arg(long, default_value_t = 0.0)]
+    rolling_shutter: f64,
     /// The object turned in the hand: degrees per frame about the first camera's image vertical
     /// through its centre (0 to 90), on top of the preset's motion and --shake.
     #[arg(long, default_value_t = 0.0)]
@@ -101,6 +106,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         cloth_grid: args.cloth_grid,
         sync_error: args.sync_error,
         motion_blur: args.motion_blur,
+        rolling_shutter: args.rolling_shutter,
         turn: args.turn,
         backdrop: args.backdrop,
         bump: args

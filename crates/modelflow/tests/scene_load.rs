@@ -729,6 +729,50 @@ fn shutter_is_read_written_and_checked() {
 }
 
 #[test]
+fn a_rolling_shutter_is_read_written_checked_and_puts_each_row_at_its_instant() {
+    let dir = tempfile::tempdir().unwrap();
+    let (path, mut file) = write_scene(dir.path());
+    // cam0 reads its rows over 0.6 frame (20 ms at 30 fps) and records 0.1 frame late.
+    file.cameras[0].rolling_shutter = 0.6;
+    file.cameras[0].time_offset = 0.1;
+    file.write(&path).unwrap();
+    assert!(std::fs::read_to_string(&path)
+        .unwrap()
+        .contains("\"rolling_shutter\": 0.6"));
+    let scene = Scene::load(&path).unwrap();
+    let (cam, other) = (&scene.cameras[0], &scene.cameras[1]);
+    assert_eq!((cam.rolling_shutter, other.rolling_shutter), (0.6, 0.0));
+    // Row y (pixel centres at integers) of h is read at time_offset + rs·((y + 0.5)/h − 1/2):
+    // the middle of the frame at the camera's own time, the top row's centre half a row after
+    // the readout starts, the bottom row's half a row before it ends.
+    let h = cam.height as f64;
+    let at = |y: f64| cam.lag_at_row(y);
+    assert!((at(h / 2.0 - 0.5) - 0.1).abs() < 1e-15);
+    assert!((at(0.0) - (0.1 - 0.3 + 0.6 * 0.5 / h)).abs() < 1e-15);
+    assert!((at(h - 1.0) - (0.1 + 0.3 - 0.6 * 0.5 / h)).abs() < 1e-15);
+    // A global-shutter camera reads every row at its time_offset.
+    assert_eq!(other.lag_at_row(0.0), other.time_offset);
+    // Per vertex: the row each projects to.
+    let x = scene.mesh.positions[0];
+    let row = cam.project_raw(scene.first, &x).unwrap().y;
+    assert_eq!(cam.lags(scene.first, &[x]), vec![cam.lag_at_row(row)]);
+    assert!(other.lags(scene.first, &[x]).is_empty(), "on time: no lags");
+    // A global shutter (0) is the default and is not written.
+    file.cameras[0].rolling_shutter = 0.0;
+    file.write(&path).unwrap();
+    assert!(!std::fs::read_to_string(&path)
+        .unwrap()
+        .contains("rolling_shutter"));
+    for bad in [1.5, -0.1, f64::NAN] {
+        let msg = broken_in_memory(|f| f.cameras[0].rolling_shutter = bad);
+        assert_names(
+            &msg,
+            &["cameras[0].rolling_shutter", "from 0 to 1", "top row"],
+        );
+    }
+}
+
+#[test]
 fn a_shorter_range_other_cameras_or_another_mesh_are_checked() {
     let dir = tempfile::tempdir().unwrap();
     let (path, _) = write_scene(dir.path());

@@ -409,6 +409,7 @@ fn track_errors(syn: &Synthetic, told: bool) -> (f64, f64, f64) {
         cameras.iter_mut().for_each(|c| {
             c.time_offset = 0.0;
             c.shutter = 0.0;
+            c.rolling_shutter = 0.0;
         });
     }
     let mut tr = Tracker::new(
@@ -521,6 +522,45 @@ fn fast_motion_under_a_long_shutter_is_compared_under_the_common_smear() {
         "median information share {:.3} told the shutter, {:.3} not told",
         told.2,
         untold.2
+    );
+}
+
+#[test]
+fn a_rolling_shutter_is_compensated_when_its_readout_is_known() {
+    // The blob, four cameras at 320×240, carried on a hand-held circle of 12 px per frame and
+    // filmed by rolling shutters that read from the top row to the bottom one over 0.8 frame
+    // (a webcam's 27 ms at 30 fps): its top is seen up to 0.4 frame before the frame's time and
+    // its bottom as much after, so each image shows it leaning and stretched along its motion,
+    // differently in each frame as the motion turns. Told the readout (as `synth` writes it
+    // into the scene), the tracker sees each vertex where it was when its row was read.
+    // (Measured 2026-12-08: told 0.264 % mean, 0.311 % worst; not told 0.898 %, 1.086 %; the
+    // same motion under global shutters 0.098 %, 0.200 %.)
+    let rig = |rolling_shutter| {
+        Synthetic::generate(&SynthOptions {
+            width: 320,
+            height: 240,
+            frames: 9,
+            shake: 12.0,
+            rolling_shutter,
+            ..SynthOptions::preset("blob").unwrap()
+        })
+        .unwrap()
+    };
+    let syn = rig(0.8);
+    assert!(
+        syn.cameras.iter().all(|c| c.rolling_shutter == 0.8),
+        "synth records the readout"
+    );
+    let (told, untold) = (track_errors(&syn, true), track_errors(&syn, false));
+    let global = track_errors(&rig(0.0), true);
+    eprintln!("rolling shutter told {told:?}, not told {untold:?}; global shutter {global:?}");
+    assert!(
+        told.0 < 0.5 * untold.0 && told.1 < untold.1 && told.0 < 0.4,
+        "told the readout: mean {:.3} %, worst {:.3} %; not told: {:.3} %, {:.3} %",
+        told.0,
+        told.1,
+        untold.0,
+        untold.1
     );
 }
 

@@ -189,6 +189,13 @@ pub struct Camera {
     /// 180° shutter). A moving surface is smeared along its motion over that time; the tracker
     /// compares each template and frame under their common smear (`tracker::smear`).
     pub shutter: f64,
+    /// A rolling shutter's readout: how long, in frames, the sensor takes from its top row to
+    /// its bottom row (0: a global shutter, every row at once; a webcam at 30 fps often reads
+    /// for most of a frame). Row `y` of the raw frame (pixel centres at integers) is recorded
+    /// at `time_offset + rolling_shutter·((y + 0.5)/height − 1/2)`: the middle row at the
+    /// camera's own time ([`Camera::lag_at_row`]). The tracker sees each vertex where it was
+    /// when its row was read (`tracker::solve::Lag`).
+    pub rolling_shutter: f64,
 }
 
 impl Camera {
@@ -203,6 +210,7 @@ impl Camera {
             lens: None,
             time_offset: 0.0,
             shutter: 0.0,
+            rolling_shutter: 0.0,
         }
     }
 
@@ -224,6 +232,7 @@ impl Camera {
             lens: None,
             time_offset: 0.0,
             shutter: 0.0,
+            rolling_shutter: 0.0,
         }
     }
 
@@ -241,6 +250,43 @@ impl Camera {
             Some(lens) => lens.distort_pixel(&p),
             None => Some(p),
         }
+    }
+
+    /// When, in frames after the frame's time, this camera records row `y` of its raw frame
+    /// (pixel centres at integers): its `time_offset`, plus for a rolling shutter the row's
+    /// place in the readout, centred on the middle row.
+    pub fn lag_at_row(&self, y: f64) -> f64 {
+        if self.rolling_shutter == 0.0 {
+            return self.time_offset;
+        }
+        let h = self.height.max(1) as f64;
+        let row = ((y + 0.5) / h).clamp(0.0, 1.0);
+        self.time_offset + self.rolling_shutter * (row - 0.5)
+    }
+
+    /// When this camera records each of `positions` at `frame`, in frames: the row each
+    /// projects to in the raw frame ([`Camera::lag_at_row`]). Empty when the camera records
+    /// every point at the frame's own time (no `time_offset`, no rolling shutter); a point
+    /// behind the camera or beyond its lens takes the middle row's time.
+    pub fn lags(&self, frame: u32, positions: &[Point3<f64>]) -> Vec<f64> {
+        if self.time_offset == 0.0 && self.rolling_shutter == 0.0 {
+            return Vec::new();
+        }
+        if self.rolling_shutter == 0.0 {
+            return vec![self.time_offset; positions.len()];
+        }
+        positions
+            .iter()
+            .map(|p| match self.project_raw(frame, p) {
+                Some(q) => self.lag_at_row(q.y),
+                None => self.time_offset,
+            })
+            .collect()
+    }
+
+    /// Whether this camera records some point other than at the frame's own time.
+    pub fn records_late_or_early(&self) -> bool {
+        self.time_offset != 0.0 || self.rolling_shutter != 0.0
     }
 
     /// Whether the camera has a pose per frame.

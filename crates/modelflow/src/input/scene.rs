@@ -79,6 +79,12 @@ pub struct CameraEntry {
     /// under the smear their motion gives both.
     #[serde(default, skip_serializing_if = "is_zero_f64")]
     pub shutter: f64,
+    /// A rolling shutter's readout, in frames from the top row to the bottom row (0 to 1; 0,
+    /// the default: a global shutter). Row `y` is recorded at `time_offset +
+    /// rolling_shutter·((y + 0.5)/height − 1/2)`; the tracker sees each vertex at its row's
+    /// instant.
+    #[serde(default, skip_serializing_if = "is_zero_f64")]
+    pub rolling_shutter: f64,
     pub images: String,
     /// What the stored values are: `"auto"` (floating-point images scene-linear, integer ones
     /// encoded), `"linear"` or `"encoded"` (`input::transfer`).
@@ -532,9 +538,20 @@ impl SceneFile {
                 ),
             ));
         }
+        if !(c.rolling_shutter.is_finite() && (0.0..=1.0).contains(&c.rolling_shutter)) {
+            return Err(Error::invalid(
+                path,
+                format!("cameras[{i}].rolling_shutter"),
+                format!(
+                    "{}: expected the readout from the top row to the bottom row in frames, from 0 to 1 (0: a global shutter; at 30 fps a 20 ms readout is 0.6)",
+                    c.rolling_shutter
+                ),
+            ));
+        }
         let mut camera = build_camera(path, i, c, self.frames.first, self.frames.last)?;
         camera.time_offset = c.time_offset;
         camera.shutter = c.shutter;
+        camera.rolling_shutter = c.rolling_shutter;
         Ok(camera)
     }
 

@@ -153,6 +153,11 @@ pub struct SynthOptions {
     /// instant): each image is the mean of renders spread over it, so moving texture smears
     /// along its motion; the scene file records it as each camera's `shutter`.
     pub motion_blur: f64,
+    /// A rolling shutter's readout, in frames from the top row to the bottom row (0: a global
+    /// shutter): row `y` of `h` is recorded at the camera's time plus
+    /// `rolling_shutter·((y + 0.5)/h − 1/2)`, so a moving object leans and stretches; the
+    /// scene file records it as each camera's `rolling_shutter`.
+    pub rolling_shutter: f64,
     /// A hand-held object turned in the hand: degrees per frame about the first camera's image
     /// vertical through the object's centre, on top of the preset's motion and `shake` (0:
     /// none); it starts from rest at frame 0. Sides come into view and others leave it.
@@ -228,6 +233,7 @@ impl Default for SynthOptions {
             cloth_grid: CLOTH_N,
             sync_error: 0.0,
             motion_blur: 0.0,
+            rolling_shutter: 0.0,
             turn: 0.0,
             backdrop: false,
             bump: None,
@@ -296,6 +302,13 @@ impl SynthOptions {
                 "--motion-blur",
                 self.motion_blur,
                 "0 to 1 (the shutter's opening, in frames)",
+            ));
+        }
+        if !(self.rolling_shutter.is_finite() && (0.0..=1.0).contains(&self.rolling_shutter)) {
+            return Err(Error::option(
+                "--rolling-shutter",
+                self.rolling_shutter,
+                "0 to 1 (the readout from the top row to the bottom row, in frames)",
             ));
         }
         if !(1..=8).contains(&self.supersample) {
@@ -979,6 +992,7 @@ impl Synthetic {
             cam.time_offset = lag;
             // The shutter the images were rendered with, as the scene file tells it.
             cam.shutter = opts.motion_blur;
+            cam.rolling_shutter = opts.rolling_shutter;
         }
         if let Some(d) = opts.distortion.as_ref().filter(|d| !d.is_identity()) {
             for (cam, (k, _, _)) in s.cameras.iter_mut().zip(&s.krt) {
@@ -1176,11 +1190,12 @@ impl Synthetic {
         }
     }
 
-    /// The times (in frames) whose renders make camera `camera`'s image of `frame`: its clock's
-    /// lag ([`SynthOptions::sync_error`]) and the shutter's samples
+    /// The times (in frames) whose renders make camera `camera`'s image of `frame` exposed
+    /// `shift` frames after its own time (a rolling shutter's band of rows): its clock's lag
+    /// ([`SynthOptions::sync_error`]) and the shutter's samples
     /// ([`SynthOptions::motion_blur`]).
-    fn exposure_times(&self, camera: usize, frame: u32) -> Vec<f64> {
-        let t = frame as f64 + self.exposure_lag(camera, self.cameras.len());
+    fn exposure_times(&self, camera: usize, frame: u32, shift: f64) -> Vec<f64> {
+        let t = frame as f64 + self.exposure_lag(camera, self.cameras.len()) + shift;
         let s = self.options.motion_blur;
         if s > 0.0 {
             // The longest way a vertex's image goes while the shutter is open, over four parts.
@@ -1216,7 +1231,71 @@ impl Synthetic {
     /// The image of camera `camera` at `frame` (with the configured noise, clock lag and motion
     /// blur). Panics if either is out of range (`cameras.len()`, [`Synthetic::frames`]).
     pub fn render(&self, camera: usize, frame: u32) -> RgbImage {
-        let times = self.exposure_times(camera, frame);
+        let rs = self.options.rolling_shutter;
+        let mut img = if rs > 0.0 {
+            // A rolling shutter: bands of rows, each rendered (and smeared) at its own
+            // instant, so close that the fastest vertex moves at most half a pixel from one
+            // band's instant to the next (a row is at most a quarter pixel from where it was
+            // at its exact instant).
+            let bands = self.readout_bands(camera, frame);
+            let mut out = self.exposed(camera, frame, rs * (0.5 / bands as f64 - 0.5));
+            let (w, h) = (out.width(), out.height());
+            let band_of = |y: usize| (((y as f64 + 0.5) / h as f64) * bands as f64) as usize;
+            for b in 1..bands {
+                let rows: Vec<usize> = (0..h).filter(|&y| band_of(y) == b).collect();
+                let (Some(&first), Some(&last)) = (rows.first(), rows.last()) else {
+                    continue;
+                };
+                let shift = rs * ((b as f64 + 0.5) / bands as f64 - 0.5);
+                let part = self.exposed(camera, frame, shift);
+                out.pixels_mut()[first * w..(last + 1) * w]
+                    .copy_from_slice(&part.pixels()[first * w..(last + 1) * w]);
+            }
+            out
+        } else {
+            self.exposed(camera, frame, 0.0)
+        };
+        if self.options.noise > 0.0 {
+            let seed =
+                mix64(self.options.seed ^ 0x0153_E000 ^ ((camera as u64) << 40) ^ frame as u64);
+            add_noise(&mut img, self.options.noise, seed);
+        }
+        img
+    }
+
+    /// How many bands of rows make camera `camera`'s rolling-shutter image of `frame`: the
+    /// fastest vertex's image moves at most half a pixel between two bands' instants (at
+    /// least 4 bands, at most one per row).
+    fn readout_bands(&self, camera: usize, frame: u32) -> usize {
+        let rs = self.options.rolling_shutter;
+        let t = frame as f64 + self.exposure_lag(camera, self.cameras.len());
+        let proj = self.cameras[camera].at(frame);
+        let seen = |time: f64| -> Vec<Option<nalgebra::Point2<f64>>> {
+            self.positions_at(time)
+                .iter()
+                .map(|p| proj.project(p))
+                .collect()
+        };
+        let mut way = vec![0.0f64; self.mesh.positions.len()];
+        let mut last = seen(t - 0.5 * rs);
+        for k in 1..=4 {
+            let now = seen(t + rs * (k as f64 / 4.0 - 0.5));
+            for ((w, a), b) in way.iter_mut().zip(&last).zip(&now) {
+                if let (Some(a), Some(b)) = (a, b) {
+                    *w += (b - a).norm();
+                }
+            }
+            last = now;
+        }
+        let longest = way.iter().cloned().fold(0.0, f64::max);
+        let rows = self.cameras[camera].height.max(4) as usize;
+        ((longest / 0.5).ceil() as usize).clamp(4, rows)
+    }
+
+    /// The noiseless image of camera `camera` at `frame` exposed `shift` frames after its own
+    /// time (its clock's lag and the shutter's samples, [`Synthetic::exposure_times`]).
+    fn exposed(&self, camera: usize, frame: u32, shift: f64) -> RgbImage {
+        let times = self.exposure_times(camera, frame, shift);
         let mut img = self.render_at(camera, frame, times[0]);
         if times.len() > 1 {
             let mut sum: Vec<[f64; 3]> = img.pixels().iter().map(|p| p.map(|v| v as f64)).collect();
@@ -1234,11 +1313,6 @@ impl Synthetic {
             for (p, s) in img.pixels_mut().iter_mut().zip(&sum) {
                 *p = s.map(|v| (v * inv) as f32);
             }
-        }
-        if self.options.noise > 0.0 {
-            let seed =
-                mix64(self.options.seed ^ 0x0153_E000 ^ ((camera as u64) << 40) ^ frame as u64);
-            add_noise(&mut img, self.options.noise, seed);
         }
         img
     }
@@ -1369,6 +1443,7 @@ impl Synthetic {
                     frame_offset: 0,
                     time_offset: cam.time_offset,
                     shutter: cam.shutter,
+                    rolling_shutter: cam.rolling_shutter,
                     images: format!("images/{}/{{frame:04}}.png", cam.name),
                     transfer: Default::default(),
                 })

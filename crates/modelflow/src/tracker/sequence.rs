@@ -1337,14 +1337,16 @@ impl Tracker {
             .map(|c| {
                 let s = self.shutter(c);
                 (s > 0.0).then(|| {
-                    // A camera that records late or early sees the mesh moved on (`Lag`).
-                    let d = self.cameras[c].time_offset;
+                    // A camera that records late or early sees the mesh moved on (`Lag`), each
+                    // vertex at its row's instant under a rolling shutter.
+                    let d = self.cameras[c].lags(frame, estimate);
                     let gap = frame.saturating_sub(self.prev.frame).max(1) as f64;
-                    let seen: std::borrow::Cow<[Point3<f64>]> = if d != 0.0 {
+                    let seen: std::borrow::Cow<[Point3<f64>]> = if !d.is_empty() {
                         estimate
                             .iter()
                             .zip(&self.prev.positions)
-                            .map(|(x, p)| moved_on(x, p, d, gap))
+                            .zip(&d)
+                            .map(|((x, p), &d)| moved_on(x, p, d, gap))
                             .collect()
                     } else {
                         std::borrow::Cow::Borrowed(estimate)
@@ -1394,8 +1396,16 @@ impl Tracker {
                 .cameras
                 .iter()
                 .map(|cam| {
-                    let d = cam.time_offset;
-                    positions.iter().zip(lag).map(|(p, v)| p + v * d).collect()
+                    let d = cam.lags(frame, positions);
+                    if d.is_empty() {
+                        return positions.to_vec();
+                    }
+                    positions
+                        .iter()
+                        .zip(lag)
+                        .zip(&d)
+                        .map(|((p, v), &d)| p + v * d)
+                        .collect()
                 })
                 .collect();
             let projections = self.projections_at(frame, level);
@@ -1508,13 +1518,15 @@ impl Tracker {
             .enumerate()
             .map(|(c, cam)| {
                 let proj = self.projection_at(c, tpl.frame, level);
-                let d = cam.time_offset;
+                // Each vertex at the instant its row was read (`Camera::lags`).
+                let d = cam.lags(tpl.frame, &tpl.positions);
                 let seen: std::borrow::Cow<[Point3<f64>]> = match before {
-                    Some((b, gap)) if d != 0.0 => tpl
+                    Some((b, gap)) if !d.is_empty() => tpl
                         .positions
                         .iter()
                         .zip(b)
-                        .map(|(p, q)| moved_on(p, q, d, gap))
+                        .zip(&d)
+                        .map(|((p, q), &d)| moved_on(p, q, d, gap))
                         .collect(),
                     _ => std::borrow::Cow::Borrowed(&tpl.positions),
                 };
@@ -1882,8 +1894,6 @@ impl Tracker {
             ..Default::default()
         });
         let mut x = self.prev.positions.clone();
-        let offsets: Vec<f64> = self.cameras.iter().map(|c| c.time_offset).collect();
-        let lagged = offsets.iter().any(|&d| d != 0.0);
         // The constant-velocity prediction when there is a velocity, the previous shape
         // otherwise: the membrane's reference (it penalises changes of the deformation's rate).
         let predicted_shape: Vec<Point3<f64>> = match &self.before_prev {
@@ -1896,6 +1906,15 @@ impl Tracker {
                 .collect(),
             None => self.prev.positions.clone(),
         };
+        // When each camera records each vertex (`Camera::lags`; empty: at the frame's time),
+        // its row taken where the prediction puts it, fixed for the frame's solve so that
+        // every trial is costed alike.
+        let offsets: Vec<Vec<f64>> = self
+            .cameras
+            .iter()
+            .map(|c| c.lags(frame, &predicted_shape))
+            .collect();
+        let lagged = offsets.iter().any(|d| !d.is_empty());
         // A camera whose background turned since the first frame is solved turned with it.
         self.steady_cameras(
             frame,
@@ -2036,8 +2055,8 @@ impl Tracker {
             } else {
                 targets
             };
-            let offsets_used: Vec<f64> = if targets.len() > n {
-                offsets.iter().chain(&offsets).copied().collect()
+            let offsets_used: Vec<Vec<f64>> = if targets.len() > n {
+                offsets.iter().chain(&offsets).cloned().collect()
             } else {
                 offsets.clone()
             };
@@ -2662,9 +2681,13 @@ impl Tracker {
         };
         // On the GPU: this level's patches, pixels and images go up once, and every
         // evaluation of the solves below runs there.
+        // A rolling shutter's lag differs from vertex to vertex, which the GPU's kernel (one
+        // lag per camera) does not take: such a problem is solved on the CPU.
         let uploaded = match &self.gpu {
-            Some(g) => Some(g.upload(&problem)?),
-            None => None,
+            Some(g) if problem.lag.is_none_or(|l| l.per_camera().is_some()) => {
+                Some(g.upload(&problem)?)
+            }
+            _ => None,
         };
         problem.gpu = uploaded.as_ref();
         if level == levels - 1 && self.opts.predict {

@@ -175,7 +175,7 @@ fn track_into(
             let first_next = if scene
                 .cameras
                 .iter()
-                .any(|c| c.time_offset != 0.0 || opts.shutter_of(c) > 0.0)
+                .any(|c| c.records_late_or_early() || opts.shutter_of(c) > 0.0)
             {
                 Some(folder.read_positions(scene.first + 1)?)
             } else {

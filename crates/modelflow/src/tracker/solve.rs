@@ -261,13 +261,26 @@ impl<'a> Problem<'a> {
 /// previous positions: its pixels then say nothing about `x`.
 #[derive(Clone, Copy)]
 pub(crate) struct Lag<'a> {
-    /// Per camera, in frames.
-    pub offsets: &'a [f64],
+    /// Per camera, in frames: one lag per vertex (a rolling shutter reads each vertex's row at
+    /// its own instant, `Camera::lags`), or none when the camera records on time.
+    pub offsets: &'a [Vec<f64>],
     pub previous: &'a [Point3<f64>],
     pub gap: f64,
 }
 
 impl Lag<'_> {
+    /// One lag per camera (0 for one on time), when every camera records all its vertices at
+    /// one instant; `None` under a rolling shutter.
+    pub(crate) fn per_camera(&self) -> Option<Vec<f64>> {
+        self.offsets
+            .iter()
+            .map(|d| match d.first() {
+                None => Some(0.0),
+                Some(&a) => d.iter().all(|&b| b == a).then_some(a),
+            })
+            .collect()
+    }
+
     /// Where a camera `d` frames late sees vertex `v` when the frame's positions are `x`, and
     /// the derivative of that with respect to `x[v]` (a multiple of the identity).
     #[inline]
@@ -726,11 +739,21 @@ impl Problem<'_> {
                 [pm[(2, 0)], pm[(2, 1)], pm[(2, 2)]],
             ];
             // Where camera `c` sees the triangle, and how far that moves per unit of the
-            // unknowns: at its own instant when it records late or early (`Lag`).
+            // unknowns: at its own instant when it records late or early (`Lag`). Under a
+            // rolling shutter the corners' instants differ by the rows between them; the
+            // derivative takes their mean factor (the corners' factors differ by a few
+            // hundredths of a frame's readout over a triangle's height, so the Gauss-Newton
+            // model is off by as little and the cost it is checked against is exact).
             let at = |c: usize| match self.lag {
-                Some(lag) if lag.offsets.get(c).is_some_and(|&d| d != 0.0) => {
-                    let seen = tri.map(|v| lag.seen(x, v as usize, lag.offsets[c]));
-                    (seen.map(|(p, _)| p), Some(seen[0].1))
+                Some(lag) if lag.offsets.get(c).is_some_and(|d| !d.is_empty()) => {
+                    let d = &lag.offsets[c];
+                    let seen = tri.map(|v| lag.seen(x, v as usize, d[v as usize]));
+                    let a = if seen[1].1 == seen[0].1 && seen[2].1 == seen[0].1 {
+                        seen[0].1
+                    } else {
+                        (seen[0].1 + seen[1].1 + seen[2].1) / 3.0
+                    };
+                    (seen.map(|(p, _)| p), Some(a))
                 }
                 _ => (xs, None),
             };

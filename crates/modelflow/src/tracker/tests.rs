@@ -737,7 +737,12 @@ fn assembled_gradient_matches_finite_differences_of_the_cost() {
     // Cameras that record late or early see the surface moved on along its velocity (over one
     // frame, and over two after a stalled frame): the derivative carries the velocity's
     // dependence on the positions.
-    let offsets: Vec<f64> = (0..cams.len()).map(|c| 0.3 - 0.45 * c as f64).collect();
+    let offsets = per_vertex(
+        &(0..cams.len())
+            .map(|c| 0.3 - 0.45 * c as f64)
+            .collect::<Vec<_>>(),
+        mesh.positions.len(),
+    );
     let previous: Vec<Point3<f64>> = mesh
         .positions
         .iter()
@@ -1364,9 +1369,10 @@ fn moving_source_with_cameras_out_of_sync_matches_finite_differences_of_the_cost
     let (opts, x) = (CrossPlane::smooth_options(), cross.moved());
     let in_sync = cross.problem(false).cost(&x, &opts);
     for offsets in [[0.0, 0.3], [-0.2, 0.3]] {
+        let lags = per_vertex(&offsets, previous.len());
         let lagged = Problem {
             lag: Some(Lag {
-                offsets: &offsets,
+                offsets: &lags,
                 previous: &previous,
                 gap: 1.0,
             }),
@@ -1815,9 +1821,10 @@ fn the_gpu_kernels_give_the_cpu_sums() {
         .map(|p| p - Vector3::new(0.003, 0.001, 0.0))
         .collect();
     let offsets = [0.4, -0.25];
+    let lags = per_vertex(&offsets, previous.len());
     let lagged = Problem {
         lag: Some(Lag {
-            offsets: &offsets,
+            offsets: &lags,
             previous: &previous,
             gap: 1.0,
         }),
@@ -1852,9 +1859,10 @@ fn the_gpu_kernels_give_the_cpu_sums() {
             .iter()
             .map(|p| p - Vector3::new(0.004, -0.002, 0.003))
             .collect();
+        let lags_c = per_vertex(&offsets, prev_c.len());
         let lagged_cross = Problem {
             lag: Some(Lag {
-                offsets: &offsets,
+                offsets: &lags_c,
                 previous: &prev_c,
                 gap: 1.0,
             }),
@@ -2328,4 +2336,13 @@ fn two_cameras_that_share_only_a_rim_over_a_plain_background_leave_a_true_mesh_w
             "{preset:?}"
         );
     }
+}
+
+/// One lag per camera as `Lag` takes them: each camera's for every one of `n` vertices (empty
+/// for a camera on time).
+fn per_vertex(offsets: &[f64], n: usize) -> Vec<Vec<f64>> {
+    offsets
+        .iter()
+        .map(|&d| if d == 0.0 { Vec::new() } else { vec![d; n] })
+        .collect()
 }

@@ -49,6 +49,7 @@ pub fn camera(name: &str, eye: Point3<f64>) -> CameraEntry {
         frame_offset: 0,
         time_offset: 0.0,
         shutter: 0.0,
+        rolling_shutter: 0.0,
         images: format!("images/{name}/{{frame:04}}.png"),
         transfer: Default::default(),
     }

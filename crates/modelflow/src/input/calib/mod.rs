@@ -87,6 +87,7 @@ pub fn scene_file(
                 frame_offset: 0,
                 time_offset: 0.0,
                 shutter: 0.0,
+                rolling_shutter: 0.0,
                 images: images.replace("{camera}", &c.name),
                 transfer: Default::default(),
             })

@@ -195,7 +195,11 @@ impl Gpu {
             |x: &[Point3<f64>]| -> Vec<f64> { x.iter().flat_map(|v| [v.x, v.y, v.z]).collect() };
         let (lag, prev, gap) = match &p.lag {
             Some(l) => {
-                let mut off = l.offsets.to_vec();
+                let mut off = l.per_camera().ok_or_else(|| {
+                    Error::Gpu(
+                        "a rolling shutter's per-vertex lag is solved on the CPU only".into(),
+                    )
+                })?;
                 off.resize(ncam, 0.0);
                 (off, flat(l.previous), l.gap)
             }
