@@ -135,6 +135,7 @@ def synth(
     cloth_grid: Optional[int] = None,
     sync_error: float = 0.0,
     motion_blur: float = 0.0,
+    rolling_shutter: float = 0.0,
     turn: float = 0.0,
     backdrop: bool = False,
     bump: Optional[str] = None,

@@ -519,7 +519,7 @@ fn export(py: Python<'_>, run: PathBuf, out: PathBuf, fps: f64) -> PyResult<Vec<
 /// the other arguments are `synth`'s options (`distortion` as "opencv:k1,k2,p1,p2,k3" or
 /// "fisheye:k1,k2,k3,k4", `bump` as "CAMERA:FRAME:DEGREES"); `None` keeps the preset's default.
 #[pyfunction]
-#[pyo3(signature = (out, preset="cloth", cameras=None, width=640, height=480, frames=120, noise=0.0, seed=1, light=true, supersample=None, shake=0.0, distortion=None, cloth_grid=None, sync_error=0.0, motion_blur=0.0, turn=0.0, backdrop=false, bump=None))]
+#[pyo3(signature = (out, preset="cloth", cameras=None, width=640, height=480, frames=120, noise=0.0, seed=1, light=true, supersample=None, shake=0.0, distortion=None, cloth_grid=None, sync_error=0.0, motion_blur=0.0, rolling_shutter=0.0, turn=0.0, backdrop=false, bump=None))]
 #[allow(clippy::too_many_arguments)]
 fn synth(
     out: PathBuf,
@@ -537,6 +537,7 @@ fn synth(
     cloth_grid: Option<usize>,
     sync_error: f64,
     motion_blur: f64,
+    rolling_shutter: f64,
     turn: f64,
     backdrop: bool,
     bump: Option<&str>,
@@ -568,6 +569,7 @@ fn synth(
         cloth_grid: cloth_grid.unwrap_or(base.cloth_grid),
         sync_error,
         motion_blur,
+        rolling_shutter,
         turn,
         backdrop,
         bump,

@@ -402,6 +402,8 @@ def test_synth_makes_footage_that_tracks_to_its_truth(tmp_path):
         modelflow.synth(tmp_path / "bad", width=8)
     with pytest.raises(modelflow.ModelflowError, match="distortion"):
         modelflow.synth(tmp_path / "bad", distortion="opencv:x")
+    with pytest.raises(modelflow.ModelflowError, match="--rolling-shutter"):
+        modelflow.synth(tmp_path / "bad", rolling_shutter=2.0)
 
 
 def test_baseline_and_report_from_python(tmp_path):
