@@ -1198,26 +1198,8 @@ impl Synthetic {
         let t = frame as f64 + self.exposure_lag(camera, self.cameras.len()) + shift;
         let s = self.options.motion_blur;
         if s > 0.0 {
-            // The longest way a vertex's image goes while the shutter is open, over four parts.
-            let proj = self.cameras[camera].at(frame);
-            let seen = |time: f64| -> Vec<Option<nalgebra::Point2<f64>>> {
-                self.positions_at(time)
-                    .iter()
-                    .map(|p| proj.project(p))
-                    .collect()
-            };
-            let mut way = vec![0.0f64; self.mesh.positions.len()];
-            let mut last = seen(t - 0.5 * s);
-            for k in 1..=4 {
-                let now = seen(t + s * (k as f64 / 4.0 - 0.5));
-                for ((w, a), b) in way.iter_mut().zip(&last).zip(&now) {
-                    if let (Some(a), Some(b)) = (a, b) {
-                        *w += (b - a).norm();
-                    }
-                }
-                last = now;
-            }
-            let longest = way.iter().cloned().fold(0.0, f64::max);
+            // The longest way a vertex's image goes while the shutter is open.
+            let longest = self.longest_way(camera, frame, t, s);
             let n =
                 ((longest / BLUR_SPACING_PX).ceil() as usize).clamp(BLUR_SAMPLES, BLUR_SAMPLES_MAX);
             (0..n)
@@ -1263,12 +1245,9 @@ impl Synthetic {
         img
     }
 
-    /// How many bands of rows make camera `camera`'s rolling-shutter image of `frame`: the
-    /// fastest vertex's image moves at most half a pixel between two bands' instants (at
-    /// least 4 bands, at most one per row).
-    fn readout_bands(&self, camera: usize, frame: u32) -> usize {
-        let rs = self.options.rolling_shutter;
-        let t = frame as f64 + self.exposure_lag(camera, self.cameras.len());
+    /// The longest way, in pixels, that any vertex's image in camera `camera` (posed as at
+    /// `frame`) goes over the `span` frames centred on time `t`, measured over four parts.
+    fn longest_way(&self, camera: usize, frame: u32, t: f64, span: f64) -> f64 {
         let proj = self.cameras[camera].at(frame);
         let seen = |time: f64| -> Vec<Option<nalgebra::Point2<f64>>> {
             self.positions_at(time)
@@ -1277,9 +1256,9 @@ impl Synthetic {
                 .collect()
         };
         let mut way = vec![0.0f64; self.mesh.positions.len()];
-        let mut last = seen(t - 0.5 * rs);
+        let mut last = seen(t - 0.5 * span);
         for k in 1..=4 {
-            let now = seen(t + rs * (k as f64 / 4.0 - 0.5));
+            let now = seen(t + span * (k as f64 / 4.0 - 0.5));
             for ((w, a), b) in way.iter_mut().zip(&last).zip(&now) {
                 if let (Some(a), Some(b)) = (a, b) {
                     *w += (b - a).norm();
@@ -1287,7 +1266,15 @@ impl Synthetic {
             }
             last = now;
         }
-        let longest = way.iter().cloned().fold(0.0, f64::max);
+        way.iter().cloned().fold(0.0, f64::max)
+    }
+
+    /// How many bands of rows make camera `camera`'s rolling-shutter image of `frame`: the
+    /// fastest vertex's image moves at most half a pixel between two bands' instants (at
+    /// least 4 bands, at most one per row).
+    fn readout_bands(&self, camera: usize, frame: u32) -> usize {
+        let t = frame as f64 + self.exposure_lag(camera, self.cameras.len());
+        let longest = self.longest_way(camera, frame, t, self.options.rolling_shutter);
         let rows = self.cameras[camera].height.max(4) as usize;
         ((longest / 0.5).ceil() as usize).clamp(4, rows)
     }
